@@ -1,0 +1,598 @@
+//! The confidence-rich map: tiled f32 pmfs per cell, updated beam by beam in f64.
+
+use crate::crm::beam::{plan_beam, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
+use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
+use crate::crm::update::{
+    apply_factor, cause_sweep, cause_sweep_log, normalize_with_floor, LINEAR_ETA_MIN,
+};
+use crate::error::{config_err, CrlamError, Result};
+use crate::grid::{CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::raycast::{traverse_with, RayCell};
+use crate::sensor::{SensorModel, SensorModelKind};
+
+/// Configuration of a CRM (crm-spec 9).
+#[derive(Clone, Debug, PartialEq)]
+pub struct CrmConfig {
+    pub geometry: GridGeometry,
+    /// K, the number of occupancy bins.
+    pub n_levels: usize,
+    pub placement: LevelPlacement,
+    /// Prior mean: `None` for the uniform prior, else the tilted pmf with this mean.
+    pub prior_mean: Option<f64>,
+    /// ε_b: pmf entries are floored at this after each update (0 disables).
+    pub belief_floor: f64,
+    pub tile_size: usize,
+    /// Fixed extent in cells; `None` grows with the data.
+    pub extent: Option<CellRect>,
+}
+
+impl CrmConfig {
+    /// Defaults of the spec at the given geometry: 10 midpoint levels, uniform prior, floor 1e-12.
+    pub fn new(geometry: GridGeometry) -> Self {
+        Self {
+            geometry,
+            n_levels: 10,
+            placement: LevelPlacement::Midpoints,
+            prior_mean: None,
+            belief_floor: 1e-12,
+            tile_size: 32,
+            extent: None,
+        }
+    }
+}
+
+/// Reusable buffers of the scan update (one per thread).
+#[derive(Debug, Default)]
+pub struct CrmScratch {
+    cells: Vec<RayCell>,
+    mhat: Vec<f64>,
+    like: Vec<f64>,
+    alpha: Vec<f64>,
+    s: Vec<f64>,
+    // Batch accumulation: per-cell products of factors, keyed through a window or a hash map.
+    pending: Vec<(i64, i64, f64, f64)>,
+    acc_cells: Vec<(i64, i64, bool)>,
+    acc: Vec<f64>,
+    window: CellRect,
+    window_slots: Vec<u32>,
+    hashed_slots: std::collections::HashMap<(i64, i64), u32>,
+}
+
+/// A confidence-rich map (crm-spec 1–3). Cloning shares tiles copy-on-write.
+#[derive(Clone, Debug)]
+pub struct CrmMap {
+    grid: TiledGrid<f32>,
+    mu: Vec<f64>,
+    prior: Vec<f64>,
+    placement: LevelPlacement,
+    floor: f64,
+}
+
+/// Largest batch window (cells) kept as a dense slot table; larger scans use a hash map.
+const MAX_WINDOW_CELLS: i64 = 1 << 22;
+
+impl CrmMap {
+    /// A map where every cell holds the prior.
+    pub fn new(cfg: &CrmConfig) -> Result<Self> {
+        let mu = level_values(cfg.n_levels, cfg.placement)?;
+        let prior = match cfg.prior_mean {
+            None => uniform_prior(mu.len()),
+            Some(m) => tilted_prior(&mu, m)?,
+        };
+        if !(cfg.belief_floor.is_finite() && (0.0..1e-3).contains(&cfg.belief_floor)) {
+            return Err(config_err(
+                "belief_floor",
+                format!("must be in [0, 1e-3), got {}", cfg.belief_floor),
+            ));
+        }
+        if cfg.placement == LevelPlacement::Endpoints && cfg.belief_floor == 0.0 {
+            return Err(config_err(
+                "belief_floor",
+                "endpoint levels need a positive floor (crm-spec 3.6)",
+            ));
+        }
+        let fill: Vec<f32> = prior.iter().map(|&p| p as f32).collect();
+        let grid = TiledGrid::new(cfg.geometry, cfg.tile_size, &fill, cfg.extent)?;
+        Ok(Self {
+            grid,
+            mu,
+            prior,
+            placement: cfg.placement,
+            floor: cfg.belief_floor,
+        })
+    }
+
+    /// Level values μ_k.
+    pub fn levels(&self) -> &[f64] {
+        &self.mu
+    }
+
+    /// The prior pmf.
+    pub fn prior(&self) -> &[f64] {
+        &self.prior
+    }
+
+    pub fn placement(&self) -> LevelPlacement {
+        self.placement
+    }
+
+    pub fn belief_floor(&self) -> f64 {
+        self.floor
+    }
+
+    pub fn geometry(&self) -> &GridGeometry {
+        self.grid.geometry()
+    }
+
+    /// Underlying tiled storage (read-only).
+    pub fn grid(&self) -> &TiledGrid<f32> {
+        &self.grid
+    }
+
+    pub fn tile_stats(&self) -> TileStats {
+        self.grid.tile_stats()
+    }
+
+    /// The stored pmf of a cell (f32, normalised to storage precision).
+    pub fn cell(&self, ix: i64, iy: i64) -> &[f32] {
+        self.grid.get(ix, iy)
+    }
+
+    /// Expected occupancy m̂ of a cell.
+    #[inline]
+    pub fn mean_at(&self, ix: i64, iy: i64) -> f64 {
+        let p = self.grid.get(ix, iy);
+        let (mut s, mut m) = (0.0f64, 0.0f64);
+        for (&x, &q) in self.mu.iter().zip(p) {
+            s += q as f64;
+            m += x * q as f64;
+        }
+        m / s
+    }
+
+    /// Replaces the pmfs over `rect` (row-major [iy][ix][k], normalised here).
+    pub fn set_beliefs(&mut self, rect: CellRect, values: &[f64]) -> Result<()> {
+        let k = self.mu.len();
+        if values.len() != rect.n_cells() * k {
+            return Err(CrlamError::Shape(format!(
+                "beliefs for {} cells x {k} levels need {} values, got {}",
+                rect.n_cells(),
+                rect.n_cells() * k,
+                values.len()
+            )));
+        }
+        let mut out = Vec::with_capacity(values.len());
+        for p in values.chunks(k) {
+            let s: f64 = p.iter().sum();
+            if !(s > 0.0 && s.is_finite()) || p.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
+                return Err(CrlamError::Shape(
+                    "every pmf must be finite, >= 0 and have positive mass".into(),
+                ));
+            }
+            out.extend(p.iter().map(|x| (x / s) as f32));
+        }
+        self.grid.import(rect, &out)
+    }
+
+    /// Pmfs over `rect`, row-major [iy][ix][k].
+    pub fn beliefs(&self, rect: CellRect) -> Vec<f32> {
+        self.grid.export(rect)
+    }
+
+    /// (mean, variance, entropy in bits) per cell over `rect`, each row-major [iy][ix].
+    pub fn derived(&self, rect: CellRect) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+        let n = rect.n_cells();
+        let (mut m, mut v, mut h) = (
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+            Vec::with_capacity(n),
+        );
+        for iy in rect.iy0..rect.iy0 + rect.ny {
+            for ix in rect.ix0..rect.ix0 + rect.nx {
+                let (a, b, c) = moments(&self.mu, self.grid.get(ix, iy));
+                m.push(a);
+                v.push(b);
+                h.push(c);
+            }
+        }
+        (m, v, h)
+    }
+
+    /// Checks the pose and, for growing maps, reserves storage for every cell within z_max.
+    fn prepare_pose(&mut self, pose: [f64; 3], z_max: f64, reserve: bool) -> Result<()> {
+        for (i, name) in ["x", "y", "theta"].iter().enumerate() {
+            if !pose[i].is_finite() {
+                return Err(CrlamError::NonFinite {
+                    field: name,
+                    value: pose[i],
+                });
+            }
+        }
+        let g = *self.grid.geometry();
+        let (cx, cy) = g.cell_of(pose[0], pose[1]);
+        if let Some(ext) = self.grid.fixed_extent() {
+            if !ext.contains(cx, cy) {
+                return Err(CrlamError::OutOfBounds(format!(
+                    "sensor pose ({:.3}, {:.3}) lies outside the fixed map extent",
+                    pose[0], pose[1]
+                )));
+            }
+        } else if reserve {
+            let r = (z_max / g.resolution).ceil() as i64 + 2;
+            self.grid.reserve(CellRect {
+                ix0: cx - r,
+                iy0: cy - r,
+                nx: 2 * r + 1,
+                ny: 2 * r + 1,
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Traverses the ray of `plan`, filling `sc.cells` and `sc.mhat`. A fixed extent truncates
+    /// the ray; a hit beyond the truncation becomes a no-return over the truncated ray (2.1).
+    fn gather_ray(&self, plan: &mut BeamPlan, sc: &mut CrmScratch) {
+        sc.cells.clear();
+        let g = *self.grid.geometry();
+        let ext = self.grid.fixed_extent();
+        let cells = &mut sc.cells;
+        let end = traverse_with(
+            &g,
+            plan.origin,
+            plan.angle,
+            plan.length,
+            ext.as_ref(),
+            |c| {
+                cells.push(c);
+                true
+            },
+        );
+        if ext.is_some() && !plan.no_return && end + 1e-9 < plan.z {
+            plan.no_return = true;
+        }
+        sc.mhat.clear();
+        for c in sc.cells.iter() {
+            sc.mhat.push(self.mean_at(c.ix, c.iy));
+        }
+    }
+
+    /// Computes α for the gathered ray into `sc.alpha` and returns log η (−∞ if unexplained).
+    fn beam_alpha(
+        &self,
+        model: &SensorModel,
+        plan: &BeamPlan,
+        sc: &mut CrmScratch,
+        need_alpha: bool,
+    ) -> f64 {
+        let n = sc.cells.len();
+        sc.alpha.clear();
+        sc.alpha.resize(n, 0.0);
+        let z = if plan.no_return {
+            f64::INFINITY
+        } else {
+            plan.z
+        };
+        if model.kind == SensorModelKind::AuthorsCode {
+            return self.authors_alpha(model, plan, sc);
+        }
+        sc.like.clear();
+        for c in sc.cells.iter() {
+            sc.like.push(model.on_ray(z, c.mid()));
+        }
+        let like_inf = model.infinity(z);
+        let alpha = if need_alpha {
+            Some(&mut sc.alpha[..])
+        } else {
+            None
+        };
+        let eta = cause_sweep(&sc.mhat, &sc.like, like_inf, &mut sc.s, alpha);
+        if eta >= LINEAR_ETA_MIN && eta.is_finite() {
+            return eta.ln();
+        }
+        // Far-off Gaussians underflowed: redo the sweep in logs (crm-spec 4.2).
+        for (l, c) in sc.like.iter_mut().zip(sc.cells.iter()) {
+            *l = model.log_on_ray(z, c.mid());
+        }
+        let alpha = if need_alpha {
+            Some(&mut sc.alpha[..])
+        } else {
+            None
+        };
+        let mut s = std::mem::take(&mut sc.s);
+        let log_eta = cause_sweep_log(&sc.mhat, &sc.like, like_inf.ln(), &mut s, alpha);
+        sc.s = s;
+        log_eta
+    }
+
+    /// The authors' MATLAB update restated (crm-spec 3.4): reach scaled by (1 − Δ·m̂), grid-index
+    /// distances, no ∞ cause for hits. Returns log η and the equivalent α per cell.
+    fn authors_alpha(&self, model: &SensorModel, plan: &BeamPlan, sc: &mut CrmScratch) -> f64 {
+        let g = self.grid.geometry();
+        let res = g.resolution;
+        let (rx, ry) = g.cell_of(plan.origin[0], plan.origin[1]);
+        let n = sc.cells.len();
+        sc.like.clear();
+        let mut pass = 1.0;
+        for (l, c) in sc.cells.iter().enumerate() {
+            let m = sc.mhat[l];
+            let w = if plan.no_return {
+                pass *= 1.0 - res * m;
+                pass / model.z_max
+            } else {
+                let dist = res * (((c.ix - rx).pow(2) + (c.iy - ry).pow(2)) as f64).sqrt();
+                let w = model.authors_bsm(dist, plan.z) * m * pass;
+                pass *= 1.0 - res * m;
+                w
+            };
+            sc.like.push(w.max(0.0));
+        }
+        let total: f64 = sc.like.iter().sum();
+        let eta = if plan.no_return {
+            total + 1.0 / model.z_max
+        } else {
+            total
+        };
+        if !(eta > 0.0 && eta.is_finite()) {
+            return f64::NEG_INFINITY;
+        }
+        let mut after = total;
+        for l in 0..n {
+            let p_on = sc.like[l] / eta;
+            after -= sc.like[l];
+            let p_after = after.max(0.0) / eta;
+            let m = sc.mhat[l];
+            // α = P_on/m̂ − P_after/(1 − m̂), so that the factor αμ + β equals 1 + α(μ − m̂).
+            sc.alpha[l] = p_on / m - p_after / (1.0 - m).max(1e-300);
+        }
+        eta.ln()
+    }
+
+    /// Predictive log-likelihood Σ_beams log η of a scan under the current beliefs (crm-spec
+    /// 4.1), without changing the map. Returns (sum, beams used); dropped readings add nothing.
+    pub fn scan_log_likelihood(
+        &self,
+        pose: [f64; 3],
+        angles: &[f64],
+        ranges: &[f64],
+        model: &SensorModel,
+        opts: &ScanOptions,
+        sc: &mut CrmScratch,
+    ) -> Result<(f64, usize)> {
+        check_scan(angles, ranges, model, opts)?;
+        for (i, name) in ["x", "y", "theta"].iter().enumerate() {
+            if !pose[i].is_finite() {
+                return Err(CrlamError::NonFinite {
+                    field: name,
+                    value: pose[i],
+                });
+            }
+        }
+        let res = self.grid.geometry().resolution;
+        let mut total = 0.0;
+        let mut used = 0;
+        for b in (0..angles.len()).step_by(opts.beam_stride) {
+            let Ok(mut plan) = plan_beam(
+                model,
+                opts,
+                res,
+                [pose[0], pose[1]],
+                pose[2] + angles[b],
+                ranges[b],
+            ) else {
+                continue;
+            };
+            self.gather_ray(&mut plan, sc);
+            total += self.beam_alpha(model, &plan, sc, false);
+            used += 1;
+        }
+        Ok((total, used))
+    }
+
+    /// Updates the map with one scan taken from the sensor pose `pose` (x, y, θ); beam b points
+    /// at θ + angles[b] and read ranges[b] (crm-spec 3.1, 3.3).
+    pub fn update_scan(
+        &mut self,
+        pose: [f64; 3],
+        angles: &[f64],
+        ranges: &[f64],
+        model: &SensorModel,
+        opts: &ScanOptions,
+        sc: &mut CrmScratch,
+    ) -> Result<ScanStats> {
+        check_scan(angles, ranges, model, opts)?;
+        self.prepare_pose(pose, model.z_max, true)?;
+        let res = self.grid.geometry().resolution;
+        let mut st = ScanStats::default();
+        if opts.mode == ScanUpdateMode::Batch {
+            sc.pending.clear();
+        }
+        for b in (0..angles.len()).step_by(opts.beam_stride) {
+            st.n_beams += 1;
+            let mut plan = match plan_beam(
+                model,
+                opts,
+                res,
+                [pose[0], pose[1]],
+                pose[2] + angles[b],
+                ranges[b],
+            ) {
+                Ok(p) => p,
+                Err(_) => {
+                    st.n_dropped_short += 1;
+                    continue;
+                }
+            };
+            self.gather_ray(&mut plan, sc);
+            if sc.cells.is_empty() {
+                st.n_empty_ray += 1;
+                continue;
+            }
+            let log_eta = self.beam_alpha(model, &plan, sc, true);
+            if !log_eta.is_finite() {
+                st.n_skipped_eta += 1;
+                continue;
+            }
+            st.n_used += 1;
+            st.n_no_return += usize::from(plan.no_return);
+            match opts.mode {
+                ScanUpdateMode::Batch => {
+                    for (l, c) in sc.cells.iter().enumerate() {
+                        sc.pending.push((c.ix, c.iy, sc.alpha[l], sc.mhat[l]));
+                    }
+                }
+                ScanUpdateMode::Sequential => {
+                    for l in 0..sc.cells.len() {
+                        let (ix, iy) = (sc.cells[l].ix, sc.cells[l].iy);
+                        let ok = self.apply_to_cell(ix, iy, sc.alpha[l], sc.mhat[l])?;
+                        st.n_cell_updates += usize::from(ok);
+                        st.n_frozen += usize::from(!ok);
+                    }
+                }
+            }
+        }
+        if opts.mode == ScanUpdateMode::Batch {
+            self.flush_batch(pose, model.z_max, sc, &mut st)?;
+        }
+        Ok(st)
+    }
+
+    fn apply_to_cell(&mut self, ix: i64, iy: i64, alpha: f64, mhat: f64) -> Result<bool> {
+        let k = self.mu.len();
+        let mut p = [0.0f64; 65];
+        let stored = self.grid.get(ix, iy);
+        let mut s = 0.0;
+        for i in 0..k {
+            p[i] = stored[i] as f64;
+            s += p[i];
+        }
+        for x in p[..k].iter_mut() {
+            *x /= s;
+        }
+        if !apply_factor(&mut p[..k], &self.mu, alpha, mhat, self.floor) {
+            return Ok(false);
+        }
+        let dst = self.grid.get_mut(ix, iy)?;
+        for i in 0..k {
+            dst[i] = p[i] as f32;
+        }
+        Ok(true)
+    }
+
+    /// Multiplies all pending factors per cell (pre-scan m̂) and writes each cell once.
+    fn flush_batch(
+        &mut self,
+        pose: [f64; 3],
+        z_max: f64,
+        sc: &mut CrmScratch,
+        st: &mut ScanStats,
+    ) -> Result<()> {
+        let k = self.mu.len();
+        let g = *self.grid.geometry();
+        let (cx, cy) = g.cell_of(pose[0], pose[1]);
+        let r = (z_max / g.resolution).ceil() as i64 + 2;
+        let window = CellRect {
+            ix0: cx - r,
+            iy0: cy - r,
+            nx: 2 * r + 1,
+            ny: 2 * r + 1,
+        };
+        let dense = (window.nx * window.ny) <= MAX_WINDOW_CELLS;
+        sc.acc_cells.clear();
+        sc.acc.clear();
+        sc.hashed_slots.clear();
+        if dense {
+            sc.window = window;
+            sc.window_slots.clear();
+            sc.window_slots.resize(window.n_cells(), 0);
+        }
+        let pending = std::mem::take(&mut sc.pending);
+        for &(ix, iy, alpha, mhat) in pending.iter() {
+            let key = if dense && window.contains(ix, iy) {
+                Some(((iy - window.iy0) * window.nx + (ix - window.ix0)) as usize)
+            } else {
+                None
+            };
+            let existing = match key {
+                Some(i) => sc.window_slots[i],
+                None => sc.hashed_slots.get(&(ix, iy)).copied().unwrap_or(0),
+            };
+            let slot = if existing == 0 {
+                let stored = self.grid.get(ix, iy);
+                let s: f64 = stored.iter().map(|&x| x as f64).sum();
+                sc.acc.extend(stored.iter().map(|&x| x as f64 / s));
+                sc.acc_cells.push((ix, iy, true));
+                let id = sc.acc_cells.len() as u32;
+                match key {
+                    Some(i) => sc.window_slots[i] = id,
+                    None => {
+                        sc.hashed_slots.insert((ix, iy), id);
+                    }
+                }
+                id
+            } else {
+                existing
+            } as usize
+                - 1;
+            if !sc.acc_cells[slot].2 {
+                st.n_frozen += 1;
+                continue;
+            }
+            let p = &mut sc.acc[slot * k..(slot + 1) * k];
+            let mut sum = 0.0;
+            for i in 0..k {
+                p[i] *= (1.0 + alpha * (self.mu[i] - mhat)).max(0.0);
+                sum += p[i];
+            }
+            if !(sum > 0.0 && sum.is_finite()) {
+                // Every factor clipped: keep the pre-scan belief of this cell (crm-spec 3.6).
+                sc.acc_cells[slot].2 = false;
+                st.n_frozen += 1;
+                continue;
+            }
+            st.n_cell_updates += 1;
+            if sum < 1e-100 {
+                let inv = 1.0 / sum;
+                p.iter_mut().for_each(|x| *x *= inv);
+            }
+        }
+        sc.pending = pending;
+        for (slot, &(ix, iy, ok)) in sc.acc_cells.iter().enumerate() {
+            if !ok {
+                continue;
+            }
+            let p = &mut sc.acc[slot * k..(slot + 1) * k];
+            let s: f64 = p.iter().sum();
+            normalize_with_floor(p, s, self.floor);
+            let dst = self.grid.get_mut(ix, iy)?;
+            for i in 0..k {
+                dst[i] = p[i] as f32;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Validates the arrays and options of a scan.
+pub(crate) fn check_scan(
+    angles: &[f64],
+    ranges: &[f64],
+    model: &SensorModel,
+    opts: &ScanOptions,
+) -> Result<()> {
+    if angles.len() != ranges.len() {
+        return Err(CrlamError::Shape(format!(
+            "scan has {} beam angles but {} ranges",
+            angles.len(),
+            ranges.len()
+        )));
+    }
+    if opts.beam_stride == 0 {
+        return Err(config_err("beam_stride", "must be >= 1"));
+    }
+    if let Some((i, a)) = angles.iter().enumerate().find(|(_, a)| !a.is_finite()) {
+        return Err(CrlamError::Shape(format!(
+            "beam angle {i} is not finite ({a})"
+        )));
+    }
+    model.validate()
+}

@@ -1,0 +1,533 @@
+//! Grid geometry and tiled, copy-on-write cell storage.
+//!
+//! Cells are addressed by signed global indices `(ix, iy)`: cell `(ix, iy)` covers
+//! `[ox + ix·Δ, ox + (ix+1)·Δ) × [oy + iy·Δ, oy + (iy+1)·Δ)`. Storage is split into square tiles
+//! (`2^shift` cells a side) held behind `Arc`, so cloning a grid is O(number of tiles) and the
+//! clones share every tile until one of them writes to it (`Arc::make_mut`). A particle filter
+//! with hundreds of maps that differ only near the robot therefore pays for the differences only.
+//!
+//! Tiles that were never written are not allocated: reads return the per-cell fill value (the
+//! prior), so the map is conceptually infinite. A grid either grows on demand (writes outside the
+//! current tile rectangle enlarge it) or has a fixed extent, outside of which writes are refused.
+
+use std::sync::Arc;
+
+use crate::error::{config_err, CrlamError, Result};
+
+/// Origin and cell size of a grid.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GridGeometry {
+    /// World coordinates (m) of the lower-left corner of cell (0, 0).
+    pub origin: [f64; 2],
+    /// Cell edge length Δ (m).
+    pub resolution: f64,
+}
+
+impl GridGeometry {
+    /// Validated constructor.
+    pub fn new(origin: [f64; 2], resolution: f64) -> Result<Self> {
+        if !(resolution.is_finite() && resolution > 0.0) {
+            return Err(config_err(
+                "resolution",
+                format!("must be finite and > 0, got {resolution}"),
+            ));
+        }
+        if !(origin[0].is_finite() && origin[1].is_finite()) {
+            return Err(config_err("origin", "must be finite"));
+        }
+        Ok(Self { origin, resolution })
+    }
+
+    /// Index of the cell containing the world point (x, y).
+    #[inline]
+    pub fn cell_of(&self, x: f64, y: f64) -> (i64, i64) {
+        (
+            ((x - self.origin[0]) / self.resolution).floor() as i64,
+            ((y - self.origin[1]) / self.resolution).floor() as i64,
+        )
+    }
+
+    /// World coordinates of the centre of cell (ix, iy).
+    #[inline]
+    pub fn cell_center(&self, ix: i64, iy: i64) -> [f64; 2] {
+        [
+            self.origin[0] + (ix as f64 + 0.5) * self.resolution,
+            self.origin[1] + (iy as f64 + 0.5) * self.resolution,
+        ]
+    }
+}
+
+/// A rectangle of cells `[ix0, ix0 + nx) × [iy0, iy0 + ny)`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CellRect {
+    pub ix0: i64,
+    pub iy0: i64,
+    pub nx: i64,
+    pub ny: i64,
+}
+
+impl CellRect {
+    /// True when (ix, iy) lies inside.
+    #[inline]
+    pub fn contains(&self, ix: i64, iy: i64) -> bool {
+        ix >= self.ix0 && iy >= self.iy0 && ix < self.ix0 + self.nx && iy < self.iy0 + self.ny
+    }
+
+    /// Smallest rectangle containing both.
+    pub fn union(&self, other: &CellRect) -> CellRect {
+        let ix0 = self.ix0.min(other.ix0);
+        let iy0 = self.iy0.min(other.iy0);
+        let ix1 = (self.ix0 + self.nx).max(other.ix0 + other.nx);
+        let iy1 = (self.iy0 + self.ny).max(other.iy0 + other.ny);
+        CellRect {
+            ix0,
+            iy0,
+            nx: ix1 - ix0,
+            ny: iy1 - iy0,
+        }
+    }
+
+    /// Number of cells.
+    pub fn n_cells(&self) -> usize {
+        (self.nx.max(0) * self.ny.max(0)) as usize
+    }
+}
+
+/// Memory and sharing statistics of a tiled grid.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TileStats {
+    /// Tile slots in the current tile rectangle.
+    pub n_slots: usize,
+    /// Tiles that hold data.
+    pub n_allocated: usize,
+    /// Allocated tiles that are also referenced by another grid.
+    pub n_shared: usize,
+    /// Bytes of cell data in allocated tiles (shared tiles counted in full).
+    pub bytes_allocated: usize,
+}
+
+/// Tiled, copy-on-write storage of `stride` values of type `T` per cell.
+#[derive(Clone, Debug)]
+pub struct TiledGrid<T: Copy + Send + Sync> {
+    geometry: GridGeometry,
+    shift: u32,
+    stride: usize,
+    fill: Arc<[T]>,
+    // Tile rectangle in tile units; slots are row-major over it.
+    tx0: i64,
+    ty0: i64,
+    ntx: i64,
+    nty: i64,
+    tiles: Vec<Option<Arc<[T]>>>,
+    fixed: Option<CellRect>,
+}
+
+/// Largest tile rectangle side (in tiles) a grid may grow to; keeps a corrupt pose from
+/// allocating the address space. 1 << 14 tiles of 32 cells at 0.05 m is 26 km.
+const MAX_TILE_SPAN: i64 = 1 << 14;
+
+impl<T: Copy + Send + Sync> TiledGrid<T> {
+    /// A grid with tiles of `tile_size` cells a side (a power of two, 4..=256) holding `stride`
+    /// values per cell, every cell starting at `fill` (length `stride`). With `fixed = Some(r)`
+    /// the grid covers exactly the cells of `r` and never grows.
+    pub fn new(
+        geometry: GridGeometry,
+        tile_size: usize,
+        fill: &[T],
+        fixed: Option<CellRect>,
+    ) -> Result<Self> {
+        if !(tile_size.is_power_of_two() && (4..=256).contains(&tile_size)) {
+            return Err(config_err(
+                "tile_size",
+                format!("must be a power of two in 4..=256, got {tile_size}"),
+            ));
+        }
+        if fill.is_empty() {
+            return Err(config_err("stride", "at least one value per cell"));
+        }
+        let shift = tile_size.trailing_zeros();
+        let mut grid = Self {
+            geometry,
+            shift,
+            stride: fill.len(),
+            fill: Arc::from(fill),
+            tx0: 0,
+            ty0: 0,
+            ntx: 0,
+            nty: 0,
+            tiles: Vec::new(),
+            fixed,
+        };
+        if let Some(r) = fixed {
+            if r.nx <= 0 || r.ny <= 0 {
+                return Err(config_err(
+                    "extent",
+                    "a fixed extent needs at least one cell",
+                ));
+            }
+            grid.reserve_tiles(r)?;
+        }
+        Ok(grid)
+    }
+
+    /// Geometry of the grid.
+    pub fn geometry(&self) -> &GridGeometry {
+        &self.geometry
+    }
+
+    /// Values per cell.
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// Tile side in cells.
+    pub fn tile_size(&self) -> usize {
+        1 << self.shift
+    }
+
+    /// The fixed extent, if any.
+    pub fn fixed_extent(&self) -> Option<CellRect> {
+        self.fixed
+    }
+
+    /// The per-cell fill value (prior).
+    pub fn fill(&self) -> &[T] {
+        &self.fill
+    }
+
+    /// Cells covered by storage: the fixed extent, or the current tile rectangle of a growing
+    /// grid (empty before the first write).
+    pub fn bounds(&self) -> CellRect {
+        if let Some(r) = self.fixed {
+            return r;
+        }
+        let s = self.tile_size() as i64;
+        CellRect {
+            ix0: self.tx0 * s,
+            iy0: self.ty0 * s,
+            nx: self.ntx * s,
+            ny: self.nty * s,
+        }
+    }
+
+    /// Bounding rectangle of the allocated (written) tiles, if any.
+    pub fn written_bounds(&self) -> Option<CellRect> {
+        let s = self.tile_size() as i64;
+        let mut out: Option<CellRect> = None;
+        for ty in 0..self.nty {
+            for tx in 0..self.ntx {
+                if self.tiles[(ty * self.ntx + tx) as usize].is_some() {
+                    let r = CellRect {
+                        ix0: (self.tx0 + tx) * s,
+                        iy0: (self.ty0 + ty) * s,
+                        nx: s,
+                        ny: s,
+                    };
+                    out = Some(out.map_or(r, |o| o.union(&r)));
+                }
+            }
+        }
+        match (out, self.fixed) {
+            (Some(o), Some(f)) => {
+                let ix0 = o.ix0.max(f.ix0);
+                let iy0 = o.iy0.max(f.iy0);
+                let ix1 = (o.ix0 + o.nx).min(f.ix0 + f.nx);
+                let iy1 = (o.iy0 + o.ny).min(f.iy0 + f.ny);
+                Some(CellRect {
+                    ix0,
+                    iy0,
+                    nx: ix1 - ix0,
+                    ny: iy1 - iy0,
+                })
+            }
+            (o, _) => o,
+        }
+    }
+
+    #[inline]
+    fn slot_of(&self, ix: i64, iy: i64) -> Option<(usize, usize)> {
+        let tx = (ix >> self.shift) - self.tx0;
+        let ty = (iy >> self.shift) - self.ty0;
+        if tx < 0 || ty < 0 || tx >= self.ntx || ty >= self.nty {
+            return None;
+        }
+        let mask = (1i64 << self.shift) - 1;
+        let within = (((iy & mask) << self.shift) | (ix & mask)) as usize;
+        Some(((ty * self.ntx + tx) as usize, within * self.stride))
+    }
+
+    /// The values of cell (ix, iy); the fill value for cells never written or outside storage.
+    #[inline]
+    pub fn get(&self, ix: i64, iy: i64) -> &[T] {
+        if let Some((slot, off)) = self.slot_of(ix, iy) {
+            if let Some(tile) = &self.tiles[slot] {
+                return &tile[off..off + self.stride];
+            }
+        }
+        &self.fill
+    }
+
+    /// True if the cell may be written (inside the fixed extent, or any cell of a growing grid).
+    #[inline]
+    pub fn writable(&self, ix: i64, iy: i64) -> bool {
+        self.fixed.map_or(true, |r| r.contains(ix, iy))
+    }
+
+    /// Makes sure storage covers `rect` (growing grids only; fixed grids check containment).
+    pub fn reserve(&mut self, rect: CellRect) -> Result<()> {
+        if let Some(f) = self.fixed {
+            if !(f.contains(rect.ix0, rect.iy0)
+                && f.contains(rect.ix0 + rect.nx - 1, rect.iy0 + rect.ny - 1))
+            {
+                return Err(CrlamError::OutOfBounds(format!(
+                    "cells {rect:?} are not inside the fixed extent {f:?}"
+                )));
+            }
+            return Ok(());
+        }
+        self.reserve_tiles(rect)
+    }
+
+    fn reserve_tiles(&mut self, rect: CellRect) -> Result<()> {
+        if rect.nx <= 0 || rect.ny <= 0 {
+            return Ok(());
+        }
+        let tx0 = rect.ix0 >> self.shift;
+        let ty0 = rect.iy0 >> self.shift;
+        let tx1 = ((rect.ix0 + rect.nx - 1) >> self.shift) + 1;
+        let ty1 = ((rect.iy0 + rect.ny - 1) >> self.shift) + 1;
+        let (ntx0, nty0) = (self.ntx, self.nty);
+        let (nx0, ny0, nx1, ny1) = if ntx0 == 0 {
+            (tx0, ty0, tx1, ty1)
+        } else {
+            if tx0 >= self.tx0
+                && ty0 >= self.ty0
+                && tx1 <= self.tx0 + ntx0
+                && ty1 <= self.ty0 + nty0
+            {
+                return Ok(());
+            }
+            // Grow with slack so that a robot moving steadily does not re-layout every scan.
+            let grow = |lo: i64, hi: i64, cur_lo: i64, cur_hi: i64| {
+                let slack = ((cur_hi - cur_lo) / 4).max(2);
+                let new_lo = if lo < cur_lo { lo - slack } else { cur_lo };
+                let new_hi = if hi > cur_hi { hi + slack } else { cur_hi };
+                (new_lo, new_hi)
+            };
+            let (a, b) = grow(tx0, tx1, self.tx0, self.tx0 + ntx0);
+            let (c, d) = grow(ty0, ty1, self.ty0, self.ty0 + nty0);
+            (a, c, b, d)
+        };
+        let (ntx, nty) = (nx1 - nx0, ny1 - ny0);
+        if ntx > MAX_TILE_SPAN || nty > MAX_TILE_SPAN {
+            return Err(CrlamError::OutOfBounds(format!(
+                "growing the map to {ntx} x {nty} tiles exceeds the limit of {MAX_TILE_SPAN} tiles a side; \
+                 is a pose far outside the mapped area?"
+            )));
+        }
+        let mut tiles: Vec<Option<Arc<[T]>>> = vec![None; (ntx * nty) as usize];
+        for ty in 0..nty0 {
+            for tx in 0..ntx0 {
+                let old = (ty * ntx0 + tx) as usize;
+                let new = ((ty + self.ty0 - ny0) * ntx + (tx + self.tx0 - nx0)) as usize;
+                tiles[new] = self.tiles[old].take();
+            }
+        }
+        self.tiles = tiles;
+        self.tx0 = nx0;
+        self.ty0 = ny0;
+        self.ntx = ntx;
+        self.nty = nty;
+        Ok(())
+    }
+
+    /// Mutable values of cell (ix, iy), allocating its tile (from the fill value) or un-sharing
+    /// it (copy-on-write) as needed. Storage must already cover the cell ([`Self::reserve`]).
+    #[inline]
+    pub fn get_mut(&mut self, ix: i64, iy: i64) -> Result<&mut [T]> {
+        if !self.writable(ix, iy) {
+            return Err(CrlamError::OutOfBounds(format!(
+                "cell ({ix}, {iy}) is outside the fixed extent"
+            )));
+        }
+        let Some((slot, off)) = self.slot_of(ix, iy) else {
+            return Err(CrlamError::OutOfBounds(format!(
+                "cell ({ix}, {iy}) is outside reserved storage"
+            )));
+        };
+        let stride = self.stride;
+        let cells = 1usize << (2 * self.shift);
+        let fill = &self.fill;
+        let tile = self.tiles[slot].get_or_insert_with(|| {
+            let mut v = Vec::with_capacity(cells * stride);
+            for _ in 0..cells {
+                v.extend_from_slice(fill);
+            }
+            Arc::from(v)
+        });
+        if Arc::get_mut(tile).is_none() {
+            *tile = Arc::from(&tile[..]);
+        }
+        let data = Arc::get_mut(tile)
+            .ok_or_else(|| CrlamError::Shape("tile still shared after copy".into()))?;
+        Ok(&mut data[off..off + stride])
+    }
+
+    /// Sharing statistics.
+    pub fn tile_stats(&self) -> TileStats {
+        let mut s = TileStats {
+            n_slots: self.tiles.len(),
+            ..Default::default()
+        };
+        for t in self.tiles.iter().flatten() {
+            s.n_allocated += 1;
+            if Arc::strong_count(t) > 1 {
+                s.n_shared += 1;
+            }
+            s.bytes_allocated += t.len() * std::mem::size_of::<T>();
+        }
+        s
+    }
+
+    /// Copies the cells of `rect` into a row-major `[iy][ix][stride]` buffer.
+    pub fn export(&self, rect: CellRect) -> Vec<T> {
+        let mut out = Vec::with_capacity(rect.n_cells() * self.stride);
+        for iy in rect.iy0..rect.iy0 + rect.ny {
+            for ix in rect.ix0..rect.ix0 + rect.nx {
+                out.extend_from_slice(self.get(ix, iy));
+            }
+        }
+        out
+    }
+
+    /// Writes a row-major `[iy][ix][stride]` buffer over the cells of `rect`.
+    pub fn import(&mut self, rect: CellRect, values: &[T]) -> Result<()> {
+        if values.len() != rect.n_cells() * self.stride {
+            return Err(CrlamError::Shape(format!(
+                "expected {} values for {} cells x {}, got {}",
+                rect.n_cells() * self.stride,
+                rect.n_cells(),
+                self.stride,
+                values.len()
+            )));
+        }
+        self.reserve(rect)?;
+        let stride = self.stride;
+        let mut k = 0;
+        for iy in rect.iy0..rect.iy0 + rect.ny {
+            for ix in rect.ix0..rect.ix0 + rect.nx {
+                self.get_mut(ix, iy)?
+                    .copy_from_slice(&values[k..k + stride]);
+                k += stride;
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn geom() -> GridGeometry {
+        GridGeometry::new([0.0, 0.0], 0.5).unwrap()
+    }
+
+    #[test]
+    fn cell_of_floors_negative_coordinates() {
+        let g = geom();
+        assert_eq!(g.cell_of(0.1, 0.1), (0, 0));
+        assert_eq!(g.cell_of(-0.1, 0.6), (-1, 1));
+        let c = g.cell_center(-1, 1);
+        assert_eq!(g.cell_of(c[0], c[1]), (-1, 1));
+    }
+
+    #[test]
+    fn unwritten_cells_read_fill_and_growth_keeps_data() {
+        let mut g = TiledGrid::new(geom(), 8, &[1.0f32, 2.0], None).unwrap();
+        assert_eq!(g.get(100, -100), &[1.0, 2.0]);
+        g.reserve(CellRect {
+            ix0: 0,
+            iy0: 0,
+            nx: 1,
+            ny: 1,
+        })
+        .unwrap();
+        g.get_mut(3, 4).unwrap()[1] = 7.0;
+        g.reserve(CellRect {
+            ix0: -100,
+            iy0: 50,
+            nx: 1,
+            ny: 1,
+        })
+        .unwrap();
+        g.get_mut(-100, 50).unwrap()[0] = 9.0;
+        assert_eq!(g.get(3, 4), &[1.0, 7.0]);
+        assert_eq!(g.get(-100, 50), &[9.0, 2.0]);
+        assert_eq!(g.tile_stats().n_allocated, 2);
+    }
+
+    #[test]
+    fn clones_share_tiles_until_written() {
+        let mut a = TiledGrid::new(geom(), 8, &[0.0f32], None).unwrap();
+        a.reserve(CellRect {
+            ix0: 0,
+            iy0: 0,
+            nx: 64,
+            ny: 64,
+        })
+        .unwrap();
+        for i in 0..64 {
+            a.get_mut(i, i).unwrap()[0] = i as f32;
+        }
+        let mut b = a.clone();
+        assert_eq!(b.tile_stats().n_shared, 8);
+        b.get_mut(0, 0).unwrap()[0] = -1.0;
+        assert_eq!(a.get(0, 0), &[0.0]);
+        assert_eq!(b.get(0, 0), &[-1.0]);
+        assert_eq!(b.tile_stats().n_shared, 7);
+        assert_eq!(a.get(9, 9), b.get(9, 9));
+    }
+
+    #[test]
+    fn fixed_extent_refuses_outside_writes() {
+        let r = CellRect {
+            ix0: 0,
+            iy0: 0,
+            nx: 10,
+            ny: 10,
+        };
+        let mut g = TiledGrid::new(geom(), 8, &[0u8], Some(r)).unwrap();
+        assert!(g.get_mut(9, 9).is_ok());
+        assert!(g.get_mut(10, 0).is_err());
+        assert!(g
+            .reserve(CellRect {
+                ix0: 5,
+                iy0: 5,
+                nx: 10,
+                ny: 1
+            })
+            .is_err());
+        assert_eq!(g.bounds(), r);
+    }
+
+    #[test]
+    fn export_import_round_trip() {
+        let mut g = TiledGrid::new(geom(), 4, &[0i32, 0], None).unwrap();
+        let r = CellRect {
+            ix0: -3,
+            iy0: 2,
+            nx: 5,
+            ny: 3,
+        };
+        let vals: Vec<i32> = (0..30).collect();
+        g.import(r, &vals).unwrap();
+        assert_eq!(g.export(r), vals);
+    }
+
+    #[test]
+    fn bad_config_is_an_error() {
+        assert!(GridGeometry::new([0.0, 0.0], 0.0).is_err());
+        assert!(TiledGrid::new(geom(), 7, &[0u8], None).is_err());
+    }
+}

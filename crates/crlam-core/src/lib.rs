@@ -1,0 +1,14 @@
+//! crlam-core: confidence-rich mapping (CRM), RBPF-CLAM and information functions.
+//!
+//! Pure Rust, no Python. Every fallible entry point returns [`Result`] with [`CrlamError`];
+//! nothing here panics on user input.
+
+pub mod crm;
+pub mod error;
+pub mod grid;
+pub mod ogm;
+pub mod raycast;
+pub mod sensor;
+pub mod sim;
+
+pub use error::{CrlamError, Result};

@@ -1,0 +1,239 @@
+//! Baseline log-odds occupancy grid (standard inverse sensor model with clamping), on the same
+//! tiled storage and traversal as the CRM.
+
+use crate::error::{config_err, CrlamError, Result};
+use crate::grid::{CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::raycast::traverse_with;
+
+/// Parameters of the inverse sensor model. Log-odds are in base `base` (2 in the authors' code).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogOddsParams {
+    /// Increment for the cell holding the reading's endpoint.
+    pub l_occ: f64,
+    /// Increment (negative) for cells the beam passed.
+    pub l_free: f64,
+    /// Clamp bounds.
+    pub l_min: f64,
+    pub l_max: f64,
+    /// Logarithm base of the values (probability = base^l / (1 + base^l)).
+    pub base: f64,
+    /// Readings at or beyond this (m) are no-returns.
+    pub z_max: f64,
+    /// Clear free space along no-return beams up to z_max.
+    pub clear_no_return: bool,
+}
+
+impl LogOddsParams {
+    /// crm-spec 9 (R1's display map): +1, −0.5, ±100, base 2.
+    pub fn new(z_max: f64) -> Self {
+        Self {
+            l_occ: 1.0,
+            l_free: -0.5,
+            l_min: -100.0,
+            l_max: 100.0,
+            base: 2.0,
+            z_max,
+            clear_no_return: true,
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if !(self.l_occ.is_finite() && self.l_occ > 0.0) {
+            return Err(config_err("l_occ", "must be finite and > 0"));
+        }
+        if !(self.l_free.is_finite() && self.l_free < 0.0) {
+            return Err(config_err("l_free", "must be finite and < 0"));
+        }
+        if !(self.l_min < 0.0
+            && self.l_max > 0.0
+            && self.l_min.is_finite()
+            && self.l_max.is_finite())
+        {
+            return Err(config_err("clamp", "need finite l_min < 0 < l_max"));
+        }
+        if !(self.base.is_finite() && self.base > 1.0) {
+            return Err(config_err("base", "must be > 1"));
+        }
+        if !(self.z_max.is_finite() && self.z_max > 0.0) {
+            return Err(config_err("z_max", "must be finite and > 0"));
+        }
+        Ok(())
+    }
+}
+
+/// A log-odds occupancy grid; cloning shares tiles copy-on-write.
+#[derive(Clone, Debug)]
+pub struct LogOddsGrid {
+    grid: TiledGrid<f32>,
+    params: LogOddsParams,
+}
+
+impl LogOddsGrid {
+    pub fn new(
+        geometry: GridGeometry,
+        params: LogOddsParams,
+        tile_size: usize,
+        extent: Option<CellRect>,
+    ) -> Result<Self> {
+        params.validate()?;
+        Ok(Self {
+            grid: TiledGrid::new(geometry, tile_size, &[0.0f32], extent)?,
+            params,
+        })
+    }
+
+    pub fn params(&self) -> &LogOddsParams {
+        &self.params
+    }
+
+    pub fn grid(&self) -> &TiledGrid<f32> {
+        &self.grid
+    }
+
+    pub fn tile_stats(&self) -> TileStats {
+        self.grid.tile_stats()
+    }
+
+    /// Log-odds of a cell.
+    pub fn log_odds(&self, ix: i64, iy: i64) -> f64 {
+        self.grid.get(ix, iy)[0] as f64
+    }
+
+    /// Occupancy probability of a cell.
+    pub fn probability(&self, ix: i64, iy: i64) -> f64 {
+        let l = self.log_odds(ix, iy);
+        1.0 / (1.0 + self.params.base.powf(-l))
+    }
+
+    fn add(&mut self, ix: i64, iy: i64, delta: f64) -> Result<()> {
+        let (lo, hi) = (self.params.l_min as f32, self.params.l_max as f32);
+        let v = self.grid.get_mut(ix, iy)?;
+        v[0] = (v[0] + delta as f32).clamp(lo, hi);
+        Ok(())
+    }
+
+    /// Integrates one scan from sensor pose (x, y, θ). Returns (beams used, beams dropped).
+    pub fn update_scan(
+        &mut self,
+        pose: [f64; 3],
+        angles: &[f64],
+        ranges: &[f64],
+    ) -> Result<(usize, usize)> {
+        if angles.len() != ranges.len() {
+            return Err(CrlamError::Shape(format!(
+                "{} angles but {} ranges",
+                angles.len(),
+                ranges.len()
+            )));
+        }
+        for (i, name) in ["x", "y", "theta"].iter().enumerate() {
+            if !pose[i].is_finite() {
+                return Err(CrlamError::NonFinite {
+                    field: name,
+                    value: pose[i],
+                });
+            }
+        }
+        let g = *self.grid.geometry();
+        let (cx, cy) = g.cell_of(pose[0], pose[1]);
+        match self.grid.fixed_extent() {
+            Some(ext) if !ext.contains(cx, cy) => {
+                return Err(CrlamError::OutOfBounds(format!(
+                    "sensor pose ({:.3}, {:.3}) lies outside the fixed map extent",
+                    pose[0], pose[1]
+                )))
+            }
+            Some(_) => {}
+            None => {
+                let r = (self.params.z_max / g.resolution).ceil() as i64 + 2;
+                self.grid.reserve(CellRect {
+                    ix0: cx - r,
+                    iy0: cy - r,
+                    nx: 2 * r + 1,
+                    ny: 2 * r + 1,
+                })?;
+            }
+        }
+        let ext = self.grid.fixed_extent();
+        let (mut used, mut dropped) = (0, 0);
+        let mut cells = Vec::new();
+        for (&a, &z) in angles.iter().zip(ranges) {
+            let no_return = !(z.is_finite() && z < self.params.z_max);
+            if !no_return && z <= 0.0 {
+                dropped += 1;
+                continue;
+            }
+            if no_return && !self.params.clear_no_return {
+                dropped += 1;
+                continue;
+            }
+            let length = if no_return { self.params.z_max } else { z };
+            cells.clear();
+            let end = traverse_with(
+                &g,
+                [pose[0], pose[1]],
+                pose[2] + a,
+                length,
+                ext.as_ref(),
+                |c| {
+                    cells.push((c.ix, c.iy));
+                    true
+                },
+            );
+            let hit_inside = !no_return && end + 1e-9 >= z;
+            let n = cells.len();
+            for (i, &(ix, iy)) in cells.iter().enumerate() {
+                let occ = hit_inside && i + 1 == n;
+                self.add(
+                    ix,
+                    iy,
+                    if occ {
+                        self.params.l_occ
+                    } else {
+                        self.params.l_free
+                    },
+                )?;
+            }
+            used += 1;
+        }
+        Ok((used, dropped))
+    }
+
+    /// Log-odds over `rect`, row-major [iy][ix].
+    pub fn export(&self, rect: CellRect) -> Vec<f32> {
+        self.grid.export(rect)
+    }
+
+    /// Replaces the log-odds over `rect`.
+    pub fn import(&mut self, rect: CellRect, values: &[f32]) -> Result<()> {
+        self.grid.import(rect, values)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_beam_clears_free_cells_and_marks_the_hit() {
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let mut m = LogOddsGrid::new(g, LogOddsParams::new(8.0), 32, None).unwrap();
+        m.update_scan([0.05, 0.05, 0.0], &[0.0], &[1.0]).unwrap();
+        assert!(m.log_odds(0, 0) < 0.0);
+        assert!(m.log_odds(9, 0) < 0.0);
+        assert!(m.probability(10, 0) > 0.5);
+        assert_eq!(m.log_odds(11, 0), 0.0);
+    }
+
+    #[test]
+    fn clamps() {
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let mut p = LogOddsParams::new(8.0);
+        p.l_max = 2.5;
+        let mut m = LogOddsGrid::new(g, p, 32, None).unwrap();
+        for _ in 0..10 {
+            m.update_scan([0.05, 0.05, 0.0], &[0.0], &[1.0]).unwrap();
+        }
+        assert_eq!(m.log_odds(10, 0), 2.5);
+    }
+}

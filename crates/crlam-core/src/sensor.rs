@@ -1,0 +1,310 @@
+//! Cause-conditional range likelihoods L_l(z), L_∞(z) (crm-spec 2.3).
+//!
+//! A reading is either a range `z ∈ [0, z_max)` (a density, 1/m) or the no-return atom
+//! `z = z_max` (a probability mass). On-ray causes sit at distance `d` (the chord midpoint); the
+//! ∞ cause means "nothing within range". Each model is a proper distribution over the reading.
+
+use crate::error::{config_err, Result};
+
+const LN_SQRT_2PI: f64 = 0.918_938_533_204_672_8;
+/// Beyond this many σ a Gaussian factor exp(−u²/2) is below 1e-300 and is taken as 0 in the
+/// linear-space sweep (the log-space sweep keeps it).
+pub const GAUSS_CUTOFF_SIGMAS: f64 = 37.0;
+/// Φ(−8.3) < 1e-16: closer than this many σ to 0 or z_max the truncation normaliser is computed,
+/// elsewhere it equals 1 to rounding.
+const TRUNC_SIGMAS: f64 = 8.3;
+
+/// Which cause model to use.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SensorModelKind {
+    /// Agha-mohammadi's pure-hit model: an on-ray cause gives a truncated Gaussian around its
+    /// distance and never a no-return; the ∞ cause always gives a no-return.
+    Ijrr,
+    /// Thrun's beam mixture (hit, short, max, random) with the ∞ cause of crm-spec 2.3.
+    Mixture,
+    /// The authors' MATLAB `beamSensorModel` and update (crm-spec 3.4), for parity runs.
+    AuthorsCode,
+}
+
+impl SensorModelKind {
+    /// Parses `"ijrr" | "mixture" | "authors_code"`.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "ijrr" => Ok(Self::Ijrr),
+            "mixture" => Ok(Self::Mixture),
+            "authors_code" => Ok(Self::AuthorsCode),
+            other => Err(config_err(
+                "model",
+                format!("unknown sensor model {other:?}; expected ijrr, mixture or authors_code"),
+            )),
+        }
+    }
+
+    /// Canonical name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Ijrr => "ijrr",
+            Self::Mixture => "mixture",
+            Self::AuthorsCode => "authors_code",
+        }
+    }
+}
+
+/// Parameters of a range sensor model.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SensorModel {
+    pub kind: SensorModelKind,
+    /// Maximum range (m); readings at or above it are no-returns.
+    pub z_max: f64,
+    /// Minimum valid range (m); shorter readings are dropped.
+    pub z_min: f64,
+    /// Hit standard deviation σ (m).
+    pub sigma_hit: f64,
+    pub w_hit: f64,
+    pub w_short: f64,
+    pub w_max: f64,
+    pub w_rand: f64,
+    /// Rate λ (1/m) of short readings.
+    pub lambda_short: f64,
+}
+
+/// σ_hit = sqrt(σ_r² + Δ²/12): range noise plus the quantisation of the cause distance (2.3).
+pub fn default_sigma_hit(sigma_range: f64, resolution: f64) -> f64 {
+    (sigma_range * sigma_range + resolution * resolution / 12.0).sqrt()
+}
+
+impl SensorModel {
+    /// The spec's defaults for `kind` at grid resolution `resolution` (σ_r = 0.01 m; the
+    /// authors' code uses σ = 0.1·Δ).
+    pub fn with_defaults(kind: SensorModelKind, z_max: f64, resolution: f64) -> Self {
+        let (w_hit, w_short, w_max, w_rand) = match kind {
+            SensorModelKind::Ijrr => (1.0, 0.0, 0.0, 0.0),
+            _ => (0.7, 0.1, 0.1, 0.1),
+        };
+        let sigma_hit = match kind {
+            SensorModelKind::AuthorsCode => 0.1 * resolution,
+            _ => default_sigma_hit(0.01, resolution),
+        };
+        Self {
+            kind,
+            z_max,
+            z_min: 0.0,
+            sigma_hit,
+            w_hit,
+            w_short,
+            w_max,
+            w_rand,
+            lambda_short: 0.2,
+        }
+    }
+
+    /// Checks every parameter.
+    pub fn validate(&self) -> Result<()> {
+        let pos = |v: f64| v.is_finite() && v > 0.0;
+        if !pos(self.z_max) {
+            return Err(config_err(
+                "z_max",
+                format!("must be finite and > 0, got {}", self.z_max),
+            ));
+        }
+        if !(self.z_min.is_finite() && self.z_min >= 0.0 && self.z_min < self.z_max) {
+            return Err(config_err(
+                "z_min",
+                format!("must be in [0, z_max), got {}", self.z_min),
+            ));
+        }
+        if !pos(self.sigma_hit) {
+            return Err(config_err(
+                "sigma_hit",
+                format!("must be finite and > 0, got {}", self.sigma_hit),
+            ));
+        }
+        if !pos(self.lambda_short) {
+            return Err(config_err(
+                "lambda_short",
+                format!("must be finite and > 0, got {}", self.lambda_short),
+            ));
+        }
+        let ws = [self.w_hit, self.w_short, self.w_max, self.w_rand];
+        if ws.iter().any(|w| !(w.is_finite() && *w >= 0.0)) {
+            return Err(config_err(
+                "weights",
+                "mixture weights must be finite and >= 0",
+            ));
+        }
+        let s: f64 = ws.iter().sum();
+        if (s - 1.0).abs() > 1e-9 {
+            return Err(config_err(
+                "weights",
+                format!("mixture weights must sum to 1, got {s}"),
+            ));
+        }
+        if self.kind == SensorModelKind::Ijrr && self.w_hit != 1.0 {
+            return Err(config_err(
+                "weights",
+                "the ijrr model is pure hit (w_hit = 1)",
+            ));
+        }
+        Ok(())
+    }
+
+    /// True if the reading counts as a no-return (at or beyond z_max, or not finite).
+    #[inline]
+    pub fn is_no_return(&self, z: f64) -> bool {
+        !(z.is_finite() && z < self.z_max)
+    }
+
+    /// log of the truncation normaliser Z_h(d) = Φ((z_max − d)/σ) − Φ(−d/σ).
+    #[inline]
+    fn log_trunc_norm(&self, d: f64) -> f64 {
+        let s = self.sigma_hit;
+        if d > TRUNC_SIGMAS * s && self.z_max - d > TRUNC_SIGMAS * s {
+            return 0.0;
+        }
+        let hi = normal_cdf((self.z_max - d) / s);
+        let lo = normal_cdf(-d / s);
+        (hi - lo).max(1e-300).ln()
+    }
+
+    /// log of the (truncated) hit density φ̃(z; d).
+    #[inline]
+    pub fn log_hit_density(&self, z: f64, d: f64) -> f64 {
+        let u = (z - d) / self.sigma_hit;
+        -0.5 * u * u - self.sigma_hit.ln() - LN_SQRT_2PI - self.log_trunc_norm(d)
+    }
+
+    /// Hit density φ̃(z; d), 0 beyond [`GAUSS_CUTOFF_SIGMAS`].
+    #[inline]
+    pub fn hit_density(&self, z: f64, d: f64) -> f64 {
+        let u = (z - d) / self.sigma_hit;
+        if u.abs() > GAUSS_CUTOFF_SIGMAS {
+            return 0.0;
+        }
+        self.log_hit_density(z, d).exp()
+    }
+
+    /// Short-reading density ε(z; d) = λ e^{−λz} / (1 − e^{−λd}) on [0, d].
+    #[inline]
+    pub fn short_density(&self, z: f64, d: f64) -> f64 {
+        if z > d || d <= 0.0 {
+            return 0.0;
+        }
+        let l = self.lambda_short;
+        l * (-l * z).exp() / -(-l * d).exp_m1()
+    }
+
+    /// L_l(z) for an on-ray cause at distance `d` (linear space).
+    #[inline]
+    pub fn on_ray(&self, z: f64, d: f64) -> f64 {
+        if self.is_no_return(z) {
+            return self.w_max;
+        }
+        match self.kind {
+            SensorModelKind::Ijrr => self.hit_density(z, d),
+            SensorModelKind::Mixture => {
+                self.w_hit * self.hit_density(z, d)
+                    + self.w_short * self.short_density(z, d)
+                    + self.w_rand / self.z_max
+            }
+            SensorModelKind::AuthorsCode => self.authors_bsm(d, z),
+        }
+    }
+
+    /// log L_l(z) for an on-ray cause at distance `d`.
+    #[inline]
+    pub fn log_on_ray(&self, z: f64, d: f64) -> f64 {
+        match (self.kind, self.is_no_return(z)) {
+            (SensorModelKind::Ijrr, false) => self.log_hit_density(z, d),
+            (SensorModelKind::Ijrr, true) => f64::NEG_INFINITY,
+            _ => self.on_ray(z, d).ln(),
+        }
+    }
+
+    /// L_∞(z): likelihood of the reading if nothing lies within range.
+    #[inline]
+    pub fn infinity(&self, z: f64) -> f64 {
+        if self.is_no_return(z) {
+            return self.w_hit + self.w_max;
+        }
+        self.w_short * self.short_density(z, self.z_max) + self.w_rand / self.z_max
+    }
+
+    /// R1's `beamSensorModel(dist, z)` (crm-spec 2.3, 3.4): untruncated Gaussian, the short term
+    /// on the side d ≤ z and unnormalised, p_max only when d equals z_max.
+    #[inline]
+    pub fn authors_bsm(&self, d: f64, z: f64) -> f64 {
+        let s = self.sigma_hit;
+        let u = (z - d) / s;
+        let hit = if u.abs() > GAUSS_CUTOFF_SIGMAS {
+            0.0
+        } else {
+            (-0.5 * u * u).exp() / (s * LN_SQRT_2PI.exp())
+        };
+        let short = if d <= z {
+            self.lambda_short * (-self.lambda_short * d).exp()
+        } else {
+            0.0
+        };
+        let pmax = if d == self.z_max { 1.0 } else { 0.0 };
+        self.w_hit * hit + self.w_short * short + self.w_max * pmax + self.w_rand / self.z_max
+    }
+}
+
+/// Standard normal CDF Φ(x), accurate in both tails (via erfc).
+#[inline]
+pub fn normal_cdf(x: f64) -> f64 {
+    0.5 * libm::erfc(-x * std::f64::consts::FRAC_1_SQRT_2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
+        let h = (b - a) / n as f64;
+        (0..n).map(|i| f(a + (i as f64 + 0.5) * h)).sum::<f64>() * h
+    }
+
+    #[test]
+    fn models_are_proper_distributions() {
+        for kind in [SensorModelKind::Ijrr, SensorModelKind::Mixture] {
+            let m = SensorModel::with_defaults(kind, 8.0, 0.2);
+            m.validate().unwrap();
+            for d in [0.1, 0.05, 2.3, 7.95] {
+                let mass = quad(|z| m.on_ray(z, d), 0.0, 8.0, 400_000) + m.on_ray(8.0, d);
+                assert!((mass - 1.0).abs() < 1e-4, "{kind:?} d={d} mass={mass}");
+            }
+            let mass = quad(|z| m.infinity(z), 0.0, 8.0, 100_000) + m.infinity(8.0);
+            assert!((mass - 1.0).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn log_and_linear_agree() {
+        let m = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.2);
+        for (z, d) in [(2.0, 2.1), (0.03, 0.1), (7.99, 7.9)] {
+            let a = m.log_on_ray(z, d);
+            let b = m.on_ray(z, d).ln();
+            assert!((a - b).abs() < 1e-12);
+        }
+        assert_eq!(m.on_ray(8.0, 3.0), 0.0);
+        assert_eq!(m.infinity(8.0), 1.0);
+        assert_eq!(m.infinity(3.0), 0.0);
+    }
+
+    #[test]
+    fn validation_rejects_bad_values() {
+        let mut m = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.2);
+        m.w_rand = 0.5;
+        assert!(m.validate().is_err());
+        let mut m = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.2);
+        m.sigma_hit = f64::NAN;
+        assert!(m.validate().is_err());
+        assert!(SensorModelKind::parse("beam").is_err());
+    }
+
+    #[test]
+    fn default_sigma_matches_spec() {
+        assert!((default_sigma_hit(0.01, 0.2) - 0.0586).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,80 @@
+//! Exact ray casting against a ground-truth occupancy raster, for the simulator.
+
+use crate::error::{CrlamError, Result};
+use crate::grid::{CellRect, GridGeometry};
+use crate::raycast::first_hit;
+
+/// A boolean world raster indexed [iy][ix] (iy = 0 at the minimum y).
+#[derive(Clone, Debug)]
+pub struct WorldRaster<'a> {
+    pub geometry: GridGeometry,
+    pub nx: usize,
+    pub ny: usize,
+    pub occupied: &'a [u8],
+}
+
+impl<'a> WorldRaster<'a> {
+    pub fn new(geometry: GridGeometry, nx: usize, ny: usize, occupied: &'a [u8]) -> Result<Self> {
+        if nx == 0 || ny == 0 || occupied.len() != nx * ny {
+            return Err(CrlamError::Shape(format!(
+                "world raster of {ny} x {nx} cells needs {} values, got {}",
+                nx * ny,
+                occupied.len()
+            )));
+        }
+        Ok(Self {
+            geometry,
+            nx,
+            ny,
+            occupied,
+        })
+    }
+
+    /// Exact distance along each beam to the entry of the first occupied cell, or +inf when
+    /// none lies within `max_range`; 0 if the sensor sits in an occupied cell. Cells outside the
+    /// raster are free. `out` is row-major [pose][beam].
+    pub fn cast(
+        &self,
+        poses: &[[f64; 3]],
+        angles: &[f64],
+        max_range: f64,
+        out: &mut [f64],
+    ) -> Result<()> {
+        if out.len() != poses.len() * angles.len() {
+            return Err(CrlamError::Shape("output buffer has the wrong size".into()));
+        }
+        if !(max_range.is_finite() && max_range > 0.0) {
+            return Err(crate::error::config_err(
+                "max_range",
+                "must be finite and > 0",
+            ));
+        }
+        let rect = CellRect {
+            ix0: 0,
+            iy0: 0,
+            nx: self.nx as i64,
+            ny: self.ny as i64,
+        };
+        let nx = self.nx;
+        for (i, p) in poses.iter().enumerate() {
+            if p.iter().any(|v| !v.is_finite()) {
+                return Err(CrlamError::NonFinite {
+                    field: "pose",
+                    value: p[0] + p[1] + p[2],
+                });
+            }
+            for (j, &a) in angles.iter().enumerate() {
+                let hit = first_hit(
+                    &self.geometry,
+                    [p[0], p[1]],
+                    p[2] + a,
+                    max_range,
+                    Some(&rect),
+                    |ix, iy| self.occupied[iy as usize * nx + ix as usize] != 0,
+                );
+                out[i * angles.len() + j] = hit.unwrap_or(f64::INFINITY);
+            }
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,19 @@
+//! Thin PyO3 glue: `crlam._native`. Conversions, error mapping and GIL release only; all
+//! computation lives in `crlam-core`.
+
+mod convert;
+mod maps;
+
+use pyo3::prelude::*;
+
+#[pymodule]
+fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__core_version__", env!("CARGO_PKG_VERSION"))?;
+    m.add_class::<maps::SensorModel>()?;
+    m.add_class::<maps::CrmMap>()?;
+    m.add_class::<maps::LogOddsMap>()?;
+    m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
+    m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
+    m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;
+    Ok(())
+}
