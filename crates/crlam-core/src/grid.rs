@@ -57,6 +57,28 @@ impl GridGeometry {
     }
 }
 
+/// Poses farther than this (m) from the grid origin are refused: they would overflow cell indices.
+pub const MAX_COORD: f64 = 1e7;
+
+/// Checks that a pose (x, y, θ) is finite and within [`MAX_COORD`] of the origin.
+pub fn check_pose(pose: [f64; 3]) -> Result<()> {
+    for (i, name) in ["x", "y", "theta"].iter().enumerate() {
+        if !pose[i].is_finite() {
+            return Err(CrlamError::NonFinite {
+                field: name,
+                value: pose[i],
+            });
+        }
+    }
+    if pose[0].abs() > MAX_COORD || pose[1].abs() > MAX_COORD {
+        return Err(CrlamError::OutOfBounds(format!(
+            "pose ({:.3e}, {:.3e}) is more than {MAX_COORD:.0e} m from the map origin",
+            pose[0], pose[1]
+        )));
+    }
+    Ok(())
+}
+
 /// A rectangle of cells `[ix0, ix0 + nx) × [iy0, iy0 + ny)`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CellRect {
@@ -270,7 +292,7 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
     /// True if the cell may be written (inside the fixed extent, or any cell of a growing grid).
     #[inline]
     pub fn writable(&self, ix: i64, iy: i64) -> bool {
-        self.fixed.map_or(true, |r| r.contains(ix, iy))
+        self.fixed.is_none_or(|r| r.contains(ix, iy))
     }
 
     /// Makes sure storage covers `rect` (growing grids only; fixed grids check containment).

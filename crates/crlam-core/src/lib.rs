@@ -3,6 +3,10 @@
 //! Pure Rust, no Python. Every fallible entry point returns [`Result`] with [`CrlamError`];
 //! nothing here panics on user input.
 
+// Index loops over parallel per-level arrays read more clearly than zipped iterators here.
+#![allow(clippy::needless_range_loop)]
+
+pub mod bench;
 pub mod crm;
 pub mod error;
 pub mod grid;

@@ -2,7 +2,7 @@
 //! tiled storage and traversal as the CRM.
 
 use crate::error::{config_err, CrlamError, Result};
-use crate::grid::{CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::grid::{check_pose, CellRect, GridGeometry, TileStats, TiledGrid};
 use crate::raycast::traverse_with;
 
 /// Parameters of the inverse sensor model. Log-odds are in base `base` (2 in the authors' code).
@@ -126,14 +126,7 @@ impl LogOddsGrid {
                 ranges.len()
             )));
         }
-        for (i, name) in ["x", "y", "theta"].iter().enumerate() {
-            if !pose[i].is_finite() {
-                return Err(CrlamError::NonFinite {
-                    field: name,
-                    value: pose[i],
-                });
-            }
-        }
+        check_pose(pose)?;
         let g = *self.grid.geometry();
         let (cx, cy) = g.cell_of(pose[0], pose[1]);
         match self.grid.fixed_extent() {

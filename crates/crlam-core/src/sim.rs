@@ -1,7 +1,7 @@
 //! Exact ray casting against a ground-truth occupancy raster, for the simulator.
 
 use crate::error::{CrlamError, Result};
-use crate::grid::{CellRect, GridGeometry};
+use crate::grid::{check_pose, CellRect, GridGeometry};
 use crate::raycast::first_hit;
 
 /// A boolean world raster indexed [iy][ix] (iy = 0 at the minimum y).
@@ -57,12 +57,7 @@ impl<'a> WorldRaster<'a> {
         };
         let nx = self.nx;
         for (i, p) in poses.iter().enumerate() {
-            if p.iter().any(|v| !v.is_finite()) {
-                return Err(CrlamError::NonFinite {
-                    field: "pose",
-                    value: p[0] + p[1] + p[2],
-                });
-            }
+            check_pose(*p)?;
             for (j, &a) in angles.iter().enumerate() {
                 let hit = first_hit(
                     &self.geometry,

@@ -1,6 +1,9 @@
 //! Thin PyO3 glue: `crlam._native`. Conversions, error mapping and GIL release only; all
 //! computation lives in `crlam-core`.
 
+// PyO3 signatures mirror the Python API, argument for argument.
+#![allow(clippy::too_many_arguments, clippy::type_complexity)]
+
 mod convert;
 mod maps;
 
@@ -15,5 +18,6 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
     m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;
+    m.add_function(wrap_pyfunction!(maps::run_benchmark, m)?)?;
     Ok(())
 }

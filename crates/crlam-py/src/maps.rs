@@ -698,3 +698,30 @@ pub fn crm_update_ray<'py>(
     let arr = Array2::from_shape_vec((s[0], s[1]), b).map_err(|e| shape_err(e.to_string()))?;
     Ok((arr.into_pyarray(py), eta))
 }
+
+/// Runs one named micro-benchmark of the core (single thread) and returns its figure.
+#[pyfunction]
+#[pyo3(signature = (name, size))]
+pub fn run_benchmark<'py>(
+    py: Python<'py>,
+    name: &str,
+    size: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    use crlam_core::bench;
+    let fig = py
+        .allow_threads(|| match name {
+            "crm_beam_updates_per_s" => Some(bench::crm_beam_updates(size)),
+            "raycast_cells_per_s" => Some(bench::raycast_cells(size)),
+            _ => None,
+        })
+        .ok_or_else(|| shape_err(format!("unknown benchmark {name:?}")))?
+        .py_err()?;
+    let d = PyDict::new(py);
+    d.set_item("name", fig.name)?;
+    d.set_item("per_second", fig.per_second)?;
+    d.set_item("operations", fig.operations)?;
+    d.set_item("seconds", fig.seconds)?;
+    d.set_item("unit", fig.unit)?;
+    d.set_item("cells_per_ray", fig.cells_per_ray)?;
+    Ok(d)
+}

@@ -6,7 +6,7 @@ use crate::crm::update::{
     apply_factor, cause_sweep, cause_sweep_log, normalize_with_floor, LINEAR_ETA_MIN,
 };
 use crate::error::{config_err, CrlamError, Result};
-use crate::grid::{CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::grid::{check_pose, CellRect, GridGeometry, TileStats, TiledGrid};
 use crate::raycast::{traverse_with, RayCell};
 use crate::sensor::{SensorModel, SensorModelKind};
 
@@ -200,14 +200,7 @@ impl CrmMap {
 
     /// Checks the pose and, for growing maps, reserves storage for every cell within z_max.
     fn prepare_pose(&mut self, pose: [f64; 3], z_max: f64, reserve: bool) -> Result<()> {
-        for (i, name) in ["x", "y", "theta"].iter().enumerate() {
-            if !pose[i].is_finite() {
-                return Err(CrlamError::NonFinite {
-                    field: name,
-                    value: pose[i],
-                });
-            }
-        }
+        check_pose(pose)?;
         let g = *self.grid.geometry();
         let (cx, cy) = g.cell_of(pose[0], pose[1]);
         if let Some(ext) = self.grid.fixed_extent() {
@@ -359,14 +352,7 @@ impl CrmMap {
         sc: &mut CrmScratch,
     ) -> Result<(f64, usize)> {
         check_scan(angles, ranges, model, opts)?;
-        for (i, name) in ["x", "y", "theta"].iter().enumerate() {
-            if !pose[i].is_finite() {
-                return Err(CrlamError::NonFinite {
-                    field: name,
-                    value: pose[i],
-                });
-            }
-        }
+        check_pose(pose)?;
         let res = self.grid.geometry().resolution;
         let mut total = 0.0;
         let mut used = 0;

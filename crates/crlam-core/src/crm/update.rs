@@ -162,7 +162,7 @@ pub fn update_ray(beliefs: &mut [f64], mu: &[f64], like: &[f64], like_inf: f64, 
     let mut alpha = vec![0.0; n];
     let mut s = Vec::new();
     let mut eta = cause_sweep(&mhat, like, like_inf, &mut s, Some(&mut alpha));
-    if !(eta >= LINEAR_ETA_MIN) {
+    if eta.is_nan() || eta < LINEAR_ETA_MIN {
         let ll: Vec<f64> = like.iter().map(|x| x.ln()).collect();
         let le = cause_sweep_log(&mhat, &ll, like_inf.ln(), &mut s, Some(&mut alpha));
         eta = le.exp();
