@@ -1,0 +1,184 @@
+"""Lossless archive of a confidence-rich map (CRM) belief: ``belief.npz``.
+
+A CRM keeps, per cell, a probability mass function over ``K`` occupancy-density levels. The
+archive is a compressed ``.npz`` (``np.savez_compressed``, read without pickle) holding:
+
+==================  ================  ==============================================
+key                 dtype / shape     meaning
+==================  ================  ==============================================
+``format``          str               ``"crlam-belief"``
+``format_version``  int64, ()         :data:`FORMAT_VERSION`
+``beliefs``         float32 (ny,nx,K) pmf per cell, ``[iy, ix]``, iy = 0 at min y
+``levels``          float64 (K,)      density level of each pmf bin
+``origin``          float64 (2,)      world (x, y) of the lower-left corner of [0, 0] (m)
+``resolution``      float64 ()        cell size (m)
+``metadata``        str               JSON object of str / int / float / bool values
+==================  ================  ==============================================
+
+Arrays round-trip bit for bit. Both :func:`save_belief` and :func:`load_belief` validate the
+content (shapes, ``K`` matches ``levels``, finite, non-negative pmfs summing to 1 within
+:data:`PMF_TOLERANCE`), so an invalid archive is never written nor accepted.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from crlam.errors import DataFormatError
+
+__all__ = ["FORMAT_VERSION", "PMF_TOLERANCE", "BeliefArchive", "load_belief", "save_belief"]
+
+FORMAT_NAME = "crlam-belief"
+FORMAT_VERSION = 1
+PMF_TOLERANCE = 1e-4
+"""Largest accepted ``|sum(pmf) - 1|`` per cell (float32 sums of K terms drift by ~K * 6e-8)."""
+
+MetaValue = str | int | float
+
+
+@dataclass(eq=False)
+class BeliefArchive:
+    """A CRM belief grid with its level grid and georeference.
+
+    Attributes
+    ----------
+    beliefs : ndarray, shape (ny, nx, K), float32
+        Per-cell pmf over ``levels``; converted to float32 if given otherwise.
+    levels : ndarray, shape (K,), float64
+        Occupancy-density value of each bin.
+    origin : ndarray, shape (2,), float64
+        World ``(x, y)`` (m) of the lower-left corner of cell ``[0, 0]``.
+    resolution : float
+        Cell size (m).
+    metadata : dict[str, str | int | float]
+        Free-form description (sensor model, ``n_levels``, levels mode, floor, ...).
+    """
+
+    beliefs: NDArray[np.float32]
+    levels: NDArray[np.float64]
+    origin: NDArray[np.float64]
+    resolution: float
+    metadata: dict[str, MetaValue] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.beliefs = np.ascontiguousarray(self.beliefs, dtype=np.float32)
+        self.levels = np.asarray(self.levels, dtype=np.float64)
+        self.origin = np.asarray(self.origin, dtype=np.float64)
+        self.resolution = float(self.resolution)
+        self.metadata = dict(self.metadata)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Grid shape ``(ny, nx)``."""
+        return int(self.beliefs.shape[0]), int(self.beliefs.shape[1])
+
+    @property
+    def n_levels(self) -> int:
+        """Number of levels ``K``."""
+        return int(self.levels.shape[0])
+
+    def validate(self, path: str | os.PathLike[str] | None = None) -> None:
+        """Raise :class:`DataFormatError` (naming ``path`` and the field) unless consistent."""
+        where = None if path is None else str(path)
+
+        def fail(message: str, name: str) -> DataFormatError:
+            return DataFormatError(message, path=where, field=name)
+
+        b, lv = self.beliefs, self.levels
+        if b.ndim != 3 or min(b.shape) == 0:
+            raise fail(f"must have shape (ny, nx, K) with no empty axis, got {b.shape}",
+                       "beliefs")
+        if lv.shape != (b.shape[2],):
+            raise fail(f"shape {lv.shape} does not match K = {b.shape[2]} of beliefs", "levels")
+        if not np.all(np.isfinite(lv)):
+            raise fail("non-finite level", "levels")
+        if self.origin.shape != (2,) or not np.all(np.isfinite(self.origin)):
+            raise fail(f"must be 2 finite numbers, got {self.origin!r}", "origin")
+        if not (math.isfinite(self.resolution) and self.resolution > 0):
+            raise fail(f"must be positive, got {self.resolution}", "resolution")
+        bad = ~np.isfinite(b).all(axis=2) | (b < 0).any(axis=2)
+        sums = b.sum(axis=2, dtype=np.float64)
+        bad |= np.abs(sums - 1.0) > PMF_TOLERANCE
+        if bad.any():
+            iy, ix = (int(v) for v in np.argwhere(bad)[0])
+            raise fail(f"{int(bad.sum())} cells are not pmfs (first: sum "
+                       f"{sums[iy, ix]!r}, min {float(b[iy, ix].min())!r})",
+                       f"beliefs[{iy},{ix}]")
+        for key, value in self.metadata.items():
+            if not isinstance(key, str) or not isinstance(value, (str, int, float)):
+                raise fail(f"entry {key!r}: {value!r} is not str/int/float", "metadata")
+            if isinstance(value, float) and not math.isfinite(value):
+                raise fail(f"entry {key!r} is not finite", "metadata")
+
+
+def save_belief(path: str | os.PathLike[str], archive: BeliefArchive) -> None:
+    """Validate ``archive`` and write it to ``path`` (exactly that name; no suffix added)."""
+    archive.validate(path)
+    with open(path, "wb") as fh:
+        np.savez_compressed(
+            fh,
+            format=np.array(FORMAT_NAME),
+            format_version=np.array(FORMAT_VERSION, dtype=np.int64),
+            beliefs=archive.beliefs,
+            levels=archive.levels,
+            origin=archive.origin,
+            resolution=np.array(archive.resolution, dtype=np.float64),
+            metadata=np.array(json.dumps(archive.metadata, sort_keys=True, allow_nan=False)),
+        )
+
+
+def load_belief(path: str | os.PathLike[str]) -> BeliefArchive:
+    """Read and validate a belief archive written by :func:`save_belief`.
+
+    Raises
+    ------
+    DataFormatError
+        If the file is not such an archive, has a newer format version, misses a key, or
+        holds inconsistent arrays (the message names the field).
+    """
+    where = str(path)
+    try:
+        with np.load(Path(path), allow_pickle=False) as npz:
+            arrays = {k: npz[k] for k in npz.files}
+    except (zipfile.BadZipFile, ValueError, EOFError, OSError) as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise DataFormatError(f"not a belief archive ({exc})", path=where) from exc
+    for key in ("format", "format_version", "beliefs", "levels", "origin", "resolution",
+                "metadata"):
+        if key not in arrays:
+            raise DataFormatError("missing key", path=where, field=key)
+    if str(arrays["format"]) != FORMAT_NAME:
+        raise DataFormatError(f"format is {str(arrays['format'])!r}, not {FORMAT_NAME!r}",
+                              path=where, field="format")
+    version = arrays["format_version"]
+    if version.shape != () or not np.issubdtype(version.dtype, np.integer) \
+            or not 1 <= int(version) <= FORMAT_VERSION:
+        raise DataFormatError(f"unsupported format version {version!r} (this crlam reads "
+                              f"1..{FORMAT_VERSION})", path=where, field="format_version")
+    for key, dtype in (("beliefs", np.float32), ("levels", np.float64),
+                       ("origin", np.float64), ("resolution", np.float64)):
+        if arrays[key].dtype != dtype:
+            raise DataFormatError(f"dtype {arrays[key].dtype}, want {np.dtype(dtype)}",
+                                  path=where, field=key)
+    if arrays["resolution"].shape != ():
+        raise DataFormatError("must be a scalar", path=where, field="resolution")
+    try:
+        metadata = json.loads(str(arrays["metadata"]))
+    except json.JSONDecodeError as exc:
+        raise DataFormatError(f"invalid JSON ({exc})", path=where, field="metadata") from exc
+    if not isinstance(metadata, dict):
+        raise DataFormatError("must be a JSON object", path=where, field="metadata")
+    archive = BeliefArchive(beliefs=arrays["beliefs"], levels=arrays["levels"],
+                            origin=arrays["origin"], resolution=float(arrays["resolution"]),
+                            metadata=metadata)
+    archive.validate(path)
+    return archive
