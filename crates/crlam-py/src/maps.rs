@@ -28,12 +28,13 @@ pub struct SensorModel {
 #[pymethods]
 impl SensorModel {
     #[new]
-    #[pyo3(signature = (kind="ijrr", z_max=8.0, resolution=0.2, *, sigma_hit=None, w_hit=None, w_short=None, w_max=None, w_rand=None, lambda_short=0.2, z_min=0.0))]
+    #[pyo3(signature = (kind="ijrr", z_max=8.0, resolution=0.2, *, cause_kernel="midpoint", sigma_hit=None, w_hit=None, w_short=None, w_max=None, w_rand=None, lambda_short=0.2, z_min=0.0))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         kind: &str,
         z_max: f64,
         resolution: f64,
+        cause_kernel: &str,
         sigma_hit: Option<f64>,
         w_hit: Option<f64>,
         w_short: Option<f64>,
@@ -44,6 +45,7 @@ impl SensorModel {
     ) -> PyResult<Self> {
         let kind = SensorModelKind::parse(kind).py_err()?;
         let mut m = sensor::SensorModel::with_defaults(kind, z_max, resolution);
+        m.kernel = sensor::CauseKernel::parse(cause_kernel).py_err()?;
         if let Some(v) = sigma_hit {
             m.sigma_hit = v;
         }
@@ -69,6 +71,10 @@ impl SensorModel {
     #[getter]
     fn z_max(&self) -> f64 {
         self.inner.z_max
+    }
+    #[getter]
+    fn cause_kernel(&self) -> &'static str {
+        self.inner.kernel.name()
     }
     #[getter]
     fn z_min(&self) -> f64 {

@@ -169,7 +169,10 @@ impl CrmMap {
                     "every pmf must be finite, >= 0 and have positive mass".into(),
                 ));
             }
-            out.extend(p.iter().map(|x| (x / s) as f32));
+            // Pmfs already normalised to storage precision are stored as given, so that a
+            // save/load round trip through f32 archives is bit-exact.
+            let scale = if (s - 1.0).abs() < 1e-5 { 1.0 } else { 1.0 / s };
+            out.extend(p.iter().map(|x| (x * scale) as f32));
         }
         self.grid.import(rect, &out)
     }
@@ -270,7 +273,7 @@ impl CrmMap {
         }
         sc.like.clear();
         for c in sc.cells.iter() {
-            sc.like.push(model.on_ray(z, c.mid()));
+            sc.like.push(model.on_ray_cell(z, c.t_in, c.t_out));
         }
         let like_inf = model.infinity(z);
         let alpha = if need_alpha {
@@ -284,7 +287,7 @@ impl CrmMap {
         }
         // Far-off Gaussians underflowed: redo the sweep in logs (crm-spec 4.2).
         for (l, c) in sc.like.iter_mut().zip(sc.cells.iter()) {
-            *l = model.log_on_ray(z, c.mid());
+            *l = model.log_on_ray_cell(z, c.t_in, c.t_out);
         }
         let alpha = if need_alpha {
             Some(&mut sc.alpha[..])

@@ -1,0 +1,7 @@
+"""``python -m crlam``: the command line."""
+
+import sys
+
+from crlam.cli import main
+
+sys.exit(main())

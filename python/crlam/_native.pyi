@@ -1,0 +1,183 @@
+"""Type stubs of the Rust extension ``crlam._native`` (checked with ``mypy.stubtest``)."""
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+__core_version__: str
+
+CellRect = tuple[int, int, int, int]
+
+class SensorModel:
+    def __new__(
+        cls,
+        kind: str = "ijrr",
+        z_max: float = 8.0,
+        resolution: float = 0.2,
+        *,
+        cause_kernel: str = "midpoint",
+        sigma_hit: float | None = None,
+        w_hit: float | None = None,
+        w_short: float | None = None,
+        w_max: float | None = None,
+        w_rand: float | None = None,
+        lambda_short: float = 0.2,
+        z_min: float = 0.0,
+    ) -> SensorModel: ...
+    @property
+    def kind(self) -> str: ...
+    @property
+    def z_max(self) -> float: ...
+    @property
+    def cause_kernel(self) -> str: ...
+    @property
+    def z_min(self) -> float: ...
+    @property
+    def sigma_hit(self) -> float: ...
+    @property
+    def w_hit(self) -> float: ...
+    @property
+    def w_short(self) -> float: ...
+    @property
+    def w_max(self) -> float: ...
+    @property
+    def w_rand(self) -> float: ...
+    @property
+    def lambda_short(self) -> float: ...
+    def on_ray(self, z: float, d: float) -> float: ...
+    def infinity(self, z: float) -> float: ...
+
+class CrmMap:
+    def __new__(
+        cls,
+        resolution: float,
+        origin: tuple[float, float] = (0.0, 0.0),
+        *,
+        n_levels: int = 10,
+        levels: str = "midpoints",
+        prior_mean: float | None = None,
+        belief_floor: float = 1e-12,
+        tile_size: int = 32,
+        extent: CellRect | None = None,
+    ) -> CrmMap: ...
+    @property
+    def resolution(self) -> float: ...
+    @property
+    def origin(self) -> tuple[float, float]: ...
+    @property
+    def tile_size(self) -> int: ...
+    @property
+    def levels(self) -> NDArray[np.float64]: ...
+    @property
+    def placement(self) -> str: ...
+    @property
+    def prior(self) -> NDArray[np.float64]: ...
+    @property
+    def belief_floor(self) -> float: ...
+    @property
+    def extent(self) -> CellRect | None: ...
+    def bounds(self) -> CellRect: ...
+    def written_bounds(self) -> CellRect | None: ...
+    def cell_of(self, x: float, y: float) -> tuple[int, int]: ...
+    def mean_at(self, ix: int, iy: int) -> float: ...
+    def cell(self, ix: int, iy: int) -> NDArray[np.float32]: ...
+    def update_scan(
+        self,
+        pose: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        model: SensorModel,
+        *,
+        mode: str = "batch",
+        beam_stride: int = 1,
+        zero_is_no_return: bool = False,
+    ) -> dict[str, int]: ...
+    def update_scans(
+        self,
+        poses: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        model: SensorModel,
+        *,
+        mode: str = "batch",
+        beam_stride: int = 1,
+        zero_is_no_return: bool = False,
+    ) -> dict[str, int]: ...
+    def scan_log_likelihood(
+        self,
+        pose: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        model: SensorModel,
+        *,
+        beam_stride: int = 1,
+        zero_is_no_return: bool = False,
+    ) -> tuple[float, int]: ...
+    def beliefs(self, rect: CellRect | None = None) -> NDArray[np.float32]: ...
+    def set_beliefs(self, ix0: int, iy0: int, beliefs: NDArray[np.float64]) -> None: ...
+    def derived_maps(
+        self, rect: CellRect | None = None
+    ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
+    def copy(self) -> CrmMap: ...
+    def tile_stats(self) -> dict[str, int]: ...
+
+class LogOddsMap:
+    def __new__(
+        cls,
+        resolution: float,
+        origin: tuple[float, float] = (0.0, 0.0),
+        *,
+        z_max: float = 8.0,
+        l_occ: float = 1.0,
+        l_free: float = -0.5,
+        l_min: float = -100.0,
+        l_max: float = 100.0,
+        base: float = 2.0,
+        clear_no_return: bool = True,
+        tile_size: int = 32,
+        extent: CellRect | None = None,
+    ) -> LogOddsMap: ...
+    @property
+    def resolution(self) -> float: ...
+    @property
+    def origin(self) -> tuple[float, float]: ...
+    @property
+    def base(self) -> float: ...
+    def bounds(self) -> CellRect: ...
+    def written_bounds(self) -> CellRect | None: ...
+    def update_scan(
+        self, pose: NDArray[np.float64], angles: NDArray[np.float64], ranges: NDArray[np.float64]
+    ) -> tuple[int, int]: ...
+    def update_scans(
+        self, poses: NDArray[np.float64], angles: NDArray[np.float64], ranges: NDArray[np.float64]
+    ) -> tuple[int, int]: ...
+    def log_odds(self, rect: CellRect | None = None) -> NDArray[np.float64]: ...
+    def copy(self) -> LogOddsMap: ...
+    def tile_stats(self) -> dict[str, int]: ...
+
+def traverse_ray(
+    origin_x: float,
+    origin_y: float,
+    angle: float,
+    length: float,
+    resolution: float,
+    grid_origin: tuple[float, float] = (0.0, 0.0),
+) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]: ...
+def cast_ranges(
+    occupied: NDArray[np.uint8],
+    origin_x: float,
+    origin_y: float,
+    resolution: float,
+    poses: NDArray[np.float64],
+    angles: NDArray[np.float64],
+    max_range: float,
+) -> NDArray[np.float64]: ...
+def crm_update_ray(
+    beliefs: NDArray[np.float64],
+    levels: NDArray[np.float64],
+    like: NDArray[np.float64],
+    like_inf: float,
+    belief_floor: float = 0.0,
+) -> tuple[NDArray[np.float64], float]: ...
+def run_benchmark(name: str, size: int) -> dict[str, Any]: ...

@@ -1,0 +1,185 @@
+"""The ``crlam`` command line (also ``python -m crlam``)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+from crlam import __version__
+from crlam.errors import CrlamError
+
+__all__ = ["main", "build_parser"]
+
+
+def _positive_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v > 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return v
+
+
+def _add_map_options(p: argparse.ArgumentParser) -> None:
+    g = p.add_argument_group("map settings")
+    g.add_argument("--resolution", type=_positive_float, default=0.2, help="cell size in metres (default: 0.2)")
+    g.add_argument("--max-range", type=_positive_float, default=8.0, help="z_max in metres; longer readings are no-returns (default: 8)")
+    g.add_argument("--model", choices=("ijrr", "mixture", "authors_code"), default="ijrr", help="sensor cause model of the CRM update (default: ijrr)")
+    g.add_argument("--levels", choices=("midpoints", "endpoints", "r1_right"), default="midpoints", help="occupancy level placement (default: midpoints)")
+    g.add_argument("--scan-update", choices=("batch", "sequential"), default="batch", help="how the beams of a scan combine (default: batch)")
+    g.add_argument("--cause-kernel", choices=("midpoint", "chord"), default="midpoint",
+                   help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord")
+    g.add_argument("--beam-stride", type=_positive_int, default=1, help="use every n-th beam (default: 1)")
+
+
+def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+    from crlam.mapping import MappingConfig
+
+    return MappingConfig(
+        resolution=args.resolution,
+        max_range=args.max_range,
+        model=args.model,
+        levels=args.levels,
+        scan_update=args.scan_update,
+        cause_kernel=args.cause_kernel,
+        beam_stride=args.beam_stride,
+    )
+
+
+def cmd_map(args: argparse.Namespace) -> int:
+    from crlam.experiments.known_poses import map_log
+
+    run, files = map_log(
+        args.log,
+        args.out,
+        _mapping_config(args),
+        poses=args.poses,
+        on_error="skip" if args.skip_malformed else "raise",
+        max_scans=args.max_scans,
+        progress=not args.quiet,
+    )
+    print(f"mapped {run.n_scans} scans in {run.wall_time_s:.1f} s ({run.n_scans / max(run.wall_time_s, 1e-9):.0f} scans/s)")
+    for name, path in files.items():
+        print(f"  {name:12s} {path}")
+    return 0
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    from crlam.experiments.simulate import simulate_to_folder
+
+    summary = simulate_to_folder(
+        world=args.world,
+        n_scans=args.scans,
+        seed=args.seed,
+        out_dir=args.out,
+        sensor=args.sensor,
+        progress=not args.quiet,
+    )
+    print(json.dumps(summary, indent=2))
+    return 0
+
+
+def cmd_demo(args: argparse.Namespace) -> int:
+    from crlam.experiments.demo import run_demo
+
+    report = run_demo(Path(args.out), n_scans=args.scans, seed=args.seed, progress=not args.quiet)
+    print(f"demo written to {args.out}; open {report}")
+    return 0
+
+
+def cmd_bench(args: argparse.Namespace) -> int:
+    from crlam.bench import run_benchmarks, write_json
+
+    result = run_benchmarks(args.only or None, quick=args.quick, repeats=args.repeats)
+    text = json.dumps(result["figures"] if not args.verbose else result, indent=2, sort_keys=True)
+    print(text)
+    if args.json:
+        write_json(result, args.json)
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="crlam",
+        description="Confidence-rich localization and mapping: CRM, RBPF-CLAM and information functions.",
+    )
+    parser.add_argument("--version", action="version", version=f"crlam {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    sub.required = True
+
+    p = sub.add_parser("demo", help="simulate the museum world, map it and write figures and a report",
+                       description="The main job on built-in data: simulate the 90 m x 90 m museum-like world with the paper's "
+                       "LIDAR, build the confidence-rich map (and the log-odds baseline) with known poses, and write "
+                       "figures and report.md.")
+    p.add_argument("--out", default="demo-out", help="output folder (default: demo-out)")
+    p.add_argument("--scans", type=_positive_int, default=1500, help="number of scans to simulate (default: 1500)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_demo)
+
+    p = sub.add_parser("simulate", help="simulate a robot in a world and write a CARMEN log and ground truth",
+                       description="Writes log.clf (CARMEN), groundtruth.tum, world.pgm/yaml and simulation.json. "
+                       "Same seed, same bytes.")
+    p.add_argument("--world", default="office", help="museum, office, or a PGM/PNG/Nav2-YAML path (default: office)")
+    p.add_argument("--scans", type=_positive_int, default=500, help="number of scans (default: 500)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--sensor", choices=("paper", "sick"), default="paper",
+                   help="paper = 1079 beams over 270 deg, 8 m; sick = 180 beams over 180 deg, 80 m (default: paper)")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    p.set_defaults(func=cmd_simulate)
+
+    p = sub.add_parser("map", help="build a confidence-rich map from a log with trusted poses",
+                       description="Maps a CARMEN log (plain, .gz or .bz2) whose poses are trusted and writes map.pgm/yaml, "
+                       "belief.npz, ogm.pgm/yaml, map.png and mapping.json.")
+    p.add_argument("log", help="CARMEN log, e.g. ../shared/data/corrected/intel-corrected.log.gz")
+    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--poses", choices=("log", "odometry"), default="log",
+                   help="which pose field to trust: the scan's pose field or its odometry field (default: log)")
+    p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
+    p.add_argument("--skip-malformed", action="store_true", help="skip (and count) malformed lines instead of stopping")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    _add_map_options(p)
+    p.set_defaults(func=cmd_map)
+
+    p = sub.add_parser("bench", help="run the micro-benchmarks and print named figures as JSON",
+                       description="Runs the core's micro-benchmarks (one thread, timed in Rust) and prints a JSON object of "
+                       "named figures, all measured in this run.")
+    p.add_argument("--json", help="also write the full result (figures, details, machine) to this file")
+    p.add_argument("--only", nargs="*", help="run only these figures")
+    p.add_argument("--quick", action="store_true", help="small workloads (smoke test)")
+    p.add_argument("--repeats", type=_positive_int, default=3, help="best of N (default: 3)")
+    p.add_argument("--verbose", action="store_true", help="print the full result, not just the figures")
+    p.set_defaults(func=cmd_bench)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except (CrlamError, FileNotFoundError) as e:
+        print(f"crlam {args.command}: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"crlam {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,134 @@
+"""Figures of maps: expected occupancy and confidence side by side, with scale and colour bars."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only; never needs a display (CI, workers)
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib.axes import Axes  # noqa: E402
+from numpy.typing import NDArray  # noqa: E402
+
+from crlam.mapping import MapLayer  # noqa: E402
+
+__all__ = ["add_scale_bar", "plot_layer", "save_crm_figure", "save_world_figure"]
+
+
+def _nice_length(span: float) -> float:
+    """A round scale-bar length (m) near a fifth of ``span``."""
+    target = max(span / 5.0, 1e-6)
+    base = 10 ** np.floor(np.log10(target))
+    for m in (1, 2, 5, 10):
+        if m * base >= target * 0.7:
+            return float(m * base)
+    return float(10 * base)
+
+
+def add_scale_bar(ax: Axes, extent: Sequence[float], color: str = "black") -> None:
+    """Draws a labelled scale bar in the lower-left corner of ``ax`` (data units are metres)."""
+    x0, x1, y0, y1 = extent
+    length = _nice_length(x1 - x0)
+    pad_x, pad_y = 0.04 * (x1 - x0), 0.05 * (y1 - y0)
+    xs, ys = x0 + pad_x, y0 + pad_y
+    ax.plot([xs, xs + length], [ys, ys], color=color, linewidth=3, solid_capstyle="butt")
+    label = f"{length:g} m"
+    ax.text(xs + length / 2, ys + 0.015 * (y1 - y0), label, ha="center", va="bottom", color=color, fontsize=8)
+
+
+def plot_layer(
+    ax: Axes,
+    layer: MapLayer,
+    *,
+    cmap: str,
+    vmin: float,
+    vmax: float,
+    label: str,
+    mask: NDArray[np.bool_] | None = None,
+) -> None:
+    """Shows a layer in world coordinates with a colour bar; ``mask`` cells are shown grey."""
+    vals = np.ma.masked_array(layer.values, mask=mask) if mask is not None else layer.values
+    cm = matplotlib.colormaps[cmap].with_extremes(bad="#b0b0b0")
+    im = ax.imshow(vals, origin="lower", extent=layer.extent, cmap=cm, vmin=vmin, vmax=vmax, interpolation="nearest")
+    cb = ax.figure.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
+    cb.set_label(label)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+    add_scale_bar(ax, layer.extent)
+
+
+def save_crm_figure(
+    path: str | os.PathLike[str],
+    mean: MapLayer,
+    variance: MapLayer,
+    *,
+    unknown: NDArray[np.bool_] | None = None,
+    title: str = "",
+    trajectory: NDArray[np.float64] | None = None,
+    dpi: int = 150,
+) -> Path:
+    """Expected occupancy (left) and confidence as the belief standard deviation (right).
+
+    Parameters
+    ----------
+    mean, variance : MapLayer
+        Expected occupancy m̂ and belief variance over the same cells.
+    unknown : ndarray of bool, shape (ny, nx), optional
+        Cells never observed, drawn grey.
+    trajectory : ndarray, shape (n, 2 or 3), optional
+        Poses drawn as a line on the occupancy panel.
+    """
+    ny, nx = mean.shape
+    aspect = ny / max(nx, 1)
+    width = 13.0
+    fig, axes = plt.subplots(1, 2, figsize=(width, max(3.5, 5.2 * aspect + 1.3)), constrained_layout=True)
+    plot_layer(axes[0], mean, cmap="gray_r", vmin=0.0, vmax=1.0, label="expected occupancy m̂", mask=unknown)
+    axes[0].set_title("Expected occupancy")
+    std = MapLayer(np.sqrt(np.maximum(variance.values, 0.0)), variance.origin, variance.resolution, "std")
+    # The uniform prior over 10 midpoint levels has std 0.287; the scale tops out just above it.
+    plot_layer(axes[1], std, cmap="magma_r", vmin=0.0, vmax=0.3, label="belief std (lower = more confident)", mask=unknown)
+    axes[1].set_title("Confidence")
+    if trajectory is not None and len(trajectory):
+        axes[0].plot(trajectory[:, 0], trajectory[:, 1], color="tab:blue", linewidth=0.5, alpha=0.6, label="trajectory")
+        axes[0].legend(loc="upper right", fontsize=8)
+    if title:
+        fig.suptitle(title)
+    out = Path(path)
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out
+
+
+def save_world_figure(
+    path: str | os.PathLike[str],
+    occupied: NDArray[np.bool_],
+    origin: Sequence[float],
+    resolution: float,
+    *,
+    trajectory: NDArray[np.float64] | None = None,
+    title: str = "",
+    dpi: int = 120,
+) -> Path:
+    """Ground-truth world raster with an optional trajectory."""
+    layer = MapLayer(occupied.astype(np.float64), (float(origin[0]), float(origin[1])), resolution, "world")
+    fig, ax = plt.subplots(figsize=(7, 7 * occupied.shape[0] / max(occupied.shape[1], 1) + 0.5), constrained_layout=True)
+    ax.imshow(layer.values, origin="lower", extent=layer.extent, cmap="gray_r", vmin=0, vmax=1, interpolation="nearest")
+    if trajectory is not None and len(trajectory):
+        ax.plot(trajectory[:, 0], trajectory[:, 1], color="tab:red", linewidth=0.8)
+        ax.plot(trajectory[0, 0], trajectory[0, 1], "o", color="tab:green", markersize=5)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+    add_scale_bar(ax, layer.extent)
+    if title:
+        ax.set_title(title)
+    out = Path(path)
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out
