@@ -1,14 +1,26 @@
 """Type stubs of the Rust extension ``crlam._native`` (checked with ``mypy.stubtest``)."""
 
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 from numpy.typing import NDArray
 
 __core_version__: str
 
-CellRect = tuple[int, int, int, int]
+__all__ = [
+    "__core_version__",
+    "CrmMap",
+    "LogOddsMap",
+    "SensorModel",
+    "cast_ranges",
+    "crm_update_ray",
+    "run_benchmark",
+    "traverse_ray",
+]
 
+_CellRect = tuple[int, int, int, int]
+
+@final
 class SensorModel:
     def __new__(
         cls,
@@ -48,18 +60,19 @@ class SensorModel:
     def on_ray(self, z: float, d: float) -> float: ...
     def infinity(self, z: float) -> float: ...
 
+@final
 class CrmMap:
     def __new__(
         cls,
         resolution: float,
-        origin: tuple[float, float] = (0.0, 0.0),
+        origin: tuple[float, float] = ...,
         *,
         n_levels: int = 10,
         levels: str = "midpoints",
         prior_mean: float | None = None,
         belief_floor: float = 1e-12,
         tile_size: int = 32,
-        extent: CellRect | None = None,
+        extent: _CellRect | None = None,
     ) -> CrmMap: ...
     @property
     def resolution(self) -> float: ...
@@ -76,9 +89,9 @@ class CrmMap:
     @property
     def belief_floor(self) -> float: ...
     @property
-    def extent(self) -> CellRect | None: ...
-    def bounds(self) -> CellRect: ...
-    def written_bounds(self) -> CellRect | None: ...
+    def extent(self) -> _CellRect | None: ...
+    def bounds(self) -> _CellRect: ...
+    def written_bounds(self) -> _CellRect | None: ...
     def cell_of(self, x: float, y: float) -> tuple[int, int]: ...
     def mean_at(self, ix: int, iy: int) -> float: ...
     def cell(self, ix: int, iy: int) -> NDArray[np.float32]: ...
@@ -114,29 +127,30 @@ class CrmMap:
         beam_stride: int = 1,
         zero_is_no_return: bool = False,
     ) -> tuple[float, int]: ...
-    def beliefs(self, rect: CellRect | None = None) -> NDArray[np.float32]: ...
+    def beliefs(self, rect: _CellRect | None = None) -> NDArray[np.float32]: ...
     def set_beliefs(self, ix0: int, iy0: int, beliefs: NDArray[np.float64]) -> None: ...
     def derived_maps(
-        self, rect: CellRect | None = None
+        self, rect: _CellRect | None = None
     ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]: ...
     def copy(self) -> CrmMap: ...
     def tile_stats(self) -> dict[str, int]: ...
 
+@final
 class LogOddsMap:
     def __new__(
         cls,
         resolution: float,
-        origin: tuple[float, float] = (0.0, 0.0),
+        origin: tuple[float, float] = ...,
         *,
         z_max: float = 8.0,
         l_occ: float = 1.0,
-        l_free: float = -0.5,
-        l_min: float = -100.0,
+        l_free: float = ...,
+        l_min: float = ...,
         l_max: float = 100.0,
         base: float = 2.0,
         clear_no_return: bool = True,
         tile_size: int = 32,
-        extent: CellRect | None = None,
+        extent: _CellRect | None = None,
     ) -> LogOddsMap: ...
     @property
     def resolution(self) -> float: ...
@@ -144,15 +158,15 @@ class LogOddsMap:
     def origin(self) -> tuple[float, float]: ...
     @property
     def base(self) -> float: ...
-    def bounds(self) -> CellRect: ...
-    def written_bounds(self) -> CellRect | None: ...
+    def bounds(self) -> _CellRect: ...
+    def written_bounds(self) -> _CellRect | None: ...
     def update_scan(
         self, pose: NDArray[np.float64], angles: NDArray[np.float64], ranges: NDArray[np.float64]
     ) -> tuple[int, int]: ...
     def update_scans(
         self, poses: NDArray[np.float64], angles: NDArray[np.float64], ranges: NDArray[np.float64]
     ) -> tuple[int, int]: ...
-    def log_odds(self, rect: CellRect | None = None) -> NDArray[np.float64]: ...
+    def log_odds(self, rect: _CellRect | None = None) -> NDArray[np.float64]: ...
     def copy(self) -> LogOddsMap: ...
     def tile_stats(self) -> dict[str, int]: ...
 
@@ -162,7 +176,7 @@ def traverse_ray(
     angle: float,
     length: float,
     resolution: float,
-    grid_origin: tuple[float, float] = (0.0, 0.0),
+    grid_origin: tuple[float, float] = ...,
 ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]: ...
 def cast_ranges(
     occupied: NDArray[np.uint8],
