@@ -126,7 +126,7 @@ def build_parser() -> argparse.ArgumentParser:
                        "LIDAR, build the confidence-rich map (and the log-odds baseline) with known poses, and write "
                        "figures and report.md.")
     p.add_argument("--out", default="demo-out", help="output folder (default: demo-out)")
-    p.add_argument("--scans", type=_positive_int, default=1500, help="number of scans to simulate (default: 1500)")
+    p.add_argument("--scans", type=_positive_int, default=4000, help="number of scans to simulate (default: 4000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_demo)

@@ -7,6 +7,7 @@
 use crate::error::{config_err, Result};
 
 const LN_SQRT_2PI: f64 = 0.918_938_533_204_672_8;
+const SQRT_2PI: f64 = 2.506_628_274_631_000_5;
 /// Beyond this many σ a Gaussian factor exp(−u²/2) is below 1e-300 and is taken as 0 in the
 /// linear-space sweep (the log-space sweep keeps it).
 pub const GAUSS_CUTOFF_SIGMAS: f64 = 37.0;
@@ -217,7 +218,13 @@ impl SensorModel {
         if u.abs() > GAUSS_CUTOFF_SIGMAS {
             return 0.0;
         }
-        self.log_hit_density(z, d).exp()
+        let s = self.sigma_hit;
+        let peak = (-0.5 * u * u).exp() / (s * SQRT_2PI);
+        if d > TRUNC_SIGMAS * s && self.z_max - d > TRUNC_SIGMAS * s {
+            peak
+        } else {
+            peak * (-self.log_trunc_norm(d)).exp()
+        }
     }
 
     /// Short-reading density ε(z; d) = λ e^{−λz} / (1 − e^{−λd}) on [0, d].

@@ -111,7 +111,7 @@ def map_scans(
     poses: list[NDArray[np.float64]] = []
     stamps: list[float] = []
     t0 = time.perf_counter()
-    bar = tqdm(total=max_scans, desc=desc, unit="scan", disable=not progress, leave=False)
+    bar = tqdm(total=max_scans, desc=desc, unit="scan", disable=not progress, leave=False, mininterval=1.0)
     for scan in scans:
         if max_scans is not None and len(poses) >= max_scans:
             break

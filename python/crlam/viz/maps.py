@@ -36,9 +36,14 @@ def add_scale_bar(ax: Axes, extent: Sequence[float], color: str = "black") -> No
     length = _nice_length(x1 - x0)
     pad_x, pad_y = 0.04 * (x1 - x0), 0.05 * (y1 - y0)
     xs, ys = x0 + pad_x, y0 + pad_y
-    ax.plot([xs, xs + length], [ys, ys], color=color, linewidth=3, solid_capstyle="butt")
+    from matplotlib.patches import Rectangle
+
+    # A white plate keeps the bar readable over dark map content.
+    ax.add_patch(Rectangle((xs - 0.01 * (x1 - x0), ys - 0.015 * (y1 - y0)), length + 0.02 * (x1 - x0), 0.07 * (y1 - y0),
+                           facecolor="white", edgecolor="none", alpha=0.85, zorder=4))
+    ax.plot([xs, xs + length], [ys, ys], color=color, linewidth=3, solid_capstyle="butt", zorder=5)
     label = f"{length:g} m"
-    ax.text(xs + length / 2, ys + 0.015 * (y1 - y0), label, ha="center", va="bottom", color=color, fontsize=8)
+    ax.text(xs + length / 2, ys + 0.012 * (y1 - y0), label, ha="center", va="bottom", color=color, fontsize=8, zorder=5)
 
 
 def plot_layer(

@@ -527,9 +527,10 @@ impl CrmMap {
                 continue;
             }
             let p = &mut sc.acc[slot * k..(slot + 1) * k];
+            let c0 = 1.0 - alpha * mhat;
             let mut sum = 0.0;
             for i in 0..k {
-                p[i] *= (1.0 + alpha * (self.mu[i] - mhat)).max(0.0);
+                p[i] *= (c0 + alpha * self.mu[i]).max(0.0);
                 sum += p[i];
             }
             if !(sum > 0.0 && sum.is_finite()) {

@@ -1,0 +1,155 @@
+"""``crlam demo``: the main job on built-in data.
+
+Simulates the 90 m x 90 m museum-like world with the paper's LIDAR (1079 beams over 270°, 8 m),
+writes the log, builds the confidence-rich map and the log-odds baseline with the ground-truth
+poses and with raw odometry, scores both maps against the world and writes figures and
+``report.md``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from crlam.eval.maps import MapScores, score_map, world_coverage
+from crlam.experiments.known_poses import KnownPoseScan, MappingRun, map_scans, write_map_folder
+from crlam.mapping import MapLayer, MappingConfig
+from crlam.sim.simulate import SimulatedLog, SimulationConfig, simulate, write_simulation
+
+__all__ = ["run_demo"]
+
+#: Entropy drop (bits) from the prior for a CRM cell to count as observed when scoring.
+OBSERVED_BITS = 0.1
+
+
+def _scans(log: SimulatedLog, poses: np.ndarray) -> list[KnownPoseScan]:
+    s = log.sensor
+    angles = s.angles
+    out = []
+    for k in range(log.n_scans):
+        r = np.where(log.ranges[k] >= s.max_range, np.inf, log.ranges[k])
+        out.append(KnownPoseScan(poses[k], angles, r, float(log.timestamps[k])))
+    return out
+
+
+def _scores(run: MappingRun, log: SimulatedLog) -> tuple[MapScores, MapScores]:
+    """(CRM, log-odds) scores over the CRM's written area."""
+    rect = run.crm.region()
+    mean, _, ent = run.crm.layers()
+    cov = world_coverage(mean, log.world.occupied, log.world.origin, log.world.resolution)
+    lo = run.ogm.native.log_odds(rect)
+    prob = MapLayer(1.0 / (1.0 + np.power(run.ogm.config.base, -lo)), mean.origin, mean.resolution)
+    p = run.crm.native.prior
+    h_prior = float(-(p * np.log2(p)).sum())
+    # Observed: at least a tenth of a bit learned (CRM), or at least one update (log-odds).
+    observed_crm = ent.values < h_prior - OBSERVED_BITS
+    observed_ogm = np.abs(lo) >= min(abs(run.ogm.config.l_free), run.ogm.config.l_occ) - 1e-6
+    return score_map(mean, observed_crm, cov), score_map(prob, observed_ogm, cov)
+
+
+def _row(name: str, s: MapScores) -> str:
+    return (f"| {name} | {s.n_observed} | {s.accuracy:.3f} | {s.occupied_precision:.3f} | {s.occupied_recall:.3f} | "
+            f"{s.free_accuracy:.3f} | {s.mean_occupied:.3f} | {s.mean_free:.3f} |")
+
+
+def run_demo(out: Path, *, n_scans: int = 4000, seed: int = 0, progress: bool = True) -> Path:
+    """Runs the demo into ``out`` and returns the path of ``report.md``."""
+    t_start = time.perf_counter()
+    out.mkdir(parents=True, exist_ok=True)
+    say = print if progress else (lambda *a, **k: None)
+    say(f"[1/4] simulating {n_scans} scans of the museum world (seed {seed}) ...", flush=True)
+    t0 = time.perf_counter()
+    log = simulate(SimulationConfig(world="museum", n_scans=n_scans, seed=seed, sensor="paper_lidar"))
+    files = write_simulation(log, out / "simulation")
+    from crlam.viz.maps import save_world_figure
+
+    save_world_figure(out / "world.png", log.world.occupied, log.world.origin, log.world.resolution,
+                      trajectory=log.poses, title=f"museum world (90 m x 90 m): {n_scans} scans, {log.trajectory.length:.0f} m")
+    t_sim = time.perf_counter() - t0
+
+    cfg = MappingConfig(resolution=0.2, max_range=log.sensor.max_range)
+    say("[2/4] mapping with the ground-truth poses ...", flush=True)
+    truth = map_scans(_scans(log, log.poses), cfg, progress=progress, desc="CRM, true poses")
+    write_map_folder(truth, out / "map_groundtruth_poses", title="Museum: CRM with ground-truth poses (ijrr, 0.2 m)")
+    say("[3/4] mapping with raw odometry (what SLAM must fix) ...", flush=True)
+    odo = map_scans(_scans(log, log.odometry), cfg, progress=progress, desc="CRM, odometry")
+    write_map_folder(odo, out / "map_odometry_poses", title="Museum: CRM with raw odometry poses (ijrr, 0.2 m)")
+
+    say("[4/4] scoring the maps against the world ...", flush=True)
+    crm_t, ogm_t = _scores(truth, log)
+    crm_o, ogm_o = _scores(odo, log)
+    drift = np.hypot(*(log.odometry[:, :2] - log.poses[:, :2]).T)
+    results = {
+        "n_scans": n_scans,
+        "seed": seed,
+        "path_length_m": log.trajectory.length,
+        "odometry_final_drift_m": float(drift[-1]),
+        "odometry_max_drift_m": float(drift.max()),
+        "scores": {"crm_true_poses": crm_t.as_dict(), "ogm_true_poses": ogm_t.as_dict(),
+                   "crm_odometry": crm_o.as_dict(), "ogm_odometry": ogm_o.as_dict()},
+        "timing_s": {"simulate": t_sim, "map_true_poses": truth.wall_time_s, "map_odometry": odo.wall_time_s,
+                     "total": time.perf_counter() - t_start},
+        "mapping_scans_per_s": truth.n_scans / truth.wall_time_s,
+        "config": cfg.to_dict(),
+    }
+    (out / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    header = "| map | observed cells | accuracy | occupied precision | occupied recall | free accuracy | mean m̂ on occupied | mean m̂ on free |"
+    report = f"""# crlam demo: confidence-rich mapping of the museum world
+
+Built-in data only: a procedural 90 m x 90 m museum-like world (halls, rooms, doors, pillars,
+exhibits and clutter), the paper's LIDAR (1079 beams over 270 deg, 8 m max range, beam-mixture
+noise) and odometry with Gaussian increment noise (sigma 0.01 m, 0.01 m, 0.01 rad per scan).
+
+- scans: {n_scans} (seed {seed}), path length {log.trajectory.length:.1f} m
+- odometry drift: {drift[-1]:.2f} m at the end, {drift.max():.2f} m at worst
+- CRM settings: {cfg.model} model, {cfg.n_levels} {cfg.levels} levels, {cfg.scan_update} scan update,
+  {cfg.resolution} m cells, sigma_hit {cfg.hit_sigma:.4f} m
+- mapping speed: {results['mapping_scans_per_s']:.0f} scans/s ({results['mapping_scans_per_s'] * 1079:.0f} beam updates/s, one thread)
+- wall time: simulate {t_sim:.1f} s, map {truth.wall_time_s:.1f} s + {odo.wall_time_s:.1f} s, total {results['timing_s']['total']:.1f} s
+
+The simulated log is in `simulation/` (`log.clf` in CARMEN format, whose pose fields are the noisy
+odometry; `groundtruth.tum`; `world.pgm`/`world.yaml`).
+
+![world and trajectory](world.png)
+
+## Map with the ground-truth poses
+
+![CRM with true poses](map_groundtruth_poses/map.png)
+
+## Map with raw odometry
+
+The same scans placed with the drifting odometry: the blur is what the particle filter
+(RBPF-CLAM) removes.
+
+![CRM with odometry](map_odometry_poses/map.png)
+
+## Scores against the world
+
+Observed cells only (CRM: at least 0.1 bit learned; log-odds: at least one update). A cell is
+truly occupied when obstacles cover at least a quarter of it and truly free when nothing covers
+it (cells with a sliver of obstacle are not scored); the map calls it occupied when its value
+exceeds 0.5 (m̂ for the CRM, p for the log-odds map).
+
+{header}
+|---|---|---|---|---|---|---|---|
+{_row("CRM, true poses", crm_t)}
+{_row("log-odds, true poses", ogm_t)}
+{_row("CRM, odometry", crm_o)}
+{_row("log-odds, odometry", ogm_o)}
+
+Precision is high and free space is almost always right. Recall on occupied cells is modest for
+both maps at 0.2 m: a wall that covers only part of a cell is crossed, through the cell's free
+part, by the many beams that graze along it, and under the pure-hit cause model (as under the
+log-odds update) those passes count as evidence of free space. With the drifting odometry every
+score collapses: the scans no longer agree on where the walls are.
+
+Each map folder also holds `map.pgm`/`map.yaml` (Nav2), `belief.npz` (lossless beliefs),
+`ogm.pgm`/`ogm.yaml` and `mapping.json`.
+"""
+    path = out / "report.md"
+    path.write_text(report)
+    say(f"done in {results['timing_s']['total']:.1f} s", flush=True)
+    return path
