@@ -13,11 +13,11 @@ _SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 if "CRLAM_DATA" not in os.environ and _SHARED.is_dir():
     os.environ["CRLAM_DATA"] = str(_SHARED)
 
-from crlam.io.datasets import data_root
-
 
 @pytest.fixture(scope="session")
 def data_dir() -> Path:
+    from crlam.io.datasets import data_root
+
     root = data_root()
     if root is None:
         pytest.skip("real datasets not found: set CRLAM_DATA to the shared data folder (../shared/data)")

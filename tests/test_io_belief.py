@@ -8,38 +8,49 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from crlam.errors import DataFormatError
-from crlam.io import BeliefArchive, load_belief, save_belief
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+
+from crlam.errors import DataFormatError
+from crlam.io import BeliefArchive, load_belief, save_belief
 
 
 def make(ny: int = 3, nx: int = 4, k: int = 5, seed: int = 0) -> BeliefArchive:
     rng = np.random.default_rng(seed)
     w = rng.random((ny, nx, k))
-    return BeliefArchive(beliefs=(w / w.sum(axis=2, keepdims=True)).astype(np.float32),
-                         levels=np.linspace(0.0, 1.0, k), origin=np.array([-3.5, 12.25]),
-                         resolution=0.05,
-                         metadata={"sensor_model": "crm", "n_levels": k, "floor": 1e-6})
+    return BeliefArchive(
+        beliefs=(w / w.sum(axis=2, keepdims=True)).astype(np.float32),
+        levels=np.linspace(0.0, 1.0, k),
+        origin=np.array([-3.5, 12.25]),
+        resolution=0.05,
+        metadata={"sensor_model": "crm", "n_levels": k, "floor": 1e-6},
+    )
 
 
 @settings(max_examples=40, deadline=None)
-@given(shape=st.tuples(st.integers(1, 9), st.integers(1, 9), st.integers(1, 12)),
-       data=st.data(), origin=arrays(np.float64, 2, elements=st.floats(-1e6, 1e6)),
-       resolution=st.floats(1e-4, 100.0),
-       metadata=st.dictionaries(st.text(max_size=8),
-                                st.one_of(st.text(max_size=8), st.integers(-10**9, 10**9),
-                                          st.floats(allow_nan=False, allow_infinity=False)),
-                                max_size=4))
-def test_bitwise_round_trip(shape: tuple[int, int, int], data: st.DataObject,
-                            origin: np.ndarray, resolution: float,
-                            metadata: dict[str, str | int | float]) -> None:
+@given(
+    shape=st.tuples(st.integers(1, 9), st.integers(1, 9), st.integers(1, 12)),
+    data=st.data(),
+    origin=arrays(np.float64, 2, elements=st.floats(-1e6, 1e6)),
+    resolution=st.floats(1e-4, 100.0),
+    metadata=st.dictionaries(
+        st.text(max_size=8),
+        st.one_of(st.text(max_size=8), st.integers(-(10**9), 10**9), st.floats(allow_nan=False, allow_infinity=False)),
+        max_size=4,
+    ),
+)
+def test_bitwise_round_trip(
+    shape: tuple[int, int, int],
+    data: st.DataObject,
+    origin: np.ndarray,
+    resolution: float,
+    metadata: dict[str, str | int | float],
+) -> None:
     w = data.draw(arrays(np.float64, shape, elements=st.floats(1e-3, 1.0)))
     beliefs = (w / w.sum(axis=2, keepdims=True)).astype(np.float32)
     levels = data.draw(arrays(np.float64, shape[2], elements=st.floats(-10.0, 10.0)))
-    arc = BeliefArchive(beliefs=beliefs, levels=levels, origin=origin, resolution=resolution,
-                        metadata=metadata)
+    arc = BeliefArchive(beliefs=beliefs, levels=levels, origin=origin, resolution=resolution, metadata=metadata)
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "belief.npz"
         save_belief(p, arc)
@@ -86,10 +97,18 @@ def _meta(a: BeliefArchive) -> None:
     a.metadata["bad"] = [1, 2]  # type: ignore[assignment]
 
 
-@pytest.mark.parametrize(("mutate", "field"), [
-    (_bad_sum, "beliefs[1,2]"), (_negative, "beliefs[0,0]"), (_nan, "beliefs[2,3]"),
-    (_levels, "levels"), (_origin, "origin"), (_resolution, "resolution"), (_meta, "metadata"),
-])
+@pytest.mark.parametrize(
+    ("mutate", "field"),
+    [
+        (_bad_sum, "beliefs[1,2]"),
+        (_negative, "beliefs[0,0]"),
+        (_nan, "beliefs[2,3]"),
+        (_levels, "levels"),
+        (_origin, "origin"),
+        (_resolution, "resolution"),
+        (_meta, "metadata"),
+    ],
+)
 def test_save_validates(tmp_path: Path, mutate: object, field: str) -> None:
     arc = make()
     mutate(arc)  # type: ignore[operator]
@@ -110,14 +129,17 @@ def _rewrite(path: Path, **changes: object) -> None:
         np.savez_compressed(fh, **arrays_)  # type: ignore[arg-type]
 
 
-@pytest.mark.parametrize(("changes", "field"), [
-    ({"format_version": np.array(99)}, "format_version"),
-    ({"levels": None}, "levels"),
-    ({"beliefs": np.zeros((3, 4, 5), np.float64)}, "beliefs"),
-    ({"beliefs": np.full((3, 4, 5), 0.3, np.float32)}, "beliefs[0,0]"),
-    ({"metadata": np.array("{not json")}, "metadata"),
-    ({"format": np.array("something")}, "format"),
-])
+@pytest.mark.parametrize(
+    ("changes", "field"),
+    [
+        ({"format_version": np.array(99)}, "format_version"),
+        ({"levels": None}, "levels"),
+        ({"beliefs": np.zeros((3, 4, 5), np.float64)}, "beliefs"),
+        ({"beliefs": np.full((3, 4, 5), 0.3, np.float32)}, "beliefs[0,0]"),
+        ({"metadata": np.array("{not json")}, "metadata"),
+        ({"format": np.array("something")}, "format"),
+    ],
+)
 def test_load_validates(tmp_path: Path, changes: dict[str, object], field: str) -> None:
     p = tmp_path / "b.npz"
     save_belief(p, make())

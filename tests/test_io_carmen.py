@@ -13,6 +13,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
 from crlam.errors import DataFormatError
 from crlam.io import (
     DATASETS,
@@ -30,18 +34,20 @@ from crlam.io import (
     write_carmen,
 )
 from crlam.pose import compose, wrap_angle
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-from hypothesis.extra.numpy import arrays
 
 # ----------------------------------------------------------------------------- helpers
 
 RANGES = [round(1.0 + 0.01 * i, 2) for i in range(180)]
 
 
-def flaser_line(ranges: list[float] | list[object] | None = None, n: int | None = None,
-                pose: str = "1.0 2.0 0.5", odom: str = "1.1 2.1 0.6",
-                stamps: str = "100.5 nohost 0.25", kind: str = "FLASER") -> str:
+def flaser_line(
+    ranges: list[float] | list[object] | None = None,
+    n: int | None = None,
+    pose: str = "1.0 2.0 0.5",
+    odom: str = "1.1 2.1 0.6",
+    stamps: str = "100.5 nohost 0.25",
+    kind: str = "FLASER",
+) -> str:
     r = RANGES if ranges is None else ranges
     count = len(r) if n is None else n
     return f"{kind} {count} {' '.join(str(v) for v in r)} {pose} {odom} {stamps}"
@@ -62,8 +68,7 @@ def write_text(path: Path, lines: list[str]) -> Path:
 def real(relative: str) -> Path:
     root = data_root()
     if root is None:
-        pytest.skip("real datasets not found: set CRLAM_DATA to the data folder "
-                    "(default ../shared/data beside the repository)")
+        pytest.skip("real datasets not found: set CRLAM_DATA to the data folder (default ../shared/data beside the repository)")
     path = root / relative
     if not path.exists():
         pytest.skip(f"dataset file {path} is missing")
@@ -74,25 +79,35 @@ def real(relative: str) -> Path:
 
 
 def test_parse_mixed_log(tmp_path: Path) -> None:
-    p = write_text(tmp_path / "a.log", [
-        "# a comment",
-        "",
-        "PARAM robot_frontlaser_offset 0.15 nohost 0",
-        "PARAM robot_use_laser on nohost 0",
-        ODOM_LINE,
-        flaser_line(),
-        "NEFF 30",
-        "TRUEPOS 1 2 3 4 5 6 7 h 8",
-        "SONAR 1 2 3",
-    ])
+    p = write_text(
+        tmp_path / "a.log",
+        [
+            "# a comment",
+            "",
+            "PARAM robot_frontlaser_offset 0.15 nohost 0",
+            "PARAM robot_use_laser on nohost 0",
+            ODOM_LINE,
+            flaser_line(),
+            "NEFF 30",
+            "TRUEPOS 1 2 3 4 5 6 7 h 8",
+            "SONAR 1 2 3",
+        ],
+    )
     reader = CarmenReader(p)
     recs = list(reader)
     assert [type(r) for r in recs] == [OdometryReading, LaserScan]
     odo, scan = recs
     assert isinstance(odo, OdometryReading)
     np.testing.assert_array_equal(odo.pose, [0.5, -0.25, 0.1])
-    assert (odo.tv, odo.rv, odo.accel, odo.timestamp, odo.host, odo.logger_timestamp, odo.line) \
-        == (0.2, 0.01, 0.0, 99.75, "nohost", 0.1, 5)
+    assert (odo.tv, odo.rv, odo.accel, odo.timestamp, odo.host, odo.logger_timestamp, odo.line) == (
+        0.2,
+        0.01,
+        0.0,
+        99.75,
+        "nohost",
+        0.1,
+        5,
+    )
     assert isinstance(scan, LaserScan)
     assert scan.n_beams == 180 and scan.kind == "FLASER" and scan.line == 6
     np.testing.assert_array_equal(scan.ranges, RANGES)
@@ -115,22 +130,23 @@ def test_flaser_geometry_conventions() -> None:
 
 
 def test_flaser_options_and_rlaser(tmp_path: Path) -> None:
-    p = write_text(tmp_path / "a.log", [
-        "PARAM robot_rearlaser_offset 0.2 nohost 0",
-        flaser_line([1.0] * 360, kind="RLASER"),
-    ])
+    p = write_text(
+        tmp_path / "a.log",
+        [
+            "PARAM robot_rearlaser_offset 0.2 nohost 0",
+            flaser_line([1.0] * 360, kind="RLASER"),
+        ],
+    )
     (scan,) = read_scans(p, flaser_max_range=30.0, flaser_fov=math.radians(180))
     assert scan.kind == "RLASER" and scan.max_range == 30.0
     assert scan.angle_increment == pytest.approx(math.radians(0.5))
     np.testing.assert_allclose(scan.laser_offset, [-0.2, 0.0, math.pi])
 
 
-def robotlaser_line(n: int = 5, m: int = 2, laser: str = "1.2 2.0 0.5",
-                    robot: str = "1.0 2.0 0.5") -> str:
+def robotlaser_line(n: int = 5, m: int = 2, laser: str = "1.2 2.0 0.5", robot: str = "1.0 2.0 0.5") -> str:
     ranges = " ".join(f"{1.0 + i:.3f}" for i in range(n))
     rem = " ".join("0.5" for _ in range(m))
-    return (f"ROBOTLASER1 0 -2.0 4.0 0.01 30.0 0.01 0 {n} {ranges} {m} {rem} {laser} {robot} "
-            "0.1 0.2 0.3 0.4 0.5 123.25 myhost 1.5")
+    return f"ROBOTLASER1 0 -2.0 4.0 0.01 30.0 0.01 0 {n} {ranges} {m} {rem} {laser} {robot} 0.1 0.2 0.3 0.4 0.5 123.25 myhost 1.5"
 
 
 def test_robotlaser1(tmp_path: Path) -> None:
@@ -143,8 +159,7 @@ def test_robotlaser1(tmp_path: Path) -> None:
     np.testing.assert_array_equal(scan.odom, scan.pose)
     # The laser sits 0.2 m along the robot heading: offset (0.2 cos 0.5, -0.2 sin 0.5, 0)
     # expressed in the robot frame.
-    np.testing.assert_allclose(scan.laser_offset, [0.2 * math.cos(0.5), -0.2 * math.sin(0.5), 0],
-                               atol=1e-12)
+    np.testing.assert_allclose(scan.laser_offset, [0.2 * math.cos(0.5), -0.2 * math.sin(0.5), 0], atol=1e-12)
     assert (scan.timestamp, scan.host, scan.logger_timestamp) == (123.25, "myhost", 1.5)
 
 
@@ -162,8 +177,7 @@ def test_rawlaser_ignored_or_included(tmp_path: Path) -> None:
 def test_bad_ranges_become_no_returns(tmp_path: Path) -> None:
     r = [2.0] * 180
     r[3], r[4], r[5], r[6], r[7], r[8] = math.nan, math.inf, -1.0, 0.0, 81.0, 90.0
-    line = flaser_line([0.0] * 180).replace(" ".join(["0.0"] * 180),
-                                            " ".join(str(v) for v in r))
+    line = flaser_line([0.0] * 180).replace(" ".join(["0.0"] * 180), " ".join(str(v) for v in r))
     p = write_text(tmp_path / "a.log", [line])
     reader = CarmenReader(p)
     (scan,) = list(reader)
@@ -203,8 +217,7 @@ def test_malformed_line_names_file_line_field(tmp_path: Path, case: str, suffix:
     bad, field = MALFORMED[case]
     text = "".join(s + "\n" for s in ["# header", ODOM_LINE, bad, flaser_line()]).encode()
     p = tmp_path / f"bad.log{suffix}"
-    p.write_bytes(gzip.compress(text) if suffix == ".gz"
-                  else bz2.compress(text) if suffix == ".bz2" else text)
+    p.write_bytes(gzip.compress(text) if suffix == ".gz" else bz2.compress(text) if suffix == ".bz2" else text)
     with pytest.raises(DataFormatError) as info:
         list(read_carmen(p))
     err = info.value
@@ -281,10 +294,35 @@ def test_reader_streams(tmp_path: Path) -> None:
 # ----------------------------------------------------------------------------- fuzz
 
 TOKENS = st.one_of(
-    st.sampled_from(["FLASER", "RLASER", "ODOM", "ROBOTLASER1", "RAWLASER2", "PARAM",
-                     "robot_frontlaser_offset", "robot_rearlaser_offset", "NEFF", "#",
-                     "nohost", "nan", "-inf", "1e999", "0", "1", "2", "3", "180", "-1",
-                     "9" * 30, "", "1_0", "٣", "0x10"]),
+    st.sampled_from(
+        [
+            "FLASER",
+            "RLASER",
+            "ODOM",
+            "ROBOTLASER1",
+            "RAWLASER2",
+            "PARAM",
+            "robot_frontlaser_offset",
+            "robot_rearlaser_offset",
+            "NEFF",
+            "#",
+            "nohost",
+            "nan",
+            "-inf",
+            "1e999",
+            "0",
+            "1",
+            "2",
+            "3",
+            "180",
+            "-1",
+            "9" * 30,
+            "",
+            "1_0",
+            "٣",
+            "0x10",
+        ]
+    ),
     st.integers(-5, 400).map(str),
     st.floats(allow_nan=True, allow_infinity=True).map(repr),
     st.text(max_size=8),
@@ -301,8 +339,7 @@ def _consume(path: Path, on_error: str) -> None:
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(lines=st.lists(st.one_of(LINES, st.text(max_size=60)), max_size=12),
-       on_error=st.sampled_from(["raise", "skip"]))
+@given(lines=st.lists(st.one_of(LINES, st.text(max_size=60)), max_size=12), on_error=st.sampled_from(["raise", "skip"]))
 def test_fuzz_only_dataformaterror(lines: list[str], on_error: str) -> None:
     with tempfile.TemporaryDirectory() as d:
         p = Path(d) / "fuzz.log"
@@ -311,8 +348,10 @@ def test_fuzz_only_dataformaterror(lines: list[str], on_error: str) -> None:
 
 
 @settings(max_examples=200, deadline=None)
-@given(data=st.data(), base=st.sampled_from([flaser_line(), ODOM_LINE, robotlaser_line(),
-                                             "RAWLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 2 1 2 0 5 h 0"]))
+@given(
+    data=st.data(),
+    base=st.sampled_from([flaser_line(), ODOM_LINE, robotlaser_line(), "RAWLASER1 0 -1.5 3.0 0.5 20.0 0.01 0 2 1 2 0 5 h 0"]),
+)
 def test_fuzz_mutated_valid_lines(data: st.DataObject, base: str) -> None:
     tokens = base.split()
     for _ in range(data.draw(st.integers(1, 4))):
@@ -354,17 +393,32 @@ def scans(draw: st.DrawFn) -> LaserScan:
     ranges = draw(arrays(np.float64, n, elements=st.floats(0.01, max_range)))
     pose = vec(draw(COORD), draw(COORD), draw(ANGLE))
     odom = pose if same_odom else vec(draw(COORD), draw(COORD), draw(ANGLE))
-    return LaserScan(ranges=ranges, angle_min=amin, angle_increment=inc, max_range=max_range,
-                     pose=pose, odom=odom, laser_offset=offset, timestamp=draw(STAMP),
-                     host=draw(HOST), logger_timestamp=draw(STAMP))
+    return LaserScan(
+        ranges=ranges,
+        angle_min=amin,
+        angle_increment=inc,
+        max_range=max_range,
+        pose=pose,
+        odom=odom,
+        laser_offset=offset,
+        timestamp=draw(STAMP),
+        host=draw(HOST),
+        logger_timestamp=draw(STAMP),
+    )
 
 
 @st.composite
 def odoms(draw: st.DrawFn) -> OdometryReading:
     speed = st.floats(-10.0, 10.0)
-    return OdometryReading(pose=vec(draw(COORD), draw(COORD), draw(ANGLE)), tv=draw(speed),
-                           rv=draw(speed), accel=draw(speed), timestamp=draw(STAMP),
-                           host=draw(HOST), logger_timestamp=draw(STAMP))
+    return OdometryReading(
+        pose=vec(draw(COORD), draw(COORD), draw(ANGLE)),
+        tv=draw(speed),
+        rv=draw(speed),
+        accel=draw(speed),
+        timestamp=draw(STAMP),
+        host=draw(HOST),
+        logger_timestamp=draw(STAMP),
+    )
 
 
 def angle_diff(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -394,8 +448,9 @@ def assert_same_record(a: LaserScan | OdometryReading, b: LaserScan | OdometryRe
 
 
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(records=st.lists(st.one_of(scans(), odoms()), min_size=1, max_size=6),
-       suffix=st.sampled_from([".log", ".log.gz", ".clf.bz2"]))
+@given(
+    records=st.lists(st.one_of(scans(), odoms()), min_size=1, max_size=6), suffix=st.sampled_from([".log", ".log.gz", ".clf.bz2"])
+)
 def test_write_read_round_trip(records: list[LaserScan | OdometryReading], suffix: str) -> None:
     with tempfile.TemporaryDirectory() as d:
         p1, p2 = Path(d) / f"a{suffix}", Path(d) / f"b{suffix}"
@@ -411,9 +466,16 @@ def test_write_read_round_trip(records: list[LaserScan | OdometryReading], suffi
 def test_lidar_270_uses_robotlaser1(tmp_path: Path) -> None:
     n = 1079
     inc = math.radians(270.0) / (n - 1)
-    scan = LaserScan(ranges=np.linspace(0.1, 30.0, n), angle_min=-math.radians(135.0),
-                     angle_increment=inc, max_range=30.0, pose=vec(1, 2, 0.3),
-                     odom=vec(1, 2, 0.3), laser_offset=vec(0.1, 0.0, 0.0), timestamp=12.5)
+    scan = LaserScan(
+        ranges=np.linspace(0.1, 30.0, n),
+        angle_min=-math.radians(135.0),
+        angle_increment=inc,
+        max_range=30.0,
+        pose=vec(1, 2, 0.3),
+        odom=vec(1, 2, 0.3),
+        laser_offset=vec(0.1, 0.0, 0.0),
+        timestamp=12.5,
+    )
     p = tmp_path / "sim.log"
     write_carmen(p, [scan])
     assert p.read_text().startswith("ROBOTLASER1 ")
@@ -425,10 +487,18 @@ def test_lidar_270_uses_robotlaser1(tmp_path: Path) -> None:
 
 def test_flaser_offset_becomes_param(tmp_path: Path) -> None:
     amin, inc = flaser_geometry(180)
-    mk = [LaserScan(ranges=np.full(180, 2.0), angle_min=amin, angle_increment=inc,
-                    max_range=81.0, pose=vec(0, 0, 0), odom=vec(0, 0, 0),
-                    laser_offset=vec(off, 0, 0))
-          for off in (0.0, 0.25, 0.25, 0.0)]
+    mk = [
+        LaserScan(
+            ranges=np.full(180, 2.0),
+            angle_min=amin,
+            angle_increment=inc,
+            max_range=81.0,
+            pose=vec(0, 0, 0),
+            odom=vec(0, 0, 0),
+            laser_offset=vec(off, 0, 0),
+        )
+        for off in (0.0, 0.25, 0.25, 0.0)
+    ]
     p = tmp_path / "o.log"
     write_carmen(p, mk)
     kinds = [line.split()[0] for line in p.read_text().splitlines()]
@@ -438,9 +508,15 @@ def test_flaser_offset_becomes_param(tmp_path: Path) -> None:
 
 
 def test_writer_robotlaser_odometry_policy(tmp_path: Path) -> None:
-    scan = LaserScan(ranges=np.ones(10), angle_min=-1.0, angle_increment=0.1, max_range=20.0,
-                     pose=vec(1.0, 0.0, 0.0), odom=vec(2.0, 0.0, 0.0),
-                     laser_offset=vec(0.3, 0.0, 0.0))
+    scan = LaserScan(
+        ranges=np.ones(10),
+        angle_min=-1.0,
+        angle_increment=0.1,
+        max_range=20.0,
+        pose=vec(1.0, 0.0, 0.0),
+        odom=vec(2.0, 0.0, 0.0),
+        laser_offset=vec(0.3, 0.0, 0.0),
+    )
     with pytest.raises(DataFormatError, match="odom") as info:
         write_carmen(tmp_path / "x.log", [scan])
     assert info.value.field == "odom" and str(tmp_path / "x.log") in str(info.value)
@@ -452,13 +528,18 @@ def test_writer_robotlaser_odometry_policy(tmp_path: Path) -> None:
 
 def test_writer_normalises_no_returns_and_rejects_bad_records(tmp_path: Path) -> None:
     amin, inc = flaser_geometry(4)
-    scan = LaserScan(ranges=vec(1.0, np.nan, -2.0, np.inf), angle_min=amin,
-                     angle_increment=inc, max_range=81.0, pose=vec(0, 0, 0), odom=vec(0, 0, 0))
+    scan = LaserScan(
+        ranges=vec(1.0, np.nan, -2.0, np.inf),
+        angle_min=amin,
+        angle_increment=inc,
+        max_range=81.0,
+        pose=vec(0, 0, 0),
+        odom=vec(0, 0, 0),
+    )
     write_carmen(tmp_path / "n.log", [scan])
     (back,) = read_scans(tmp_path / "n.log")
     np.testing.assert_array_equal(back.ranges, [1.0, 81.0, 81.0, 81.0])
-    bad_pose = LaserScan(ranges=vec(1.0), angle_min=0, angle_increment=0, max_range=5,
-                         pose=vec(np.nan, 0, 0), odom=vec(0, 0, 0))
+    bad_pose = LaserScan(ranges=vec(1.0), angle_min=0, angle_increment=0, max_range=5, pose=vec(np.nan, 0, 0), odom=vec(0, 0, 0))
     bad_host = OdometryReading(pose=vec(0, 0, 0), host="two words")
     for rec, field in ((bad_pose, "pose"), (bad_host, "host")):
         with pytest.raises(DataFormatError) as info:
@@ -562,12 +643,15 @@ def test_robotlaser1_sample() -> None:
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize(("name", "n_flaser", "n_beams", "offset"), [
-    ("intel-corrected", 910, 180, 0.0),
-    ("aces-corrected", 440, 180, 0.0),
-    ("freiburg-101-corrected", 292, 360, -0.04),
-    ("edmonton-corrected", 340, 180, 0.0),
-])
+@pytest.mark.parametrize(
+    ("name", "n_flaser", "n_beams", "offset"),
+    [
+        ("intel-corrected", 910, 180, 0.0),
+        ("aces-corrected", 440, 180, 0.0),
+        ("freiburg-101-corrected", 292, 360, -0.04),
+        ("edmonton-corrected", 340, 180, 0.0),
+    ],
+)
 def test_corrected_logs(name: str, n_flaser: int, n_beams: int, offset: float) -> None:
     ds = DATASETS[name]
     log = load_log(real(ds.relative_path), flaser_max_range=ds.flaser_max_range or 81.0)

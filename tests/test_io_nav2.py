@@ -8,6 +8,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from PIL import Image
+
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io import (
     DATASETS,
@@ -19,10 +24,6 @@ from crlam.io import (
     write_nav2_map,
     write_pgm,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
-from hypothesis.extra.numpy import arrays
-from PIL import Image
 
 
 def test_row_flip_single_occupied_cell(tmp_path: Path) -> None:
@@ -37,9 +38,15 @@ def test_row_flip_single_occupied_cell(tmp_path: Path) -> None:
     assert np.count_nonzero(img == 254) == 22
     assert (tmp_path / "m.pgm").read_bytes().startswith(b"P5\n6 4\n255\n")
     doc = yaml.safe_load(yaml_path.read_text())
-    assert doc == {"image": "m.pgm", "mode": "trinary", "resolution": 0.05,
-                   "origin": [-1.0, 2.5, 0.1], "negate": 0, "occupied_thresh": 0.65,
-                   "free_thresh": 0.196}
+    assert doc == {
+        "image": "m.pgm",
+        "mode": "trinary",
+        "resolution": 0.05,
+        "origin": [-1.0, 2.5, 0.1],
+        "negate": 0,
+        "occupied_thresh": 0.65,
+        "free_thresh": 0.196,
+    }
     m = read_nav2_map(yaml_path)
     assert isinstance(m, Nav2Map)
     np.testing.assert_array_equal(m.occupancy, occ)
@@ -51,16 +58,25 @@ CELL = st.one_of(st.floats(0.0, 1.0), st.just(np.nan), st.sampled_from([0.0, 1.0
 
 
 @settings(max_examples=60, deadline=None)
-@given(occ=arrays(np.float64, st.tuples(st.integers(1, 12), st.integers(1, 12)), elements=CELL),
-       negate=st.sampled_from([0, 1]),
-       thresholds=st.sampled_from([(0.65, 0.196), (0.65, 0.25), (0.9, 0.1), (0.55, 0.45)]),
-       resolution=st.floats(1e-3, 10.0), ox=st.floats(-1e3, 1e3))
-def test_round_trip(occ: np.ndarray, negate: int, thresholds: tuple[float, float],
-                    resolution: float, ox: float) -> None:
+@given(
+    occ=arrays(np.float64, st.tuples(st.integers(1, 12), st.integers(1, 12)), elements=CELL),
+    negate=st.sampled_from([0, 1]),
+    thresholds=st.sampled_from([(0.65, 0.196), (0.65, 0.25), (0.9, 0.1), (0.55, 0.45)]),
+    resolution=st.floats(1e-3, 10.0),
+    ox=st.floats(-1e3, 1e3),
+)
+def test_round_trip(occ: np.ndarray, negate: int, thresholds: tuple[float, float], resolution: float, ox: float) -> None:
     occ_t, free_t = thresholds
     with tempfile.TemporaryDirectory() as d:
-        y = write_nav2_map(Path(d) / "map.pgm", occ, resolution=resolution, origin=(ox, -ox),
-                           occupied_thresh=occ_t, free_thresh=free_t, negate=negate)
+        y = write_nav2_map(
+            Path(d) / "map.pgm",
+            occ,
+            resolution=resolution,
+            origin=(ox, -ox),
+            occupied_thresh=occ_t,
+            free_thresh=free_t,
+            negate=negate,
+        )
         m = read_nav2_map(y)
     expected = np.where(occ > occ_t, 1.0, np.where(occ < free_t, 0.0, np.nan))
     np.testing.assert_array_equal(m.occupancy, expected)
@@ -76,8 +92,7 @@ def test_writer_validation(tmp_path: Path) -> None:
     with pytest.raises(ConfigError):
         write_nav2_map(p, np.zeros((2, 2)), resolution=0.0, origin=(0, 0))
     with pytest.raises(ConfigError):
-        write_nav2_map(p, np.zeros((2, 2)), resolution=0.1, origin=(0, 0),
-                       occupied_thresh=0.2, free_thresh=0.3)
+        write_nav2_map(p, np.zeros((2, 2)), resolution=0.1, origin=(0, 0), occupied_thresh=0.2, free_thresh=0.3)
 
 
 def test_read_pgm_variants(tmp_path: Path) -> None:
@@ -97,13 +112,16 @@ def test_read_pgm_variants(tmp_path: Path) -> None:
     np.testing.assert_array_equal(np.asarray(Image.open(tmp_path / "n.pgm")), narrow)
 
 
-@pytest.mark.parametrize(("content", "field"), [
-    (b"P6\n1 1\n255\n\x00\x00\x00", "magic"),
-    (b"P5\n2 2\n255\n\x00\x00", "raster"),
-    (b"P5\nx 2\n255\n\x00\x00", "width"),
-    (b"P5\n2 2\n0\n\x00\x00\x00\x00", "maxval"),
-    (b"P2\n2 1\n10\n3 11\n", "raster"),
-])
+@pytest.mark.parametrize(
+    ("content", "field"),
+    [
+        (b"P6\n1 1\n255\n\x00\x00\x00", "magic"),
+        (b"P5\n2 2\n255\n\x00\x00", "raster"),
+        (b"P5\nx 2\n255\n\x00\x00", "width"),
+        (b"P5\n2 2\n0\n\x00\x00\x00\x00", "maxval"),
+        (b"P2\n2 1\n10\n3 11\n", "raster"),
+    ],
+)
 def test_read_pgm_errors(tmp_path: Path, content: bytes, field: str) -> None:
     p = tmp_path / "bad.pgm"
     p.write_bytes(content)
@@ -116,28 +134,32 @@ def test_png_with_alpha_follows_nav2(tmp_path: Path) -> None:
     # Row 0 of the image (max y): opaque white, opaque black, transparent white.
     rgba = np.array([[[255, 255, 255, 255], [0, 0, 0, 255], [255, 255, 255, 0]]], np.uint8)
     Image.fromarray(rgba, "RGBA").save(tmp_path / "m.png")
-    (tmp_path / "m.yaml").write_text("image: m.png\nresolution: 0.5\norigin: [0, 0, 0]\n"
-                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    (tmp_path / "m.yaml").write_text(
+        "image: m.png\nresolution: 0.5\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
     m = read_nav2_map(tmp_path / "m.yaml")
     # Trinary averages alpha in: transparent white is shade 0.75 -> occ 0.25 -> unknown.
     np.testing.assert_array_equal(m.occupancy, [[0.0, 1.0, np.nan]])
-    (tmp_path / "m.yaml").write_text("image: m.png\nmode: scale\nresolution: 0.5\n"
-                                     "origin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\n"
-                                     "free_thresh: 0.196\n")
+    (tmp_path / "m.yaml").write_text(
+        "image: m.png\nmode: scale\nresolution: 0.5\norigin: [0, 0, 0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
     m = read_nav2_map(tmp_path / "m.yaml")
     np.testing.assert_array_equal(m.occupancy, [[0.0, 1.0, np.nan]])
     assert m.mode == "scale"
 
 
-@pytest.mark.parametrize(("text", "field"), [
-    ("image: m.pgm\norigin: [0, 0, 0]\n", "resolution"),
-    ("image: m.pgm\nresolution: abc\norigin: [0, 0, 0]\n", "resolution"),
-    ("image: m.pgm\nresolution: 0.1\norigin: 5\n", "origin"),
-    ("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nmode: fancy\n", "mode"),
-    ("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 2\n", "negate"),
-    ("image: gone.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", "image"),
-    ("resolution: 0.1\norigin: [0, 0, 0]\n", "image"),
-])
+@pytest.mark.parametrize(
+    ("text", "field"),
+    [
+        ("image: m.pgm\norigin: [0, 0, 0]\n", "resolution"),
+        ("image: m.pgm\nresolution: abc\norigin: [0, 0, 0]\n", "resolution"),
+        ("image: m.pgm\nresolution: 0.1\norigin: 5\n", "origin"),
+        ("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nmode: fancy\n", "mode"),
+        ("image: m.pgm\nresolution: 0.1\norigin: [0, 0, 0]\nnegate: 2\n", "negate"),
+        ("image: gone.pgm\nresolution: 0.1\norigin: [0, 0, 0]\n", "image"),
+        ("resolution: 0.1\norigin: [0, 0, 0]\n", "image"),
+    ],
+)
 def test_yaml_errors(tmp_path: Path, text: str, field: str) -> None:
     write_pgm(tmp_path / "m.pgm", np.zeros((2, 2), np.uint8))
     (tmp_path / "m.yaml").write_text(text)
@@ -163,8 +185,9 @@ def test_cave_map(tmp_path: Path) -> None:
     assert img.shape == (100, 100) and img.dtype == np.uint8
     free = img >= 128
     assert 0 < free.sum() < free.size
-    (tmp_path / "cave.yaml").write_text(f"image: {pgm}\nresolution: 0.2\norigin: [0, 0, 0]\n"
-                                        "occupied_thresh: 0.5\nfree_thresh: 0.5\n")
+    (tmp_path / "cave.yaml").write_text(
+        f"image: {pgm}\nresolution: 0.2\norigin: [0, 0, 0]\noccupied_thresh: 0.5\nfree_thresh: 0.5\n"
+    )
     m = read_nav2_map(tmp_path / "cave.yaml")
     assert m.occupancy.shape == (100, 100)
     np.testing.assert_array_equal(m.occupancy[::-1] == 0.0, img > 127.5)

@@ -6,6 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+
 from crlam.errors import DataFormatError
 from crlam.io import (
     DATASETS,
@@ -15,16 +19,12 @@ from crlam.io import (
     read_scans,
     write_relations,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
-from hypothesis.extra.numpy import arrays
 
 
 def real(relative: str) -> Path:
     root = data_root()
     if root is None:
-        pytest.skip("real datasets not found: set CRLAM_DATA to the data folder "
-                    "(default ../shared/data beside the repository)")
+        pytest.skip("real datasets not found: set CRLAM_DATA to the data folder (default ../shared/data beside the repository)")
     path = root / relative
     if not path.exists():
         pytest.skip(f"dataset file {path} is missing")
@@ -33,8 +33,7 @@ def real(relative: str) -> Path:
 
 def test_parse(tmp_path: Path) -> None:
     p = tmp_path / "r.relations"
-    p.write_text("# comment\n90.239599 90.719599 0.422330 -0.000750 0.000000 0.000000 0.000000 "
-                 "0.017260\n\n1 2 3 4 0 0 0 -0.5\n")
+    p.write_text("# comment\n90.239599 90.719599 0.422330 -0.000750 0.000000 0.000000 0.000000 0.017260\n\n1 2 3 4 0 0 0 -0.5\n")
     rel = read_relations(p)
     assert isinstance(rel, Relations) and len(rel) == 2
     np.testing.assert_array_equal(rel.t1, [90.239599, 1.0])
@@ -84,13 +83,15 @@ def test_empty(tmp_path: Path) -> None:
 
 
 @pytest.mark.realdata
-@pytest.mark.parametrize(("log", "relations", "n"), [
-    ("aces", "aces-relations", 1279),
-    ("intel", "intel-relations", 2984),
-])
+@pytest.mark.parametrize(
+    ("log", "relations", "n"),
+    [
+        ("aces", "aces-relations", 1279),
+        ("intel", "intel-relations", 2984),
+    ],
+)
 def test_real_relations_match_flaser_stamps(log: str, relations: str, n: int) -> None:
     rel = read_relations(real(DATASETS[relations].relative_path))
     assert len(rel) == n
-    stamps = {s.timestamp for s in read_scans(real(DATASETS[log].relative_path))
-              if s.kind == "FLASER"}
+    stamps = {s.timestamp for s in read_scans(real(DATASETS[log].relative_path)) if s.kind == "FLASER"}
     assert set(rel.t1.tolist()) <= stamps and set(rel.t2.tolist()) <= stamps

@@ -8,12 +8,13 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from crlam.errors import DataFormatError
-from crlam.io import Trajectory, read_tum, write_tum
-from crlam.pose import wrap_angle
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
+
+from crlam.errors import DataFormatError
+from crlam.io import Trajectory, read_tum, write_tum
+from crlam.pose import wrap_angle
 
 
 @settings(max_examples=80, deadline=None)
@@ -42,12 +43,10 @@ def test_file_layout_and_evo_style_input(tmp_path: Path) -> None:
     write_tum(p, [1.5], [[1.0, -2.0, math.pi / 2]])
     tokens = p.read_text().split()
     assert len(tokens) == 8 and tokens[0] == "1.500000000" and tokens[3] == "0.000000000"
-    assert float(tokens[6]) == pytest.approx(math.sqrt(0.5)) and float(tokens[7]) == \
-        pytest.approx(math.sqrt(0.5))
+    assert float(tokens[6]) == pytest.approx(math.sqrt(0.5)) and float(tokens[7]) == pytest.approx(math.sqrt(0.5))
     # An evo/TUM file with comments, a non-zero z and a slightly unnormalised quaternion.
     q = math.sin(0.3), math.cos(0.3)
-    p.write_text(f"# timestamp x y z qx qy qz qw\n\n10.0 1 2 0.5 0 0 {q[0] * 1.0001} "
-                 f"{q[1] * 1.0001}\n")
+    p.write_text(f"# timestamp x y z qx qy qz qw\n\n10.0 1 2 0.5 0 0 {q[0] * 1.0001} {q[1] * 1.0001}\n")
     traj = read_tum(p)
     assert isinstance(traj, Trajectory)
     np.testing.assert_allclose(traj.poses, [[1.0, 2.0, 0.6]], atol=1e-12)

@@ -130,9 +130,16 @@ def test_belief_archive_round_trip(tmp_path) -> None:
 
 @pytest.mark.parametrize(
     ("kwargs", "field"),
-    [({"resolution": 0}, "resolution"), ({"max_range": float("nan")}, "max_range"), ({"model": "beam"}, "model"),
-     ({"levels": "left"}, "levels"), ({"n_levels": 1}, "n_levels"), ({"beam_stride": 0}, "beam_stride"),
-     ({"extent": (0, 0, -1, 1)}, "extent"), ({"scan_update": "fast"}, "scan_update")],
+    [
+        ({"resolution": 0}, "resolution"),
+        ({"max_range": float("nan")}, "max_range"),
+        ({"model": "beam"}, "model"),
+        ({"levels": "left"}, "levels"),
+        ({"n_levels": 1}, "n_levels"),
+        ({"beam_stride": 0}, "beam_stride"),
+        ({"extent": (0, 0, -1, 1)}, "extent"),
+        ({"scan_update": "fast"}, "scan_update"),
+    ],
 )
 def test_bad_config_values_name_the_field(kwargs, field) -> None:
     with pytest.raises(ConfigError, match=field):

@@ -6,6 +6,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from crlam.errors import ConfigError
 from crlam.pose import between, compose
 from crlam.sim import (
@@ -15,8 +18,6 @@ from crlam.sim import (
     integrate_odometry,
     odometry_noise_from_dict,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 N = 300_000
 
@@ -138,8 +139,10 @@ def test_thrun_parameters_and_degenerate_motion() -> None:
     # Thrun's value (no Jacobian) for the main preimage.
     z = np.array([0.42, 0.28, 0.25])
     zr1, zt, zr2 = model.decompose(z)
-    lp = sum(-0.5 * ((a - b) / c) ** 2 - math.log(c * math.sqrt(2 * math.pi))
-             for a, b, c in ((zr1, r1, e_r1), (zt, t, e_t), (zr2, r2, e_r2)))
+    lp = sum(
+        -0.5 * ((a - b) / c) ** 2 - math.log(c * math.sqrt(2 * math.pi))
+        for a, b, c in ((zr1, r1, e_r1), (zt, t, e_t), (zr2, r2, e_r2))
+    )
     assert model.log_pdf(z, cmd, jacobian=False) == pytest.approx(float(lp), abs=1e-9)
     assert model.log_pdf(z, cmd) == pytest.approx(float(lp) - math.log(zt), abs=1e-9)
     # A turn on the spot is a proper, finite model.

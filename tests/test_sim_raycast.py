@@ -11,6 +11,9 @@ import math
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from crlam.sim import (
     World,
     cast_ranges_numpy,
@@ -19,8 +22,6 @@ from crlam.sim import (
     paper_lidar,
     true_ranges,
 )
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 needs_native = pytest.mark.skipif(not native_cast_available(), reason="crlam._native.cast_ranges not built")
 

@@ -7,6 +7,7 @@ import time
 
 import numpy as np
 import pytest
+
 from crlam.errors import ConfigError
 from crlam.pose import wrap_angle
 from crlam.sim import (
@@ -88,12 +89,12 @@ def test_trajectory_determinism_and_prefix() -> None:
 def test_given_start_pose_rate_and_speed() -> None:
     world = office_world(0)
     params = RobotParams(max_speed=0.9, max_turn_rate=1.2)
-    grid = PlanningGrid.build(world, params.radius, params.margin, params.preferred_clearance,
-                              params.clearance_weight, params.planning_cell)
+    grid = PlanningGrid.build(
+        world, params.radius, params.margin, params.preferred_clearance, params.clearance_weight, params.planning_cell
+    )
     i, j = np.unravel_index(int(np.argmax(grid.clearance)), grid.clearance.shape)
     start = (*grid.node_xy(i, j), 0.5)
-    traj = plan_trajectory(world, 150, seed=1, params=params, scan_rate=5.0, start_time=100.0,
-                           start_pose=start)
+    traj = plan_trajectory(world, 150, seed=1, params=params, scan_rate=5.0, start_time=100.0, start_pose=start)
     np.testing.assert_allclose(traj.poses[0], start)
     assert traj.timestamps[0] == 100.0 and traj.timestamps[1] == pytest.approx(100.2)
     _check_trajectory(world, traj, params, 5.0)

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+
 from crlam.errors import ConfigError
 from crlam.sim import RangeSensor, noiseless, office_world, paper_lidar, sick_lms200
 
@@ -66,8 +67,9 @@ def test_hit_noise_statistics() -> None:
 
 def test_mixture_component_fractions() -> None:
     p_short, p_rand, p_max = 0.1, 0.15, 0.05
-    sensor = RangeSensor(n_beams=1, fov=1.0, max_range=8.0, sigma_hit=0.02, p_short=p_short, p_rand=p_rand,
-                         p_max=p_max, lambda_short=0.5)
+    sensor = RangeSensor(
+        n_beams=1, fov=1.0, max_range=8.0, sigma_hit=0.02, p_short=p_short, p_rand=p_rand, p_max=p_max, lambda_short=0.5
+    )
     d = 5.0
     z = sensor.apply_noise(np.full((N, 1), d), np.random.default_rng(4)).ravel()
     assert z.min() >= 0.0 and z.max() <= 8.0

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from crlam.errors import ConfigError
 from crlam.io.carmen import load_log
 from crlam.io.tum import read_tum
@@ -89,13 +90,11 @@ def test_sick_log_is_flaser(tmp_path: Path) -> None:
     assert text.count("\nFLASER 180 ") == 20 and "ROBOTLASER1" not in text
     back = load_log(tmp_path / "log.clf")
     np.testing.assert_allclose(back.scans[5].angles, np.radians(-90.0 + np.arange(180)), atol=1e-12)
-    np.testing.assert_array_equal(back.scans[5].ranges >= back.scans[5].max_range,
-                                  log.ranges[5] >= log.sensor.max_range)
+    np.testing.assert_array_equal(back.scans[5].ranges >= back.scans[5].max_range, log.ranges[5] >= log.sensor.max_range)
 
 
 def test_odometry_and_ground_truth_relation() -> None:
-    quiet = simulate(_config(sensor=noiseless(n_beams=90, fov=2 * math.pi),
-                             odometry=GaussianIncrementNoise(1e-9, 1e-9, 1e-9)))
+    quiet = simulate(_config(sensor=noiseless(n_beams=90, fov=2 * math.pi), odometry=GaussianIncrementNoise(1e-9, 1e-9, 1e-9)))
     np.testing.assert_allclose(quiet.odometry, quiet.poses, atol=1e-6)  # (almost) perfect odometry
     noisy = simulate(_config(n_scans=200, odometry=ThrunOdometryNoise(), odometry_at_origin=True))
     np.testing.assert_array_equal(noisy.odometry[0], [0.0, 0.0, 0.0])

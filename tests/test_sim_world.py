@@ -8,6 +8,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
 from crlam.errors import ConfigError, DataFormatError
 from crlam.sim import (
     World,
@@ -21,8 +24,6 @@ from crlam.sim import (
 from crlam.sim.grid_ops import ClearanceField, distance_map, label_components
 from crlam.sim.shapes import Disc
 from crlam.sim.world import write_pgm
-from hypothesis import given, settings
-from hypothesis import strategies as st
 
 
 def _bfs_labels(mask: np.ndarray, connectivity: int) -> np.ndarray:
@@ -152,8 +153,9 @@ def test_png_and_nav2_yaml(tmp_path: Path) -> None:
     Image.fromarray(grey).save(tmp_path / "m.png")
     w_png = World.from_image(tmp_path / "m.png", resolution=0.1)
     assert w_png.occupied[-1].all() and not w_png.occupied[2, 3]  # 205 >= 128: free for from_image
-    (tmp_path / "m.yaml").write_text("image: m.png\nresolution: 0.1\norigin: [-1.0, 2.5, 0.0]\nnegate: 0\n"
-                                     "occupied_thresh: 0.65\nfree_thresh: 0.196\n")
+    (tmp_path / "m.yaml").write_text(
+        "image: m.png\nresolution: 0.1\norigin: [-1.0, 2.5, 0.0]\nnegate: 0\noccupied_thresh: 0.65\nfree_thresh: 0.196\n"
+    )
     w = World.from_nav2_yaml(tmp_path / "m.yaml")
     np.testing.assert_allclose(w.origin, [-1.0, 2.5])
     assert w.occupied[-1].all() and w.occupied[2, 3]  # unknown counts as an obstacle

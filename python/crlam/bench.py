@@ -75,7 +75,9 @@ def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repea
     if "crm_beam_updates_per_s" in figures and "raycast_cells_per_s" in figures:
         cells = details["crm_beam_updates_per_s"]["cells_per_ray"]
         # Cost of a CRM beam update relative to just walking its cells.
-        figures["crm_update_over_traversal_cost"] = round(figures["raycast_cells_per_s"] / cells / figures["crm_beam_updates_per_s"], 2)
+        figures["crm_update_over_traversal_cost"] = round(
+            figures["raycast_cells_per_s"] / cells / figures["crm_beam_updates_per_s"], 2
+        )
     return {
         "figures": figures,
         "details": details,

@@ -37,12 +37,30 @@ def _positive_int(text: str) -> int:
 def _add_map_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("map settings")
     g.add_argument("--resolution", type=_positive_float, default=0.2, help="cell size in metres (default: 0.2)")
-    g.add_argument("--max-range", type=_positive_float, default=8.0, help="z_max in metres; longer readings are no-returns (default: 8)")
-    g.add_argument("--model", choices=("ijrr", "mixture", "authors_code"), default="ijrr", help="sensor cause model of the CRM update (default: ijrr)")
-    g.add_argument("--levels", choices=("midpoints", "endpoints", "r1_right"), default="midpoints", help="occupancy level placement (default: midpoints)")
-    g.add_argument("--scan-update", choices=("batch", "sequential"), default="batch", help="how the beams of a scan combine (default: batch)")
-    g.add_argument("--cause-kernel", choices=("midpoint", "chord"), default="midpoint",
-                   help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord")
+    g.add_argument(
+        "--max-range", type=_positive_float, default=8.0, help="z_max in metres; longer readings are no-returns (default: 8)"
+    )
+    g.add_argument(
+        "--model",
+        choices=("ijrr", "mixture", "authors_code"),
+        default="ijrr",
+        help="sensor cause model of the CRM update (default: ijrr)",
+    )
+    g.add_argument(
+        "--levels",
+        choices=("midpoints", "endpoints", "r1_right"),
+        default="midpoints",
+        help="occupancy level placement (default: midpoints)",
+    )
+    g.add_argument(
+        "--scan-update", choices=("batch", "sequential"), default="batch", help="how the beams of a scan combine (default: batch)"
+    )
+    g.add_argument(
+        "--cause-kernel",
+        choices=("midpoint", "chord"),
+        default="midpoint",
+        help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord",
+    )
     g.add_argument("--beam-stride", type=_positive_int, default=1, help="use every n-th beam (default: 1)")
 
 
@@ -121,44 +139,63 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
 
-    p = sub.add_parser("demo", help="simulate the museum world, map it and write figures and a report",
-                       description="The main job on built-in data: simulate the 90 m x 90 m museum-like world with the paper's "
-                       "LIDAR, build the confidence-rich map (and the log-odds baseline) with known poses, and write "
-                       "figures and report.md.")
+    p = sub.add_parser(
+        "demo",
+        help="simulate the museum world, map it and write figures and a report",
+        description="The main job on built-in data: simulate the 90 m x 90 m museum-like world with the paper's "
+        "LIDAR, build the confidence-rich map (and the log-odds baseline) with known poses, and write "
+        "figures and report.md.",
+    )
     p.add_argument("--out", default="demo-out", help="output folder (default: demo-out)")
     p.add_argument("--scans", type=_positive_int, default=4000, help="number of scans to simulate (default: 4000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_demo)
 
-    p = sub.add_parser("simulate", help="simulate a robot in a world and write a CARMEN log and ground truth",
-                       description="Writes log.clf (CARMEN), groundtruth.tum, world.pgm/yaml and simulation.json. "
-                       "Same seed, same bytes.")
+    p = sub.add_parser(
+        "simulate",
+        help="simulate a robot in a world and write a CARMEN log and ground truth",
+        description="Writes log.clf (CARMEN), groundtruth.tum, world.pgm/yaml and simulation.json. Same seed, same bytes.",
+    )
     p.add_argument("--world", default="office", help="museum, office, or a PGM/PNG/Nav2-YAML path (default: office)")
     p.add_argument("--scans", type=_positive_int, default=500, help="number of scans (default: 500)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--sensor", choices=("paper", "sick"), default="paper",
-                   help="paper = 1079 beams over 270 deg, 8 m; sick = 180 beams over 180 deg, 80 m (default: paper)")
+    p.add_argument(
+        "--sensor",
+        choices=("paper", "sick"),
+        default="paper",
+        help="paper = 1079 beams over 270 deg, 8 m; sick = 180 beams over 180 deg, 80 m (default: paper)",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_simulate)
 
-    p = sub.add_parser("map", help="build a confidence-rich map from a log with trusted poses",
-                       description="Maps a CARMEN log (plain, .gz or .bz2) whose poses are trusted and writes map.pgm/yaml, "
-                       "belief.npz, ogm.pgm/yaml, map.png and mapping.json.")
+    p = sub.add_parser(
+        "map",
+        help="build a confidence-rich map from a log with trusted poses",
+        description="Maps a CARMEN log (plain, .gz or .bz2) whose poses are trusted and writes map.pgm/yaml, "
+        "belief.npz, ogm.pgm/yaml, map.png and mapping.json.",
+    )
     p.add_argument("log", help="CARMEN log, e.g. ../shared/data/corrected/intel-corrected.log.gz")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--poses", choices=("log", "odometry"), default="log",
-                   help="which pose field to trust: the scan's pose field or its odometry field (default: log)")
+    p.add_argument(
+        "--poses",
+        choices=("log", "odometry"),
+        default="log",
+        help="which pose field to trust: the scan's pose field or its odometry field (default: log)",
+    )
     p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
     p.add_argument("--skip-malformed", action="store_true", help="skip (and count) malformed lines instead of stopping")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     _add_map_options(p)
     p.set_defaults(func=cmd_map)
 
-    p = sub.add_parser("bench", help="run the micro-benchmarks and print named figures as JSON",
-                       description="Runs the core's micro-benchmarks (one thread, timed in Rust) and prints a JSON object of "
-                       "named figures, all measured in this run.")
+    p = sub.add_parser(
+        "bench",
+        help="run the micro-benchmarks and print named figures as JSON",
+        description="Runs the core's micro-benchmarks (one thread, timed in Rust) and prints a JSON object of "
+        "named figures, all measured in this run.",
+    )
     p.add_argument("--json", help="also write the full result (figures, details, machine) to this file")
     p.add_argument("--only", nargs="*", help="run only these figures")
     p.add_argument("--quick", action="store_true", help="small workloads (smoke test)")

@@ -337,7 +337,12 @@ class ConfidenceRichMap:
     def update_many(self, poses: ArrayLike, angles: ArrayLike, ranges: ArrayLike) -> ScanUpdateStats:
         """Integrates n scans: poses (n, 3), shared angles (m,), ranges (n, m)."""
         d = self.native.update_scans(
-            _f64(poses), _f64(angles), _f64(ranges), self._model, mode=self.config.scan_update, beam_stride=self.config.beam_stride
+            _f64(poses),
+            _f64(angles),
+            _f64(ranges),
+            self._model,
+            mode=self.config.scan_update,
+            beam_stride=self.config.beam_stride,
         )
         s = ScanUpdateStats(**d)
         self.stats += s
@@ -419,7 +424,9 @@ class ConfidenceRichMap:
                 config = MappingConfig.from_dict(json.loads(raw))
             else:
                 k = archive.levels.size
-                config = MappingConfig(resolution=archive.resolution, n_levels=k, origin=(float(archive.origin[0]), float(archive.origin[1])))
+                config = MappingConfig(
+                    resolution=archive.resolution, n_levels=k, origin=(float(archive.origin[0]), float(archive.origin[1]))
+                )
         m = cls(config)
         if archive.levels.shape != m.levels.shape or not np.allclose(archive.levels, m.levels):
             raise ConfigError("archive levels do not match the configuration's levels")

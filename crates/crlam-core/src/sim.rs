@@ -3,6 +3,7 @@
 use crate::error::{CrlamError, Result};
 use crate::grid::{check_pose, CellRect, GridGeometry};
 use crate::raycast::first_hit;
+use rayon::prelude::*;
 
 /// A boolean world raster indexed [iy][ix] (iy = 0 at the minimum y).
 #[derive(Clone, Debug)]
@@ -49,6 +50,9 @@ impl<'a> WorldRaster<'a> {
                 "must be finite and > 0",
             ));
         }
+        for p in poses {
+            check_pose(*p)?;
+        }
         let rect = CellRect {
             ix0: 0,
             iy0: 0,
@@ -56,20 +60,26 @@ impl<'a> WorldRaster<'a> {
             ny: self.ny as i64,
         };
         let nx = self.nx;
-        for (i, p) in poses.iter().enumerate() {
-            check_pose(*p)?;
-            for (j, &a) in angles.iter().enumerate() {
-                let hit = first_hit(
-                    &self.geometry,
-                    [p[0], p[1]],
-                    p[2] + a,
-                    max_range,
-                    Some(&rect),
-                    |ix, iy| self.occupied[iy as usize * nx + ix as usize] != 0,
-                );
-                out[i * angles.len() + j] = hit.unwrap_or(f64::INFINITY);
-            }
+        let m = angles.len();
+        if m == 0 {
+            return Ok(());
         }
+        // Each pose fills its own row: the result does not depend on the thread count.
+        out.par_chunks_mut(m)
+            .zip(poses.par_iter())
+            .for_each(|(row, p)| {
+                for (j, &a) in angles.iter().enumerate() {
+                    let hit = first_hit(
+                        &self.geometry,
+                        [p[0], p[1]],
+                        p[2] + a,
+                        max_range,
+                        Some(&rect),
+                        |ix, iy| self.occupied[iy as usize * nx + ix as usize] != 0,
+                    );
+                    row[j] = hit.unwrap_or(f64::INFINITY);
+                }
+            });
         Ok(())
     }
 }

@@ -19,8 +19,13 @@ from crlam.mapping import MapLayer
 __all__ = ["MapScores", "world_coverage", "score_map"]
 
 
-def world_coverage(layer: MapLayer, occupied: NDArray[np.bool_], origin: NDArray[np.float64] | tuple[float, float],
-                   resolution: float, samples: int = 4) -> NDArray[np.float64]:
+def world_coverage(
+    layer: MapLayer,
+    occupied: NDArray[np.bool_],
+    origin: NDArray[np.float64] | tuple[float, float],
+    resolution: float,
+    samples: int = 4,
+) -> NDArray[np.float64]:
     """Fraction of each cell of ``layer``'s grid covered by obstacles of a world raster.
 
     Parameters
@@ -79,8 +84,9 @@ class MapScores:
         return asdict(self)
 
 
-def score_map(layer: MapLayer, observed: NDArray[np.bool_], coverage: NDArray[np.float64],
-              occupied_min: float = 0.25) -> MapScores:
+def score_map(
+    layer: MapLayer, observed: NDArray[np.bool_], coverage: NDArray[np.float64], occupied_min: float = 0.25
+) -> MapScores:
     """Scores a probability-like layer (m̂ or p) on its observed cells (see module docstring)."""
     truth = coverage >= occupied_min
     said = layer.values > 0.5

@@ -28,7 +28,16 @@ from crlam.io.nav2 import write_nav2_map
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MapLayer, MappingConfig, ScanUpdateStats
 from crlam.pose import compose
 
-__all__ = ["PoseSource", "KnownPoseScan", "MappingRun", "sensor_pose", "known_pose_scans", "map_scans", "map_log", "write_map_folder"]
+__all__ = [
+    "PoseSource",
+    "KnownPoseScan",
+    "MappingRun",
+    "sensor_pose",
+    "known_pose_scans",
+    "map_scans",
+    "map_log",
+    "write_map_folder",
+]
 
 PoseSource = Literal["log", "odometry"]
 
@@ -133,7 +142,9 @@ def unknown_mask(crm: ConfidenceRichMap, entropy: MapLayer) -> NDArray[np.bool_]
     return np.abs(entropy.values - h_prior) < UNKNOWN_ENTROPY_TOL
 
 
-def write_map_folder(run: MappingRun, out_dir: str | os.PathLike[str], *, title: str, extra: dict[str, object] | None = None) -> dict[str, Path]:
+def write_map_folder(
+    run: MappingRun, out_dir: str | os.PathLike[str], *, title: str, extra: dict[str, object] | None = None
+) -> dict[str, Path]:
     """Writes map.pgm/yaml, belief.npz, ogm.pgm/yaml, map.png and mapping.json."""
     from crlam.viz.maps import save_crm_figure
 
@@ -159,8 +170,13 @@ def write_map_folder(run: MappingRun, out_dir: str | os.PathLike[str], *, title:
         "wall_time_s": run.wall_time_s,
         "scans_per_s": run.n_scans / max(run.wall_time_s, 1e-9),
         "update_stats": run.stats.as_dict(),
-        "map_cells": {"shape_yx": list(mean.shape), "origin": list(mean.origin), "n_known": int(known.sum()),
-                      "n_occupied": int((known & (mean.values > 0.65)).sum()), "n_free": int((known & (mean.values < 0.196)).sum())},
+        "map_cells": {
+            "shape_yx": list(mean.shape),
+            "origin": list(mean.origin),
+            "n_known": int(known.sum()),
+            "n_occupied": int((known & (mean.values > 0.65)).sum()),
+            "n_free": int((known & (mean.values < 0.196)).sum()),
+        },
         "tiles": run.crm.native.tile_stats(),
     }
     if extra:
@@ -197,10 +213,16 @@ def map_log(
     extra: dict[str, object] = {
         "log": str(log_path),
         "pose_source": poses,
-        "reader": {"records": st.records, "ignored": st.ignored, "unknown_kinds": st.unknown_kinds,
-                   "skipped_malformed": st.skipped_malformed, "malformed_examples": st.malformed_examples,
-                   "n_no_return_ranges": st.n_no_return_ranges, "n_nonfinite_ranges": st.n_nonfinite_ranges,
-                   "n_nonpositive_ranges": st.n_nonpositive_ranges},
+        "reader": {
+            "records": st.records,
+            "ignored": st.ignored,
+            "unknown_kinds": st.unknown_kinds,
+            "skipped_malformed": st.skipped_malformed,
+            "malformed_examples": st.malformed_examples,
+            "n_no_return_ranges": st.n_no_return_ranges,
+            "n_nonfinite_ranges": st.n_nonfinite_ranges,
+            "n_nonpositive_ranges": st.n_nonpositive_ranges,
+        },
     }
     files = write_map_folder(run, out_dir, title=f"{Path(log_path).name}: CRM ({config.model}), poses from {poses}", extra=extra)
     return run, files

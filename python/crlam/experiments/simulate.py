@@ -38,8 +38,12 @@ def simulate_to_folder(
         from crlam.viz.maps import save_world_figure
 
         paths["figure"] = save_world_figure(
-            Path(out_dir) / "trajectory.png", log.world.occupied, log.world.origin, log.world.resolution,
-            trajectory=log.poses, title=f"{log.world.name}: {log.n_scans} scans, ground-truth trajectory",
+            Path(out_dir) / "trajectory.png",
+            log.world.occupied,
+            log.world.origin,
+            log.world.resolution,
+            trajectory=log.poses,
+            title=f"{log.world.name}: {log.n_scans} scans, ground-truth trajectory",
         )
     summary = json.loads(Path(paths["json"]).read_text())
     return {

@@ -94,8 +94,7 @@ class BeliefArchive:
 
         b, lv = self.beliefs, self.levels
         if b.ndim != 3 or min(b.shape) == 0:
-            raise fail(f"must have shape (ny, nx, K) with no empty axis, got {b.shape}",
-                       "beliefs")
+            raise fail(f"must have shape (ny, nx, K) with no empty axis, got {b.shape}", "beliefs")
         if lv.shape != (b.shape[2],):
             raise fail(f"shape {lv.shape} does not match K = {b.shape[2]} of beliefs", "levels")
         if not np.all(np.isfinite(lv)):
@@ -109,9 +108,10 @@ class BeliefArchive:
         bad |= np.abs(sums - 1.0) > PMF_TOLERANCE
         if bad.any():
             iy, ix = (int(v) for v in np.argwhere(bad)[0])
-            raise fail(f"{int(bad.sum())} cells are not pmfs (first: sum "
-                       f"{sums[iy, ix]!r}, min {float(b[iy, ix].min())!r})",
-                       f"beliefs[{iy},{ix}]")
+            raise fail(
+                f"{int(bad.sum())} cells are not pmfs (first: sum {sums[iy, ix]!r}, min {float(b[iy, ix].min())!r})",
+                f"beliefs[{iy},{ix}]",
+            )
         for key, value in self.metadata.items():
             if not isinstance(key, str) or not isinstance(value, (str, int, float)):
                 raise fail(f"entry {key!r}: {value!r} is not str/int/float", "metadata")
@@ -152,23 +152,19 @@ def load_belief(path: str | os.PathLike[str]) -> BeliefArchive:
         if isinstance(exc, FileNotFoundError):
             raise
         raise DataFormatError(f"not a belief archive ({exc})", path=where) from exc
-    for key in ("format", "format_version", "beliefs", "levels", "origin", "resolution",
-                "metadata"):
+    for key in ("format", "format_version", "beliefs", "levels", "origin", "resolution", "metadata"):
         if key not in arrays:
             raise DataFormatError("missing key", path=where, field=key)
     if str(arrays["format"]) != FORMAT_NAME:
-        raise DataFormatError(f"format is {str(arrays['format'])!r}, not {FORMAT_NAME!r}",
-                              path=where, field="format")
+        raise DataFormatError(f"format is {str(arrays['format'])!r}, not {FORMAT_NAME!r}", path=where, field="format")
     version = arrays["format_version"]
-    if version.shape != () or not np.issubdtype(version.dtype, np.integer) \
-            or not 1 <= int(version) <= FORMAT_VERSION:
-        raise DataFormatError(f"unsupported format version {version!r} (this crlam reads "
-                              f"1..{FORMAT_VERSION})", path=where, field="format_version")
-    for key, dtype in (("beliefs", np.float32), ("levels", np.float64),
-                       ("origin", np.float64), ("resolution", np.float64)):
+    if version.shape != () or not np.issubdtype(version.dtype, np.integer) or not 1 <= int(version) <= FORMAT_VERSION:
+        raise DataFormatError(
+            f"unsupported format version {version!r} (this crlam reads 1..{FORMAT_VERSION})", path=where, field="format_version"
+        )
+    for key, dtype in (("beliefs", np.float32), ("levels", np.float64), ("origin", np.float64), ("resolution", np.float64)):
         if arrays[key].dtype != dtype:
-            raise DataFormatError(f"dtype {arrays[key].dtype}, want {np.dtype(dtype)}",
-                                  path=where, field=key)
+            raise DataFormatError(f"dtype {arrays[key].dtype}, want {np.dtype(dtype)}", path=where, field=key)
     if arrays["resolution"].shape != ():
         raise DataFormatError("must be a scalar", path=where, field="resolution")
     try:
@@ -177,8 +173,12 @@ def load_belief(path: str | os.PathLike[str]) -> BeliefArchive:
         raise DataFormatError(f"invalid JSON ({exc})", path=where, field="metadata") from exc
     if not isinstance(metadata, dict):
         raise DataFormatError("must be a JSON object", path=where, field="metadata")
-    archive = BeliefArchive(beliefs=arrays["beliefs"], levels=arrays["levels"],
-                            origin=arrays["origin"], resolution=float(arrays["resolution"]),
-                            metadata=metadata)
+    archive = BeliefArchive(
+        beliefs=arrays["beliefs"],
+        levels=arrays["levels"],
+        origin=arrays["origin"],
+        resolution=float(arrays["resolution"]),
+        metadata=metadata,
+    )
     archive.validate(path)
     return archive

@@ -88,10 +88,20 @@ _MAX_DISTINCT_KEYS = 200
 
 _FLASER_TAIL = ("x", "y", "theta", "odom_x", "odom_y", "odom_theta")
 _STAMP_TAIL = ("ipc_timestamp", "host", "logger_timestamp")
-_RL_HEAD = ("laser_type", "start_angle", "fov", "angular_res", "max_range", "accuracy",
-            "remission_mode", "n_beams")
-_RL_POSES = ("laser_x", "laser_y", "laser_theta", "robot_x", "robot_y", "robot_theta",
-             "tv", "rv", "fwd_safety", "side_safety", "turn_axis")
+_RL_HEAD = ("laser_type", "start_angle", "fov", "angular_res", "max_range", "accuracy", "remission_mode", "n_beams")
+_RL_POSES = (
+    "laser_x",
+    "laser_y",
+    "laser_theta",
+    "robot_x",
+    "robot_y",
+    "robot_theta",
+    "tv",
+    "rv",
+    "fwd_safety",
+    "side_safety",
+    "turn_axis",
+)
 _ODOM_FIELDS = ("x", "y", "theta", "tv", "rv", "accel")
 _IGNORED_KINDS = frozenset({"NEFF", "SYNC", "TRUEPOS", "NMEA-GGA", "NMEA-RMC", "GPS"})
 # A line layout for error messages: tuples of field names and ``(prefix, count)`` blocks.
@@ -195,12 +205,9 @@ class _Line:
         t = self.tokens
         complete = got >= 3 and _is_float(t[-1]) and _is_float(t[-3]) and not _is_float(t[-2])
         if got > expected or complete:
-            raise self.error(
-                f"line has {got} fields but {count_field} implies {expected} "
-                "(wrong beam/field count)", count_field)
+            raise self.error(f"line has {got} fields but {count_field} implies {expected} (wrong beam/field count)", count_field)
         missing = _name_at(segments, got)
-        raise self.error(f"truncated line: {got} of {expected} fields, {missing} is missing",
-                         missing)
+        raise self.error(f"truncated line: {got} of {expected} fields, {missing} is missing", missing)
 
 
 class CarmenReader:
@@ -271,8 +278,7 @@ class CarmenReader:
                 try:
                     raw = fh.readline()
                 except (OSError, EOFError, ValueError) as exc:
-                    raise DataFormatError(f"corrupt or truncated compressed stream ({exc})",
-                                          path=path, line=number + 1) from exc
+                    raise DataFormatError(f"corrupt or truncated compressed stream ({exc})", path=path, line=number + 1) from exc
                 if not raw:
                     break
                 number += 1
@@ -297,10 +303,8 @@ class CarmenReader:
                     _bump(stats.records, tokens[0])
                     yield rec
         if stats.n_records == 0:
-            why = f" ({stats.skipped_malformed} malformed lines skipped)" \
-                if stats.skipped_malformed else ""
-            raise DataFormatError(f"no records (FLASER, ROBOTLASER1, ODOM, ...) found{why}",
-                                  path=path)
+            why = f" ({stats.skipped_malformed} malformed lines skipped)" if stats.skipped_malformed else ""
+            raise DataFormatError(f"no records (FLASER, ROBOTLASER1, ODOM, ...) found{why}", path=path)
 
     def _parse(self, ln: _Line) -> CarmenRecord | None:
         kind = ln.tokens[0]
@@ -323,7 +327,7 @@ class CarmenReader:
         return None
 
     def _ranges(self, ln: _Line, start: int, n: int, max_range: float) -> FloatArray:
-        seg = ln.tokens[start:start + n]
+        seg = ln.tokens[start : start + n]
         try:
             r = np.array(seg, dtype=np.float64)
         except (ValueError, TypeError, OverflowError):
@@ -351,12 +355,18 @@ class CarmenReader:
         x, y, th, ox, oy, oth, stamp = ln.nums(2 + n, _FLASER_TAIL + ("ipc_timestamp",))
         angle_min, step = flaser_geometry(n, self.flaser_fov)
         return LaserScan(
-            ranges=ranges, angle_min=angle_min, angle_increment=step,
-            max_range=self.flaser_max_range, pose=np.array([x, y, th]),
+            ranges=ranges,
+            angle_min=angle_min,
+            angle_increment=step,
+            max_range=self.flaser_max_range,
+            pose=np.array([x, y, th]),
             odom=np.array([ox, oy, oth]),
             laser_offset=(self._front if kind == "FLASER" else self._rear).copy(),
-            timestamp=stamp, host=ln.tokens[n + 9],
-            logger_timestamp=ln.num(n + 10, "logger_timestamp"), line=ln.number, kind=kind,
+            timestamp=stamp,
+            host=ln.tokens[n + 9],
+            logger_timestamp=ln.num(n + 10, "logger_timestamp"),
+            line=ln.number,
+            kind=kind,
         )
 
     def _laser_v2(self, ln: _Line, *, with_poses: bool) -> LaserScan:
@@ -378,8 +388,7 @@ class CarmenReader:
             try:
                 m = ln.integer(m_idx, "n_remissions")
             except DataFormatError:
-                ln.check_count((head, ("range", n), ("n_remissions",)), m_idx + 1 + len(tail),
-                               "n_beams")
+                ln.check_count((head, ("range", n), ("n_remissions",)), m_idx + 1 + len(tail), "n_beams")
                 raise
         segments = (head, ("range", n), ("n_remissions",), ("remission", m), tail)
         ln.check_count(segments, m_idx + 1 + m + len(tail), "n_beams")
@@ -398,10 +407,18 @@ class CarmenReader:
         else:
             pose, odom, offset = np.full(3, np.nan), np.full(3, np.nan), np.zeros(3)
         return LaserScan(
-            ranges=ranges, angle_min=start, angle_increment=res, max_range=max_range,
-            pose=pose, odom=odom, laser_offset=offset, timestamp=ln.num(k, "ipc_timestamp"),
-            host=t[k + 1], logger_timestamp=ln.num(k + 2, "logger_timestamp"),
-            line=ln.number, kind=kind,
+            ranges=ranges,
+            angle_min=start,
+            angle_increment=res,
+            max_range=max_range,
+            pose=pose,
+            odom=odom,
+            laser_offset=offset,
+            timestamp=ln.num(k, "ipc_timestamp"),
+            host=t[k + 1],
+            logger_timestamp=ln.num(k + 2, "logger_timestamp"),
+            line=ln.number,
+            kind=kind,
         )
 
     def _odom(self, ln: _Line) -> OdometryReading:
@@ -409,15 +426,20 @@ class CarmenReader:
         ln.check_count(segments, 10, "n_fields")
         x, y, th, tv, rv, acc, stamp = ln.nums(1, _ODOM_FIELDS + ("ipc_timestamp",))
         return OdometryReading(
-            pose=np.array([x, y, th]), tv=tv, rv=rv, accel=acc, timestamp=stamp,
-            host=ln.tokens[8], logger_timestamp=ln.num(9, "logger_timestamp"), line=ln.number,
+            pose=np.array([x, y, th]),
+            tv=tv,
+            rv=rv,
+            accel=acc,
+            timestamp=stamp,
+            host=ln.tokens[8],
+            logger_timestamp=ln.num(9, "logger_timestamp"),
+            line=ln.number,
         )
 
     def _param(self, ln: _Line) -> None:
         t = ln.tokens
         if len(t) < 3:
-            raise ln.error("PARAM needs a name and a value",
-                           "param_name" if len(t) < 2 else "param_value")
+            raise ln.error("PARAM needs a name and a value", "param_name" if len(t) < 2 else "param_value")
         name = t[1]
         if name in ("robot_frontlaser_offset", "robot_rearlaser_offset"):
             d = ln.num(2, name)
@@ -441,8 +463,9 @@ def read_carmen(
 
     Use :class:`CarmenReader` directly to get the :class:`CarmenStats`.
     """
-    return iter(CarmenReader(path, on_error=on_error, flaser_fov=flaser_fov,
-                             flaser_max_range=flaser_max_range, include_raw=include_raw))
+    return iter(
+        CarmenReader(path, on_error=on_error, flaser_fov=flaser_fov, flaser_max_range=flaser_max_range, include_raw=include_raw)
+    )
 
 
 def read_scans(
@@ -454,8 +477,9 @@ def read_scans(
     include_raw: bool = False,
 ) -> Iterator[LaserScan]:
     """Stream only the :class:`LaserScan` records of a CARMEN log, in file order."""
-    for rec in read_carmen(path, on_error=on_error, flaser_fov=flaser_fov,
-                           flaser_max_range=flaser_max_range, include_raw=include_raw):
+    for rec in read_carmen(
+        path, on_error=on_error, flaser_fov=flaser_fov, flaser_max_range=flaser_max_range, include_raw=include_raw
+    ):
         if isinstance(rec, LaserScan):
             yield rec
 
@@ -469,8 +493,9 @@ def load_log(
     include_raw: bool = False,
 ) -> CarmenLog:
     """Read a whole CARMEN log into a :class:`CarmenLog` (scans and odometry, file order)."""
-    reader = CarmenReader(path, on_error=on_error, flaser_fov=flaser_fov,
-                          flaser_max_range=flaser_max_range, include_raw=include_raw)
+    reader = CarmenReader(
+        path, on_error=on_error, flaser_fov=flaser_fov, flaser_max_range=flaser_max_range, include_raw=include_raw
+    )
     scans: list[LaserScan] = []
     odometry: list[OdometryReading] = []
     for rec in reader:

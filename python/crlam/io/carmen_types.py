@@ -34,8 +34,7 @@ DEFAULT_FLASER_MAX_RANGE = 81.0
 def _as_vec3(value: ArrayLike, name: str) -> FloatArray:
     a = np.array(value, dtype=np.float64).reshape(-1)
     if a.shape != (3,):
-        raise DataFormatError(f"expected 3 values (x, y, theta), got shape {np.shape(value)}",
-                              field=name)
+        raise DataFormatError(f"expected 3 values (x, y, theta), got shape {np.shape(value)}", field=name)
     return a
 
 
@@ -88,8 +87,7 @@ class LaserScan:
     def __post_init__(self) -> None:
         self.ranges = np.asarray(self.ranges, dtype=np.float64)
         if self.ranges.ndim != 1:
-            raise DataFormatError(f"ranges must be 1-D, got shape {self.ranges.shape}",
-                                  field="ranges")
+            raise DataFormatError(f"ranges must be 1-D, got shape {self.ranges.shape}", field="ranges")
         self.pose = _as_vec3(self.pose, "pose")
         self.odom = _as_vec3(self.odom, "odom")
         self.laser_offset = _as_vec3(self.laser_offset, "laser_offset")
@@ -234,4 +232,3 @@ class CarmenLog:
     def odometry_poses(self) -> FloatArray:
         """Odometry poses of the ODOM records, shape (n_odometry, 3)."""
         return np.array([o.pose for o in self.odometry], dtype=np.float64).reshape(-1, 3)
-

@@ -159,8 +159,7 @@ class CarmenWriter:
         self._fh.write(line.encode("utf-8") + b"\n")
 
     def _error(self, message: str, field: str) -> DataFormatError:
-        return DataFormatError(f"cannot write record {self.n_written + 1}: {message}",
-                               path=str(self.path), field=field)
+        return DataFormatError(f"cannot write record {self.n_written + 1}: {message}", path=str(self.path), field=field)
 
     def _check_finite(self, name: str, value: float | np.ndarray) -> None:
         if not np.all(np.isfinite(value)):
@@ -189,8 +188,7 @@ class CarmenWriter:
             try:
                 d = float(text)
             except ValueError:
-                raise self._error(f"laser offset must be a number, got {text!r}",
-                                  "param_value") from None
+                raise self._error(f"laser offset must be a number, got {text!r}", "param_value") from None
             self._check_finite("param_value", d)
             self._front = text = _m(d)
         self._emit(f"PARAM {name} {text} nohost 0")
@@ -212,11 +210,15 @@ class CarmenWriter:
         """Write one scan as ``FLASER`` or ``ROBOTLASER1`` (see the module docstring)."""
         if scan.n_beams == 0:
             raise self._error("a scan needs at least one beam", "n_beams")
-        for name, value in (("pose", scan.pose), ("odom", scan.odom),
-                            ("laser_offset", scan.laser_offset), ("timestamp", scan.timestamp),
-                            ("logger_timestamp", scan.logger_timestamp),
-                            ("angle_min", scan.angle_min),
-                            ("angle_increment", scan.angle_increment)):
+        for name, value in (
+            ("pose", scan.pose),
+            ("odom", scan.odom),
+            ("laser_offset", scan.laser_offset),
+            ("timestamp", scan.timestamp),
+            ("logger_timestamp", scan.logger_timestamp),
+            ("angle_min", scan.angle_min),
+            ("angle_increment", scan.angle_increment),
+        ):
             self._check_finite(name, value)
         if not (math.isfinite(scan.max_range) and scan.max_range > 0):
             raise self._error(f"max_range must be positive, got {scan.max_range}", "max_range")
@@ -229,32 +231,41 @@ class CarmenWriter:
             offset = _m(float(scan.laser_offset[0]))
             if offset != self._front:
                 self.write_param("robot_frontlaser_offset", offset)
-            self._emit(f"FLASER {scan.n_beams} {ranges} {_pose(scan.pose)} "
-                       f"{_pose(scan.odom)} {stamps}")
+            self._emit(f"FLASER {scan.n_beams} {ranges} {_pose(scan.pose)} {_pose(scan.odom)} {stamps}")
         else:
             if self.robotlaser_pose == "strict" and _pose(scan.pose) != _pose(scan.odom):
                 raise self._error(
                     "ROBOTLASER1 has no odometry field and odom differs from pose; pass "
-                    "robotlaser_pose='pose' or 'odom' to choose which one to keep", "odom")
+                    "robotlaser_pose='pose' or 'odom' to choose which one to keep",
+                    "odom",
+                )
             robot = scan.odom if self.robotlaser_pose == "odom" else scan.pose
             laser = compose(robot, scan.laser_offset)
             fov = scan.angle_increment * (scan.n_beams - 1)
-            geometry = (f"{scan.angle_min:.9f} {fov:.9f} {scan.angle_increment:.9f} "
-                        f"{_m(scan.max_range)} {_m(0.0)} 0")
-            self._emit(f"ROBOTLASER1 0 {geometry} {scan.n_beams} {ranges} 0 {_pose(laser)} "
-                       f"{_pose(robot)} {_m(0.0)} {_rad(0.0)} {_m(0.0)} {_m(0.0)} {_m(0.0)} "
-                       f"{stamps}")
+            geometry = f"{scan.angle_min:.9f} {fov:.9f} {scan.angle_increment:.9f} {_m(scan.max_range)} {_m(0.0)} 0"
+            self._emit(
+                f"ROBOTLASER1 0 {geometry} {scan.n_beams} {ranges} 0 {_pose(laser)} "
+                f"{_pose(robot)} {_m(0.0)} {_rad(0.0)} {_m(0.0)} {_m(0.0)} {_m(0.0)} "
+                f"{stamps}"
+            )
         self.n_written += 1
 
     def write_odom(self, odom: OdometryReading) -> None:
         """Write one ``ODOM`` line."""
-        for name, value in (("pose", odom.pose), ("tv", odom.tv), ("rv", odom.rv),
-                            ("accel", odom.accel), ("timestamp", odom.timestamp),
-                            ("logger_timestamp", odom.logger_timestamp)):
+        for name, value in (
+            ("pose", odom.pose),
+            ("tv", odom.tv),
+            ("rv", odom.rv),
+            ("accel", odom.accel),
+            ("timestamp", odom.timestamp),
+            ("logger_timestamp", odom.logger_timestamp),
+        ):
             self._check_finite(name, value)
         self._check_host(odom.host)
-        self._emit(f"ODOM {_pose(odom.pose)} {_m(odom.tv)} {_rad(odom.rv)} {_m(odom.accel)} "
-                   f"{_t(odom.timestamp)} {odom.host} {_t(odom.logger_timestamp)}")
+        self._emit(
+            f"ODOM {_pose(odom.pose)} {_m(odom.tv)} {_rad(odom.rv)} {_m(odom.accel)} "
+            f"{_t(odom.timestamp)} {odom.host} {_t(odom.logger_timestamp)}"
+        )
         self.n_written += 1
 
 
@@ -274,9 +285,9 @@ def write_carmen(
     int
         Number of records written (PARAM lines not counted).
     """
-    with CarmenWriter(path, header=header, flaser_fov=flaser_fov,
-                      flaser_max_range=flaser_max_range,
-                      robotlaser_pose=robotlaser_pose) as writer:
+    with CarmenWriter(
+        path, header=header, flaser_fov=flaser_fov, flaser_max_range=flaser_max_range, robotlaser_pose=robotlaser_pose
+    ) as writer:
         for rec in records:
             writer.write(rec)
         return writer.n_written

@@ -50,31 +50,51 @@ def _registry(*items: Dataset) -> dict[str, Dataset]:
 
 
 DATASETS: dict[str, Dataset] = _registry(
-    Dataset("intel", "intel/intel.clf.bz2",
-            "Intel Research Lab (Seattle) raw CARMEN log: 13,631 FLASER (180 beams), 26,915 "
-            "ODOM, not time sorted; no-return readings are 81.83 m", 81.0),
-    Dataset("intel-relations", "intel/intel.relations",
-            "Kuemmerle et al. 2009 reference relations for Intel, 2,984 lines"),
-    Dataset("aces", "aces/aces.clf.bz2",
-            "ACES building (Austin) raw CARMEN log: 7,374 FLASER (180 beams), 7,375 ODOM; "
-            "no-return readings are 50.00 m", 50.0),
-    Dataset("aces-relations", "aces/aces.relations",
-            "Kuemmerle et al. 2009 reference relations for ACES, 1,279 lines"),
-    Dataset("intel-corrected", "corrected/intel-corrected.log.gz",
-            "GMapping-corrected Intel log (FLASER pose and odom hold the corrected pose)", 81.0),
-    Dataset("aces-corrected", "corrected/aces-corrected.log.gz",
-            "GMapping-corrected ACES log (FLASER pose and odom hold the corrected pose)", 50.0),
-    Dataset("freiburg-101-corrected", "corrected/freiburg-101-corrected.log.gz",
-            "GMapping-corrected Freiburg building 101 log, 360 beams, front laser offset "
-            "-0.04 m", 81.0),
-    Dataset("edmonton-corrected", "corrected/edmonton-corrected.log.gz",
-            "GMapping-corrected Edmonton convention centre log; saturated readings are "
-            "about 51.15 m", 51.0),
-    Dataset("robotlaser1-sample", "robotlaser1-sample.clf.gz",
-            "First 50 lines of a real log in the ROBOTLASER1 format (180/181 beams)"),
-    Dataset("cave-map", "maps/cave.pgm",
-            "Player/Stage cave bitmap, 100 x 100 px at 0.2 m/px; pixel >= 128 free, < 128 "
-            "obstacle"),
+    Dataset(
+        "intel",
+        "intel/intel.clf.bz2",
+        "Intel Research Lab (Seattle) raw CARMEN log: 13,631 FLASER (180 beams), 26,915 "
+        "ODOM, not time sorted; no-return readings are 81.83 m",
+        81.0,
+    ),
+    Dataset("intel-relations", "intel/intel.relations", "Kuemmerle et al. 2009 reference relations for Intel, 2,984 lines"),
+    Dataset(
+        "aces",
+        "aces/aces.clf.bz2",
+        "ACES building (Austin) raw CARMEN log: 7,374 FLASER (180 beams), 7,375 ODOM; no-return readings are 50.00 m",
+        50.0,
+    ),
+    Dataset("aces-relations", "aces/aces.relations", "Kuemmerle et al. 2009 reference relations for ACES, 1,279 lines"),
+    Dataset(
+        "intel-corrected",
+        "corrected/intel-corrected.log.gz",
+        "GMapping-corrected Intel log (FLASER pose and odom hold the corrected pose)",
+        81.0,
+    ),
+    Dataset(
+        "aces-corrected",
+        "corrected/aces-corrected.log.gz",
+        "GMapping-corrected ACES log (FLASER pose and odom hold the corrected pose)",
+        50.0,
+    ),
+    Dataset(
+        "freiburg-101-corrected",
+        "corrected/freiburg-101-corrected.log.gz",
+        "GMapping-corrected Freiburg building 101 log, 360 beams, front laser offset -0.04 m",
+        81.0,
+    ),
+    Dataset(
+        "edmonton-corrected",
+        "corrected/edmonton-corrected.log.gz",
+        "GMapping-corrected Edmonton convention centre log; saturated readings are about 51.15 m",
+        51.0,
+    ),
+    Dataset(
+        "robotlaser1-sample",
+        "robotlaser1-sample.clf.gz",
+        "First 50 lines of a real log in the ROBOTLASER1 format (180/181 beams)",
+    ),
+    Dataset("cave-map", "maps/cave.pgm", "Player/Stage cave bitmap, 100 x 100 px at 0.2 m/px; pixel >= 128 free, < 128 obstacle"),
 )
 
 
@@ -108,8 +128,7 @@ def dataset_path(relative: str) -> Path:
     root = data_root()
     if root is None:
         env = os.environ.get(ENV_VAR)
-        where = f"${ENV_VAR}={env!r}" if env else \
-            f"{_repo_root().parent / 'shared' / 'data'} (set ${ENV_VAR} to override)"
+        where = f"${ENV_VAR}={env!r}" if env else f"{_repo_root().parent / 'shared' / 'data'} (set ${ENV_VAR} to override)"
         raise DatasetNotFoundError(f"dataset {relative!r}: no data folder at {where}")
     path = root / rel
     if not path.exists():

@@ -102,8 +102,7 @@ def _read_pgm(path: str | os.PathLike[str]) -> tuple[NDArray[np.uint16] | NDArra
         # Exactly one whitespace byte separates maxval from the raster.
         raster = data[pos + 1 : pos + 1 + count * dtype.itemsize]
         if len(raster) < count * dtype.itemsize:
-            raise _pgm_error(path, f"raster truncated: {len(raster)} of "
-                             f"{count * dtype.itemsize} bytes", "raster")
+            raise _pgm_error(path, f"raster truncated: {len(raster)} of {count * dtype.itemsize} bytes", "raster")
         values = np.frombuffer(raster, dtype=dtype).astype(dtype.newbyteorder("="))
     else:
         text = re.sub(rb"#[^\n]*", b" ", data[pos:]).split()
@@ -133,9 +132,7 @@ def read_pgm(path: str | os.PathLike[str]) -> NDArray[np.uint8] | NDArray[np.uin
     return _read_pgm(path)[0]
 
 
-def write_pgm(
-    path: str | os.PathLike[str], image: ArrayLike, *, comment: str | None = None
-) -> None:
+def write_pgm(path: str | os.PathLike[str], image: ArrayLike, *, comment: str | None = None) -> None:
     """Write a binary (P5) PGM, row 0 = top of the image.
 
     Parameters
@@ -147,18 +144,15 @@ def write_pgm(
     """
     a = np.asarray(image)
     if a.ndim != 2 or a.size == 0:
-        raise DataFormatError(f"image must be a non-empty 2-D array, got shape {a.shape}",
-                              path=str(path), field="image")
+        raise DataFormatError(f"image must be a non-empty 2-D array, got shape {a.shape}", path=str(path), field="image")
     if a.dtype == np.bool_ or not np.issubdtype(a.dtype, np.integer):
-        raise DataFormatError(f"image must hold integers, got {a.dtype}", path=str(path),
-                              field="image")
+        raise DataFormatError(f"image must hold integers, got {a.dtype}", path=str(path), field="image")
     if int(a.min()) < 0 or int(a.max()) > 65535:
         raise DataFormatError("pixel values must lie in 0..65535", path=str(path), field="image")
     wide = a.dtype == np.uint16 or (a.dtype.itemsize > 1 and int(a.max()) > 255)
     maxval = 65535 if wide else 255
     raster = a.astype(">u2" if wide else np.uint8).tobytes()
-    head = "P5\n" + ("" if comment is None else f"# {comment}\n") + \
-        f"{a.shape[1]} {a.shape[0]}\n{maxval}\n"
+    head = "P5\n" + ("" if comment is None else f"# {comment}\n") + f"{a.shape[1]} {a.shape[0]}\n{maxval}\n"
     Path(path).write_bytes(head.encode("ascii") + raster)
 
 
@@ -225,8 +219,9 @@ def _class_pixels(occupied_thresh: float, free_thresh: float, negate: int) -> di
         px = 255 - px if negate else px
         ok = np.flatnonzero(decoded == cls)
         if ok.size == 0:
-            raise ConfigError(f"thresholds occupied={occupied_thresh} free={free_thresh} "
-                              f"leave no 8-bit pixel value for class {cls}")
+            raise ConfigError(
+                f"thresholds occupied={occupied_thresh} free={free_thresh} leave no 8-bit pixel value for class {cls}"
+            )
         out[cls] = int(ok[np.argmin(np.abs(ok - px))])
     return out
 
@@ -275,12 +270,10 @@ def write_nav2_map(
     pgm = Path(pgm_path)
     occ = np.asarray(occupancy, dtype=np.float64)
     if occ.ndim != 2 or occ.size == 0:
-        raise DataFormatError(f"occupancy must be a non-empty 2-D array, got shape {occ.shape}",
-                              path=str(pgm), field="occupancy")
+        raise DataFormatError(f"occupancy must be a non-empty 2-D array, got shape {occ.shape}", path=str(pgm), field="occupancy")
     finite = occ[np.isfinite(occ)]
     if np.isinf(occ).any() or (finite.size and (finite.min() < 0.0 or finite.max() > 1.0)):
-        raise DataFormatError("occupancy must lie in [0, 1] or be NaN", path=str(pgm),
-                              field="occupancy")
+        raise DataFormatError("occupancy must lie in [0, 1] or be NaN", path=str(pgm), field="occupancy")
     if not (math.isfinite(resolution) and resolution > 0):
         raise ConfigError(f"resolution must be positive, got {resolution}")
     org = np.asarray(origin, dtype=np.float64).reshape(-1)
@@ -289,8 +282,7 @@ def write_nav2_map(
     if org.shape != (3,) or not np.all(np.isfinite(org)):
         raise ConfigError(f"origin must be 2 or 3 finite numbers, got {origin!r}")
     if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
-        raise ConfigError(f"need 0 <= free_thresh < occupied_thresh <= 1, got {free_thresh}, "
-                          f"{occupied_thresh}")
+        raise ConfigError(f"need 0 <= free_thresh < occupied_thresh <= 1, got {free_thresh}, {occupied_thresh}")
     if negate not in (0, 1):
         raise ConfigError(f"negate must be 0 or 1, got {negate!r}")
     negate = int(negate)
@@ -346,27 +338,23 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
         doc = yaml.safe_load(path.read_text(encoding="utf-8"))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        raise DataFormatError(f"invalid YAML ({exc})", path=str(path),
-                              line=None if mark is None else mark.line + 1) from exc
+        raise DataFormatError(f"invalid YAML ({exc})", path=str(path), line=None if mark is None else mark.line + 1) from exc
     if not isinstance(doc, dict):
         raise DataFormatError("not a YAML mapping", path=str(path))
     if not isinstance(doc.get("image"), str) or not doc["image"]:
         raise DataFormatError("missing or invalid image path", path=str(path), field="image")
     resolution = _yaml_number(doc, "resolution", path, None)
     if resolution <= 0:
-        raise DataFormatError(f"must be positive, got {resolution}", path=str(path),
-                              field="resolution")
+        raise DataFormatError(f"must be positive, got {resolution}", path=str(path), field="resolution")
     origin = doc.get("origin")
     if not isinstance(origin, list) or len(origin) not in (2, 3):
-        raise DataFormatError(f"must be a list [x, y, yaw], got {origin!r}", path=str(path),
-                              field="origin")
+        raise DataFormatError(f"must be a list [x, y, yaw], got {origin!r}", path=str(path), field="origin")
     org = np.array([_yaml_number({"origin": v}, "origin", path, None) for v in origin] + [0.0])[:3]
     occ_t = _yaml_number(doc, "occupied_thresh", path, 0.65)
     free_t = _yaml_number(doc, "free_thresh", path, 0.196)
     negate_raw = doc.get("negate", 0)
     if negate_raw not in (0, 1):  # True/False compare equal to 1/0
-        raise DataFormatError(f"must be 0 or 1, got {negate_raw!r}", path=str(path),
-                              field="negate")
+        raise DataFormatError(f"must be 0 or 1, got {negate_raw!r}", path=str(path), field="negate")
     mode = str(doc.get("mode", "trinary")).lower()
     if mode not in ("trinary", "scale", "raw"):
         raise DataFormatError(f"unknown mode {mode!r}", path=str(path), field="mode")
@@ -374,8 +362,7 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
     if not image_path.is_absolute():
         image_path = path.parent / image_path
     if not image_path.is_file():
-        raise DataFormatError(f"image file not found: {image_path}", path=str(path),
-                              field="image")
+        raise DataFormatError(f"image file not found: {image_path}", path=str(path), field="image")
     shade, alpha = _image_planes(image_path)
     negate = int(negate_raw)
     if mode == "trinary":
@@ -393,6 +380,13 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
     else:
         percent = np.round(shade * 255.0)
         occ = np.where(percent <= 100.0, percent / 100.0, np.nan)
-    return Nav2Map(occupancy=np.ascontiguousarray(occ[::-1]), resolution=resolution,
-                   origin=org, image_path=image_path, mode=mode, negate=negate,
-                   occupied_thresh=occ_t, free_thresh=free_t)
+    return Nav2Map(
+        occupancy=np.ascontiguousarray(occ[::-1]),
+        resolution=resolution,
+        origin=org,
+        image_path=image_path,
+        mode=mode,
+        negate=negate,
+        occupied_thresh=occ_t,
+        free_thresh=free_t,
+    )

@@ -49,8 +49,9 @@ class Relations:
         n = self.t1.shape[0]
         if self.t2.shape != (n,) or self.delta.shape != (n, 3):
             raise DataFormatError(
-                f"t1 {self.t1.shape}, t2 {self.t2.shape} and delta {self.delta.shape} disagree "
-                "(want (n,), (n,), (n, 3))", field="delta")
+                f"t1 {self.t1.shape}, t2 {self.t2.shape} and delta {self.delta.shape} disagree (want (n,), (n,), (n, 3))",
+                field="delta",
+            )
 
     def __len__(self) -> int:
         return int(self.t1.shape[0])
@@ -81,23 +82,21 @@ def read_relations(path: str | os.PathLike[str], *, planar_tol: float = 1e-6) ->
                 continue
             if len(tokens) != 8:
                 missing = _FIELDS[len(tokens)] if len(tokens) < 8 else "n_fields"
-                raise DataFormatError(f"expected 8 fields, found {len(tokens)}", path=name,
-                                      line=number, field=missing)
+                raise DataFormatError(f"expected 8 fields, found {len(tokens)}", path=name, line=number, field=missing)
             vals: list[float] = []
             for tok, fname in zip(tokens, _FIELDS):
                 try:
                     v = float(tok)
                 except ValueError:
-                    raise DataFormatError(f"not a number: {tok[:32]!r}", path=name,
-                                          line=number, field=fname) from None
+                    raise DataFormatError(f"not a number: {tok[:32]!r}", path=name, line=number, field=fname) from None
                 if not math.isfinite(v):
-                    raise DataFormatError(f"non-finite value {tok!r}", path=name, line=number,
-                                          field=fname)
+                    raise DataFormatError(f"non-finite value {tok!r}", path=name, line=number, field=fname)
                 vals.append(v)
             for k in (4, 5, 6):
                 if abs(vals[k]) > planar_tol:
-                    raise DataFormatError(f"non-planar relation ({_FIELDS[k]} = {vals[k]})",
-                                          path=name, line=number, field=_FIELDS[k])
+                    raise DataFormatError(
+                        f"non-planar relation ({_FIELDS[k]} = {vals[k]})", path=name, line=number, field=_FIELDS[k]
+                    )
             rows.append(vals)
     if not rows:
         raise DataFormatError("no relations in file", path=name)
@@ -105,9 +104,7 @@ def read_relations(path: str | os.PathLike[str], *, planar_tol: float = 1e-6) ->
     return Relations(t1=a[:, 0], t2=a[:, 1], delta=a[:, [2, 3, 7]])
 
 
-def write_relations(
-    path: str | os.PathLike[str], t1: ArrayLike, t2: ArrayLike, delta: ArrayLike
-) -> None:
+def write_relations(path: str | os.PathLike[str], t1: ArrayLike, t2: ArrayLike, delta: ArrayLike) -> None:
     """Write relations (stamps ``%.6f`` s as in the benchmark files, x y ``%.6f`` m, yaw
     ``%.6f`` rad; z, roll and pitch zero).
 

@@ -46,9 +46,7 @@ class Trajectory:
         self.timestamps = np.asarray(self.timestamps, dtype=np.float64).reshape(-1)
         self.poses = np.asarray(self.poses, dtype=np.float64)
         if self.poses.shape != (self.timestamps.shape[0], 3):
-            raise DataFormatError(
-                f"poses must have shape ({self.timestamps.shape[0]}, 3), got {self.poses.shape}",
-                field="poses")
+            raise DataFormatError(f"poses must have shape ({self.timestamps.shape[0]}, 3), got {self.poses.shape}", field="poses")
 
     def __len__(self) -> int:
         return int(self.timestamps.shape[0])
@@ -78,8 +76,7 @@ def write_tum(
     t = np.asarray(timestamps, dtype=np.float64).reshape(-1)
     p = np.asarray(poses, dtype=np.float64)
     if p.shape != (t.shape[0], 3):
-        raise DataFormatError(f"poses must have shape ({t.shape[0]}, 3), got {p.shape}",
-                              path=str(path), field="poses")
+        raise DataFormatError(f"poses must have shape ({t.shape[0]}, 3), got {p.shape}", path=str(path), field="poses")
     for name, arr in (("timestamps", t), ("poses", p)):
         if not np.all(np.isfinite(arr)):
             raise DataFormatError("non-finite values", path=str(path), field=name)
@@ -87,8 +84,7 @@ def write_tum(
     lines = [] if header is None else [f"# {h}".rstrip() for h in header.splitlines()]
     lines += [
         f"{ti:.9f} {x:.9f} {y:.9f} 0.000000000 0.000000000 0.000000000 {qz:.9f} {qw:.9f}"
-        for ti, x, y, qz, qw in zip(t.tolist(), p[:, 0].tolist(), p[:, 1].tolist(),
-                                    np.sin(half).tolist(), np.cos(half).tolist())
+        for ti, x, y, qz, qw in zip(t.tolist(), p[:, 0].tolist(), p[:, 1].tolist(), np.sin(half).tolist(), np.cos(half).tolist())
     ]
     Path(path).write_text("".join(line + "\n" for line in lines), encoding="utf-8")
 
@@ -125,31 +121,30 @@ def read_tum(path: str | os.PathLike[str], *, max_tilt: float = 1e-3) -> Traject
                 continue
             if len(tokens) != 8:
                 missing = _FIELDS[len(tokens)] if len(tokens) < 8 else "n_fields"
-                raise DataFormatError(f"expected 8 fields, found {len(tokens)}", path=name,
-                                      line=number, field=missing)
+                raise DataFormatError(f"expected 8 fields, found {len(tokens)}", path=name, line=number, field=missing)
             vals = []
             for tok, fname in zip(tokens, _FIELDS):
                 try:
                     v = float(tok)
                 except ValueError:
-                    raise DataFormatError(f"not a number: {tok[:32]!r}", path=name,
-                                          line=number, field=fname) from None
+                    raise DataFormatError(f"not a number: {tok[:32]!r}", path=name, line=number, field=fname) from None
                 if not math.isfinite(v):
-                    raise DataFormatError(f"non-finite value {tok!r}", path=name, line=number,
-                                          field=fname)
+                    raise DataFormatError(f"non-finite value {tok!r}", path=name, line=number, field=fname)
                 vals.append(v)
             ts, x, y, _z, qx, qy, qz, qw = vals
             norm = math.sqrt(qx * qx + qy * qy + qz * qz + qw * qw)
             if abs(norm - 1.0) > 1e-3:
-                raise DataFormatError(f"quaternion norm {norm:.6g} is not 1", path=name,
-                                      line=number, field="quaternion")
+                raise DataFormatError(f"quaternion norm {norm:.6g} is not 1", path=name, line=number, field="quaternion")
             qx, qy, qz, qw = qx / norm, qy / norm, qz / norm, qw / norm
             # R[2,2] = 1 - 2(qx^2 + qy^2) is the cosine of the tilt of the rotated z axis.
             cos_tilt = min(1.0, max(-1.0, 1.0 - 2.0 * (qx * qx + qy * qy)))
             if math.acos(cos_tilt) > max_tilt:
                 raise DataFormatError(
                     f"rotation is not planar (tilt {math.degrees(math.acos(cos_tilt)):.4g} deg)",
-                    path=name, line=number, field="quaternion")
+                    path=name,
+                    line=number,
+                    field="quaternion",
+                )
             yaw = math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz))
             stamps.append(ts)
             rows.append((x, y, yaw))

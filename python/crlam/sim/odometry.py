@@ -87,8 +87,7 @@ class GaussianIncrementNoise:
         return _log_normal(r, self.sigmas).sum(axis=-1)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"model": "gaussian_increment", "sigma_x": self.sigma_x, "sigma_y": self.sigma_y,
-                "sigma_theta": self.sigma_theta}
+        return {"model": "gaussian_increment", "sigma_x": self.sigma_x, "sigma_y": self.sigma_y, "sigma_theta": self.sigma_theta}
 
 
 @dataclass(frozen=True)
@@ -186,8 +185,15 @@ class ThrunOdometryNoise:
         return out
 
     def to_dict(self) -> dict[str, Any]:
-        return {"model": "thrun", "alpha1": self.alpha1, "alpha2": self.alpha2, "alpha3": self.alpha3,
-                "alpha4": self.alpha4, "floor_rot": self.floor_rot, "floor_trans": self.floor_trans}
+        return {
+            "model": "thrun",
+            "alpha1": self.alpha1,
+            "alpha2": self.alpha2,
+            "alpha3": self.alpha3,
+            "alpha4": self.alpha4,
+            "floor_rot": self.floor_rot,
+            "floor_trans": self.floor_trans,
+        }
 
 
 OdometryNoise = GaussianIncrementNoise | ThrunOdometryNoise

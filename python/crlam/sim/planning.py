@@ -97,8 +97,7 @@ class PlanningGrid:
 
     def node_xy(self, i: NDArray[np.int64] | int, j: NDArray[np.int64] | int) -> NDArray[np.float64]:
         """World ``(x, y)`` of lattice nodes at row ``i``, column ``j``; shape ``(..., 2)``."""
-        return self.world.cell_centers(np.asarray(j) * self.step + self.step // 2,
-                                       np.asarray(i) * self.step + self.step // 2)
+        return self.world.cell_centers(np.asarray(j) * self.step + self.step // 2, np.asarray(i) * self.step + self.step // 2)
 
     def nearest_node(self, xy: NDArray[np.float64], label: int | None = None) -> tuple[int, int]:
         """Row and column of the traversable node nearest to ``xy`` (searching a small window).
@@ -147,8 +146,16 @@ class PlanningGrid:
         s = (start[0] + 1) * w + start[1] + 1
         g_node = (goal[0] + 1) * w + goal[1] + 1
         gy, gx = divmod(g_node, w)
-        moves = [(1, 0, 1.0), (-1, 0, 1.0), (0, 1, 1.0), (0, -1, 1.0),
-                 (1, 1, _SQRT2), (1, -1, _SQRT2), (-1, 1, _SQRT2), (-1, -1, _SQRT2)]
+        moves = [
+            (1, 0, 1.0),
+            (-1, 0, 1.0),
+            (0, 1, 1.0),
+            (0, -1, 1.0),
+            (1, 1, _SQRT2),
+            (1, -1, _SQRT2),
+            (-1, 1, _SQRT2),
+            (-1, -1, _SQRT2),
+        ]
         offs = [(di * w + dj, di * w, dj, di, length) for di, dj, length in moves]
         inf = math.inf
         gscore = [inf] * len(c)
@@ -198,7 +205,10 @@ class PlanningGrid:
         return float(self.field.at_points(a[None, :] * (1.0 - t) + b[None, :] * t).min())
 
     def plan(
-        self, start_xy: NDArray[np.float64], goal_xy: NDArray[np.float64], min_clearance: float,
+        self,
+        start_xy: NDArray[np.float64],
+        goal_xy: NDArray[np.float64],
+        min_clearance: float,
         heuristic_weight: float = 1.5,
     ) -> NDArray[np.float64]:
         """Smoothed collision-free polyline ``(k, 2)`` from ``start_xy`` to ``goal_xy`` (m).
@@ -218,9 +228,13 @@ class PlanningGrid:
         rows, cols = np.divmod(np.asarray(nodes, dtype=np.int64), cnx)
         pts = self.node_xy(rows, cols)
         clr = self.clearance[rows, cols]
-        pts = np.vstack([np.asarray(start_xy, dtype=np.float64)[None, :], pts[1:-1],
-                         np.asarray(goal_xy, dtype=np.float64)[None, :]]) if len(pts) > 1 else \
-            np.vstack([np.asarray(start_xy, float)[None, :], np.asarray(goal_xy, float)[None, :]])
+        pts = (
+            np.vstack(
+                [np.asarray(start_xy, dtype=np.float64)[None, :], pts[1:-1], np.asarray(goal_xy, dtype=np.float64)[None, :]]
+            )
+            if len(pts) > 1
+            else np.vstack([np.asarray(start_xy, float)[None, :], np.asarray(goal_xy, float)[None, :]])
+        )
         if len(clr) < len(pts):
             clr = np.concatenate([clr, clr[-1:]])
         # Running minimum of node clearance, to compare shortcuts with the sub-path they replace.

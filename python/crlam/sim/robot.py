@@ -135,8 +135,7 @@ def _wrap(a: float) -> float:
 class _Unicycle:
     """Exact constant-twist integration of a unicycle, emitting a pose every ``substeps`` steps."""
 
-    def __init__(self, pose: tuple[float, float, float], dt: float, substeps: int, out: list[tuple[float, ...]],
-                 limit: int):
+    def __init__(self, pose: tuple[float, float, float], dt: float, substeps: int, out: list[tuple[float, ...]], limit: int):
         self.x, self.y, self.th = pose
         self.v = 0.0
         self.dt = dt
@@ -252,9 +251,7 @@ def follow_path(robot: _Unicycle, path: Array, p: RobotParams) -> None:
         seg = stop
 
 
-def _choose_goal(
-    rng: np.random.Generator, grid: PlanningGrid, cand: Array, here: Array, visited: Array, p: RobotParams
-) -> Array:
+def _choose_goal(rng: np.random.Generator, grid: PlanningGrid, cand: Array, here: Array, visited: Array, p: RobotParams) -> Array:
     """A goal among ``cand`` ``(c, 2)``: far from ``visited`` ``(v, 2)``, within reach of ``here``."""
     d = np.hypot(*(cand - here).T)
     ok = np.nonzero((d >= p.min_goal_distance) & (d <= p.max_goal_distance))[0]
@@ -315,7 +312,9 @@ def plan_trajectory(
         raise ConfigError(f"world {world.name!r} has no room for a robot of radius {p.radius} m")
     if start_pose is None:
         main = int(np.argmax(sizes[1:])) + 1
-        rows, cols = np.nonzero((grid.component == main) & (grid.clearance >= min(p.goal_clearance, grid.clearance[grid.component == main].max())))
+        rows, cols = np.nonzero(
+            (grid.component == main) & (grid.clearance >= min(p.goal_clearance, grid.clearance[grid.component == main].max()))
+        )
         k = int(rng.integers(len(rows)))
         x0, y0 = grid.node_xy(rows[k], cols[k])
         start = (float(x0), float(y0), float(rng.uniform(-math.pi, math.pi)))
@@ -358,5 +357,4 @@ def plan_trajectory(
         k = int(np.argmin(clr))
         raise RuntimeError(f"pose {k} {poses[k]} is {clr[k]:.3f} m from an obstacle (radius {p.radius} m)")
     stamps = start_time + np.arange(n_poses, dtype=np.float64) / scan_rate
-    return Trajectory(stamps, poses, np.vstack(paths) if paths else np.zeros((0, 2)),
-                      np.asarray(goals).reshape(-1, 2))
+    return Trajectory(stamps, poses, np.vstack(paths) if paths else np.zeros((0, 2)), np.asarray(goals).reshape(-1, 2))

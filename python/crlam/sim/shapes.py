@@ -60,12 +60,7 @@ class Box:
 
     def contains(self, other: Box, tol: float = 1e-9) -> bool:
         """Whether ``other`` lies inside this box."""
-        return (
-            other.x0 >= self.x0 - tol
-            and other.y0 >= self.y0 - tol
-            and other.x1 <= self.x1 + tol
-            and other.y1 <= self.y1 + tol
-        )
+        return other.x0 >= self.x0 - tol and other.y0 >= self.y0 - tol and other.x1 <= self.x1 + tol and other.y1 <= self.y1 + tol
 
     def draw(self, canvas: Canvas, value: bool = True) -> None:
         canvas.fill_box(self, value)
@@ -269,9 +264,7 @@ class Furnisher:
         """Add ``shapes`` (treated as one group with a joint AABB) if the rule allows it."""
         group = shapes if isinstance(shapes, list) else [shapes]
         boxes = [s.aabb for s in group]
-        aabb = Box(
-            min(b.x0 for b in boxes), min(b.y0 for b in boxes), max(b.x1 for b in boxes), max(b.y1 for b in boxes)
-        )
+        aabb = Box(min(b.x0 for b in boxes), min(b.y0 for b in boxes), max(b.x1 for b in boxes), max(b.y1 for b in boxes))
         if not self._free(aabb, room, flush):
             return False
         self._block(aabb)

@@ -194,9 +194,7 @@ def simulate(config: SimulationConfig) -> SimulatedLog:
     world = get_world(config.world, config.world_seed, config.world_resolution)
     sensor = make_sensor(config.sensor)
     traj_seq, odom_seq, sensor_seq = np.random.SeedSequence(config.seed).spawn(3)
-    traj = plan_trajectory(
-        world, config.n_scans, traj_seq, config.robot_params, config.scan_rate, config.start_time
-    )
+    traj = plan_trajectory(world, config.n_scans, traj_seq, config.robot_params, config.scan_rate, config.start_time)
     true_inc = increments_from_poses(traj.poses)
     noisy_inc = config.odometry.sample_increments(true_inc, np.random.Generator(np.random.PCG64(odom_seq)))
     start = np.zeros(3) if config.odometry_at_origin else traj.poses[0]
@@ -267,11 +265,24 @@ def write_simulation(log: SimulatedLog, out_dir: str | os.PathLike[str]) -> dict
         for k in range(log.n_scans):
             t = float(log.timestamps[k])
             pose = log.odometry[k]
-            writer.write_odom(OdometryReading(pose=pose, tv=float(tv[k]), rv=float(rv[k]), timestamp=t,
-                                              host=log.config.host, logger_timestamp=t - t0))
-            writer.write_scan(LaserScan(ranges=ranges[k], angle_min=s.angle_min, angle_increment=s.angle_increment,
-                                        max_range=zmax, pose=pose, odom=pose, timestamp=t,
-                                        host=log.config.host, logger_timestamp=t - t0))
+            writer.write_odom(
+                OdometryReading(
+                    pose=pose, tv=float(tv[k]), rv=float(rv[k]), timestamp=t, host=log.config.host, logger_timestamp=t - t0
+                )
+            )
+            writer.write_scan(
+                LaserScan(
+                    ranges=ranges[k],
+                    angle_min=s.angle_min,
+                    angle_increment=s.angle_increment,
+                    max_range=zmax,
+                    pose=pose,
+                    odom=pose,
+                    timestamp=t,
+                    host=log.config.host,
+                    logger_timestamp=t - t0,
+                )
+            )
     paths["groundtruth"] = out / "groundtruth.tum"
     write_tum(paths["groundtruth"], log.timestamps, log.poses, header="crlam simulation ground truth")
     paths["odometry"] = out / "odometry.tum"

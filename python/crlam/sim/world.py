@@ -224,8 +224,9 @@ class World:
         from crlam.io.nav2 import write_nav2_map
 
         ypath = Path(yaml_path)
-        return write_nav2_map(ypath.with_suffix(".pgm"), self.occupied.astype(np.float64),
-                              resolution=self.resolution, origin=self.origin)
+        return write_nav2_map(
+            ypath.with_suffix(".pgm"), self.occupied.astype(np.float64), resolution=self.resolution, origin=self.origin
+        )
 
 
 # ---------------------------------------------------------------------- image helpers

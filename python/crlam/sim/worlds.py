@@ -193,11 +193,14 @@ def museum_layout(seed: int = 0, attempt: int = 0) -> Layout:
     rng = _rng(seed, attempt)
     size, outer, wall = 90.0, 0.4, 0.3
     interior = Box(outer, outer, size - outer, size - outer)
-    leaves, splits = bsp_split(
-        rng, interior, wall, min_side=6.0, stop_below=17.0, hall_below=34.0, hall_probability=0.35
-    )
+    leaves, splits = bsp_split(rng, interior, wall, min_side=6.0, stop_below=17.0, hall_below=34.0, hall_probability=0.35)
     doors, keepouts = place_doors(
-        rng, splits, widths=(1.4, 2.4), wide=(3.0, 6.0), wide_probability=0.2, corner_clearance=0.8,
+        rng,
+        splits,
+        widths=(1.4, 2.4),
+        wide=(3.0, 6.0),
+        wide_probability=0.2,
+        corner_clearance=0.8,
         approach_depth=1.6,
     )
     rooms = []

@@ -39,8 +39,17 @@ def add_scale_bar(ax: Axes, extent: Sequence[float], color: str = "black") -> No
     from matplotlib.patches import Rectangle
 
     # A white plate keeps the bar readable over dark map content.
-    ax.add_patch(Rectangle((xs - 0.01 * (x1 - x0), ys - 0.015 * (y1 - y0)), length + 0.02 * (x1 - x0), 0.07 * (y1 - y0),
-                           facecolor="white", edgecolor="none", alpha=0.85, zorder=4))
+    ax.add_patch(
+        Rectangle(
+            (xs - 0.01 * (x1 - x0), ys - 0.015 * (y1 - y0)),
+            length + 0.02 * (x1 - x0),
+            0.07 * (y1 - y0),
+            facecolor="white",
+            edgecolor="none",
+            alpha=0.85,
+            zorder=4,
+        )
+    )
     ax.plot([xs, xs + length], [ys, ys], color=color, linewidth=3, solid_capstyle="butt", zorder=5)
     label = f"{length:g} m"
     ax.text(xs + length / 2, ys + 0.012 * (y1 - y0), label, ha="center", va="bottom", color=color, fontsize=8, zorder=5)
@@ -113,7 +122,7 @@ def save_crm_figure(
 def save_world_figure(
     path: str | os.PathLike[str],
     occupied: NDArray[np.bool_],
-    origin: Sequence[float],
+    origin: Sequence[float] | NDArray[np.float64],
     resolution: float,
     *,
     trajectory: NDArray[np.float64] | None = None,

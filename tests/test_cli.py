@@ -1,0 +1,87 @@
+"""The command line: help everywhere, clean errors, and the commands end to end on small data."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from crlam.cli import build_parser, main
+
+COMMANDS = ("demo", "simulate", "map", "bench")
+
+
+@pytest.mark.parametrize("command", (None, *COMMANDS))
+def test_help_on_every_command(command: str | None, capsys: pytest.CaptureFixture[str]) -> None:
+    with pytest.raises(SystemExit) as e:
+        main([command, "--help"] if command else ["--help"])
+    assert e.value.code == 0
+    assert "usage: crlam" in capsys.readouterr().out
+
+
+def test_python_dash_m_works() -> None:
+    r = subprocess.run([sys.executable, "-m", "crlam", "--help"], capture_output=True, text=True, check=True)
+    assert all(c in r.stdout for c in COMMANDS)
+
+
+def test_parser_knows_every_command() -> None:
+    assert set(COMMANDS) <= set(build_parser()._subparsers._group_actions[0].choices)  # type: ignore[union-attr]
+
+
+@pytest.mark.parametrize("bad", (["map", "x.log", "--out", "o", "--resolution", "-1"], ["simulate", "--scans", "0", "--out", "o"]))
+def test_bad_values_are_usage_errors(bad: list[str]) -> None:
+    with pytest.raises(SystemExit) as e:
+        main(bad)
+    assert e.value.code == 2
+
+
+def test_map_of_a_missing_or_empty_log_is_a_clean_error(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["map", str(tmp_path / "nope.clf"), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "nope.clf" in capsys.readouterr().err
+    empty = tmp_path / "empty.clf"
+    empty.write_text("")
+    assert main(["map", str(empty), "--out", str(tmp_path / "o"), "--quiet"]) == 2
+    assert "empty.clf" in capsys.readouterr().err
+
+
+def _digest(folder: Path) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.suffix != ".png"}
+
+
+def test_simulate_then_map_end_to_end(tmp_path: Path) -> None:
+    a, b = tmp_path / "a", tmp_path / "b"
+    for out in (a, b):
+        assert main(["simulate", "--world", "office", "--scans", "60", "--seed", "3", "--out", str(out), "--quiet"]) == 0
+    assert _digest(a) == _digest(b), "same seed must give the same bytes"
+    assert {"log.clf", "groundtruth.tum", "odometry.tum", "world.pgm", "world.yaml", "simulation.json"} <= set(_digest(a))
+    out = tmp_path / "map"
+    assert main(["map", str(a / "log.clf"), "--out", str(out), "--quiet", "--resolution", "0.1"]) == 0
+    for name in ("map.pgm", "map.yaml", "belief.npz", "ogm.pgm", "ogm.yaml", "map.png", "mapping.json"):
+        assert (out / name).stat().st_size > 0, name
+    summary = json.loads((out / "mapping.json").read_text())
+    assert summary["n_scans"] == 60
+    assert summary["update_stats"]["n_used"] > 0.5 * 60 * 1079
+
+
+def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["bench", "--quick", "--repeats", "1", "--json", str(tmp_path / "b.json")]) == 0
+    figures = json.loads(capsys.readouterr().out)
+    assert figures["crm_beam_updates_per_s"] > 0 and figures["raycast_cells_per_s"] > 0
+    full = json.loads((tmp_path / "b.json").read_text())
+    assert full["machine"]["cores"] >= 1 and full["threads"] == 1
+
+
+@pytest.mark.slow
+def test_demo_small_run_writes_a_complete_report(tmp_path: Path) -> None:
+    assert main(["demo", "--out", str(tmp_path), "--scans", "150", "--quiet"]) == 0
+    report = (tmp_path / "report.md").read_text()
+    for link in ("world.png", "map_groundtruth_poses/map.png", "map_odometry_poses/map.png"):
+        assert link in report and (tmp_path / link).stat().st_size > 10_000
+    results = json.loads((tmp_path / "results.json").read_text())
+    s = results["scores"]["crm_true_poses"]
+    assert s["free_accuracy"] > 0.95 and s["occupied_precision"] > 0.8
+    assert results["scores"]["crm_odometry"]["accuracy"] <= s["accuracy"] + 1e-9
