@@ -32,7 +32,9 @@ def test_parser_knows_every_command() -> None:
     assert set(COMMANDS) <= set(build_parser()._subparsers._group_actions[0].choices)  # type: ignore[union-attr]
 
 
-@pytest.mark.parametrize("bad", (["map", "x.log", "--out", "o", "--resolution", "-1"], ["simulate", "--scans", "0", "--out", "o"]))
+@pytest.mark.parametrize(
+    "bad", (["map", "x.log", "--out", "o", "--resolution", "-1"], ["simulate", "--scans", "0", "--out", "o"])
+)
 def test_bad_values_are_usage_errors(bad: list[str]) -> None:
     with pytest.raises(SystemExit) as e:
         main(bad)
