@@ -246,3 +246,13 @@ def test_map_log_rejects_a_log_without_scans(tmp_path) -> None:
     log.write_text("ODOM 0 0 0 0 0 0 1.0 host 1.0\n")
     with pytest.raises(DataFormatError):
         map_log(log, tmp_path / "out", MappingConfig(), progress=False)
+
+
+@pytest.mark.parametrize("mean", [0.3, 0.85])
+def test_tilted_prior_has_the_requested_mean(mean: float) -> None:
+    """The IIG prior means (crm-spec 6.5) are outside a linear pmf's reach; the tilted one hits them."""
+    m = ConfidenceRichMap(MappingConfig(prior_mean=mean))
+    assert float(m.native.prior @ m.levels) == pytest.approx(mean, abs=1e-9)
+    assert m.expected_occupancy((0, 0, 1, 1)).values.mean() == pytest.approx(mean, abs=1e-6)
+    with pytest.raises(ConfigError):
+        ConfidenceRichMap(MappingConfig(prior_mean=0.99))
