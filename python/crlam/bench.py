@@ -32,6 +32,7 @@ class BenchSpec:
 BENCHMARKS: tuple[BenchSpec, ...] = (
     # Issue 2 target: >= 300,000 CRM beam updates per second on one core.
     BenchSpec("crm_beam_updates_per_s", size=600, quick_size=40, target_per_s=300_000.0),
+    BenchSpec("crm_beam_updates_per_s_paper_scan", size=400, quick_size=30),
     BenchSpec("raycast_cells_per_s", size=2_000_000, quick_size=100_000),
 )
 

@@ -716,7 +716,13 @@ pub fn run_benchmark<'py>(
     use crlam_core::bench;
     let fig = py
         .allow_threads(|| match name {
-            "crm_beam_updates_per_s" => Some(bench::crm_beam_updates(size)),
+            "crm_beam_updates_per_s" => Some(bench::crm_beam_updates(
+                size,
+                bench::CrmWorkload::FortyCellHits,
+            )),
+            "crm_beam_updates_per_s_paper_scan" => {
+                Some(bench::crm_beam_updates(size, bench::CrmWorkload::PaperScan))
+            }
             "raycast_cells_per_s" => Some(bench::raycast_cells(size)),
             _ => None,
         })
