@@ -229,12 +229,7 @@ class MappingConfig:
         """The fixed extent in cells, or ``None``."""
         if self.extent is None:
             return None
-        x0, y0, x1, y1 = self.extent
-        ix0 = math.floor((x0 - self.origin[0]) / self.resolution)
-        iy0 = math.floor((y0 - self.origin[1]) / self.resolution)
-        ix1 = math.ceil((x1 - self.origin[0]) / self.resolution)
-        iy1 = math.ceil((y1 - self.origin[1]) / self.resolution)
-        return (ix0, iy0, ix1 - ix0, iy1 - iy0)
+        return _cells_of_box(self.extent, self.resolution, self.origin)
 
     def to_dict(self) -> dict[str, Any]:
         """Every setting, plus the resolved σ_hit."""
@@ -277,6 +272,15 @@ class ScanUpdateStats:
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
+
+
+def _cells_of_box(bounds: tuple[float, float, float, float], resolution: float, origin: tuple[float, float]) -> CellRect:
+    """Cell rectangle ``(ix0, iy0, nx, ny)`` covering the world box ``(xmin, ymin, xmax, ymax)``."""
+    ix0 = math.floor((bounds[0] - origin[0]) / resolution)
+    iy0 = math.floor((bounds[1] - origin[1]) / resolution)
+    nx = max(1, math.ceil((bounds[2] - origin[0]) / resolution) - ix0)
+    ny = max(1, math.ceil((bounds[3] - origin[1]) / resolution) - iy0)
+    return (ix0, iy0, nx, ny)
 
 
 def _check_scan(pose: ArrayLike, angles: ArrayLike, ranges: ArrayLike) -> tuple[NDArray[np.float64], ...]:
@@ -361,10 +365,7 @@ class ConfidenceRichMap:
         if bounds is None:
             r = self.native.extent or self.native.written_bounds()
             return r if r is not None else (0, 0, 1, 1)
-        res, (ox, oy) = self.config.resolution, self.config.origin
-        ix0 = math.floor((bounds[0] - ox) / res)
-        iy0 = math.floor((bounds[1] - oy) / res)
-        return (ix0, iy0, max(1, math.ceil((bounds[2] - ox) / res) - ix0), max(1, math.ceil((bounds[3] - oy) / res) - iy0))
+        return _cells_of_box(bounds, self.config.resolution, self.config.origin)
 
     def _layer(self, values: NDArray[np.float64], rect: CellRect, name: str) -> MapLayer:
         res, (ox, oy) = self.config.resolution, self.config.origin
@@ -494,10 +495,7 @@ class LogOddsOccupancyMap:
         if bounds is None:
             r = self.native.written_bounds()
             return r if r is not None else (0, 0, 1, 1)
-        res, (ox, oy) = self.config.resolution, self.config.origin
-        ix0 = math.floor((bounds[0] - ox) / res)
-        iy0 = math.floor((bounds[1] - oy) / res)
-        return (ix0, iy0, max(1, math.ceil((bounds[2] - ox) / res) - ix0), max(1, math.ceil((bounds[3] - oy) / res) - iy0))
+        return _cells_of_box(bounds, self.config.resolution, self.config.origin)
 
     def probability(self, bounds: tuple[float, float, float, float] | None = None) -> MapLayer:
         """Occupancy probability ``base^l / (1 + base^l)`` over a region."""

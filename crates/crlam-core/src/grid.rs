@@ -363,6 +363,30 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
         Ok(())
     }
 
+    /// Readies the grid for a scan from `pose` reaching `reach` metres: the pose must be valid
+    /// and, for a fixed extent, inside it; a growing grid reserves every cell within reach.
+    pub fn prepare_scan(&mut self, pose: [f64; 3], reach: f64) -> Result<()> {
+        check_pose(pose)?;
+        let g = self.geometry;
+        let (cx, cy) = g.cell_of(pose[0], pose[1]);
+        match self.fixed {
+            Some(ext) if !ext.contains(cx, cy) => Err(CrlamError::OutOfBounds(format!(
+                "sensor pose ({:.3}, {:.3}) lies outside the fixed map extent",
+                pose[0], pose[1]
+            ))),
+            Some(_) => Ok(()),
+            None => {
+                let r = (reach / g.resolution).ceil() as i64 + 2;
+                self.reserve(CellRect {
+                    ix0: cx - r,
+                    iy0: cy - r,
+                    nx: 2 * r + 1,
+                    ny: 2 * r + 1,
+                })
+            }
+        }
+    }
+
     /// Mutable values of cell (ix, iy), allocating its tile (from the fill value) or un-sharing
     /// it (copy-on-write) as needed. Storage must already cover the cell ([`Self::reserve`]).
     #[inline]

@@ -2,7 +2,7 @@
 //! tiled storage and traversal as the CRM.
 
 use crate::error::{config_err, CrlamError, Result};
-use crate::grid::{check_pose, CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::grid::{CellRect, GridGeometry, TileStats, TiledGrid};
 use crate::raycast::traverse_with;
 
 /// Parameters of the inverse sensor model. Log-odds are in base `base` (2 in the authors' code).
@@ -126,27 +126,8 @@ impl LogOddsGrid {
                 ranges.len()
             )));
         }
-        check_pose(pose)?;
+        self.grid.prepare_scan(pose, self.params.z_max)?;
         let g = *self.grid.geometry();
-        let (cx, cy) = g.cell_of(pose[0], pose[1]);
-        match self.grid.fixed_extent() {
-            Some(ext) if !ext.contains(cx, cy) => {
-                return Err(CrlamError::OutOfBounds(format!(
-                    "sensor pose ({:.3}, {:.3}) lies outside the fixed map extent",
-                    pose[0], pose[1]
-                )))
-            }
-            Some(_) => {}
-            None => {
-                let r = (self.params.z_max / g.resolution).ceil() as i64 + 2;
-                self.grid.reserve(CellRect {
-                    ix0: cx - r,
-                    iy0: cy - r,
-                    nx: 2 * r + 1,
-                    ny: 2 * r + 1,
-                })?;
-            }
-        }
         let ext = self.grid.fixed_extent();
         let (mut used, mut dropped) = (0, 0);
         let mut cells = Vec::new();

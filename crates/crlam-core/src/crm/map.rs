@@ -201,30 +201,6 @@ impl CrmMap {
         (m, v, h)
     }
 
-    /// Checks the pose and, for growing maps, reserves storage for every cell within z_max.
-    fn prepare_pose(&mut self, pose: [f64; 3], z_max: f64, reserve: bool) -> Result<()> {
-        check_pose(pose)?;
-        let g = *self.grid.geometry();
-        let (cx, cy) = g.cell_of(pose[0], pose[1]);
-        if let Some(ext) = self.grid.fixed_extent() {
-            if !ext.contains(cx, cy) {
-                return Err(CrlamError::OutOfBounds(format!(
-                    "sensor pose ({:.3}, {:.3}) lies outside the fixed map extent",
-                    pose[0], pose[1]
-                )));
-            }
-        } else if reserve {
-            let r = (z_max / g.resolution).ceil() as i64 + 2;
-            self.grid.reserve(CellRect {
-                ix0: cx - r,
-                iy0: cy - r,
-                nx: 2 * r + 1,
-                ny: 2 * r + 1,
-            })?;
-        }
-        Ok(())
-    }
-
     /// Traverses the ray of `plan`, filling `sc.cells` and `sc.mhat`. A fixed extent truncates
     /// the ray; a hit beyond the truncation becomes a no-return over the truncated ray (2.1).
     fn gather_ray(&self, plan: &mut BeamPlan, sc: &mut CrmScratch) {
@@ -389,7 +365,7 @@ impl CrmMap {
         sc: &mut CrmScratch,
     ) -> Result<ScanStats> {
         check_scan(angles, ranges, model, opts)?;
-        self.prepare_pose(pose, model.z_max, true)?;
+        self.grid.prepare_scan(pose, model.z_max)?;
         let res = self.grid.geometry().resolution;
         let mut st = ScanStats::default();
         if opts.mode == ScanUpdateMode::Batch {
