@@ -10,8 +10,13 @@ pub mod bench;
 pub mod crm;
 pub mod error;
 pub mod grid;
+pub mod motion;
 pub mod ogm;
+pub mod pose;
 pub mod raycast;
+pub mod rbpf;
+pub mod resample;
+pub mod rng;
 pub mod sensor;
 pub mod sim;
 

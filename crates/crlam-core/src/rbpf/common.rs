@@ -1,0 +1,177 @@
+//! Pieces shared by the particle filters.
+
+use crate::error::{config_err, CrlamError, Result};
+use crate::pose::{between, Pose};
+
+/// One laser scan with the odometry pose at its time.
+#[derive(Clone, Copy, Debug)]
+pub struct ScanInput<'a> {
+    /// Odometry pose of the robot (m, m, rad) when the scan was taken.
+    pub odom: Pose,
+    /// Beam bearings in the laser frame (rad).
+    pub angles: &'a [f64],
+    /// Ranges (m); `inf`/NaN/≥ z_max are no-returns.
+    pub ranges: &'a [f64],
+    /// Laser pose in the robot frame.
+    pub laser_offset: Pose,
+}
+
+impl ScanInput<'_> {
+    /// Checks the arrays and poses.
+    pub fn validate(&self) -> Result<()> {
+        if self.angles.len() != self.ranges.len() {
+            return Err(CrlamError::Shape(format!(
+                "scan has {} beam angles but {} ranges",
+                self.angles.len(),
+                self.ranges.len()
+            )));
+        }
+        for (i, v) in self.odom.iter().chain(self.laser_offset.iter()).enumerate() {
+            if !v.is_finite() {
+                return Err(CrlamError::NonFinite {
+                    field: if i < 3 {
+                        "odometry pose"
+                    } else {
+                        "laser offset"
+                    },
+                    value: *v,
+                });
+            }
+        }
+        Ok(())
+    }
+}
+
+/// What one call of a filter's `process` did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FilterStep {
+    /// Whether the scan was processed (triggered) or only carried by odometry.
+    pub processed: bool,
+    /// The robot pose estimate at this scan: the weighted mean after a processed scan, else the
+    /// last estimate composed with the odometry increment since then.
+    pub estimate: Pose,
+    /// N_eff after weighting (before resampling); NaN when not processed.
+    pub neff: f64,
+    pub resampled: bool,
+}
+
+/// Decides which scans are processed: the first one, then whenever the odometry since the last
+/// processed scan has moved at least `linear` metres or turned `angular` radians (GMapping's
+/// linearUpdate / angularUpdate). Zero thresholds process every scan.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UpdateTrigger {
+    pub linear: f64,
+    pub angular: f64,
+}
+
+impl UpdateTrigger {
+    /// Process every scan.
+    pub fn every_scan() -> Self {
+        Self {
+            linear: 0.0,
+            angular: 0.0,
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if !(self.linear.is_finite()
+            && self.linear >= 0.0
+            && self.angular.is_finite()
+            && self.angular >= 0.0)
+        {
+            return Err(config_err(
+                "update_trigger",
+                "linear and angular thresholds must be finite and >= 0",
+            ));
+        }
+        Ok(())
+    }
+
+    /// True if a path of `travelled` metres with `turned` radians of rotation triggers an update.
+    pub fn fires(&self, travelled: f64, turned: f64) -> bool {
+        (self.linear == 0.0 && self.angular == 0.0)
+            || travelled >= self.linear
+            || turned >= self.angular
+    }
+}
+
+/// Accumulates odometry between processed scans: the increment since the last processed scan
+/// and the path length and rotation travelled (summed per raw step, as GMapping does).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OdometryTracker {
+    last_processed: Option<Pose>,
+    previous: Option<Pose>,
+    travelled: f64,
+    turned: f64,
+    steps: usize,
+}
+
+impl OdometryTracker {
+    /// Feeds the odometry pose of a new scan; returns (increment since the last processed scan,
+    /// raw steps merged, whether `trigger` fires). The first scan always fires.
+    pub fn observe(&mut self, odom: Pose, trigger: &UpdateTrigger) -> (Pose, usize, bool) {
+        let Some(last) = self.last_processed else {
+            return ([0.0; 3], 0, true);
+        };
+        if let Some(prev) = self.previous {
+            let d = between(prev, odom);
+            self.travelled += d[0].hypot(d[1]);
+            self.turned += d[2].abs();
+            self.steps += 1;
+        }
+        self.previous = Some(odom);
+        let fires = trigger.fires(self.travelled, self.turned);
+        (between(last, odom), self.steps.max(1), fires)
+    }
+
+    /// Marks the scan with odometry `odom` as processed.
+    pub fn processed(&mut self, odom: Pose) {
+        self.last_processed = Some(odom);
+        self.previous = Some(odom);
+        self.travelled = 0.0;
+        self.turned = 0.0;
+        self.steps = 0;
+    }
+}
+
+/// Weighted mean pose with a circular mean for the heading (crm-spec 4.3).
+pub fn weighted_mean_pose(poses: &[Pose], w: &[f64]) -> Pose {
+    let (mut x, mut y, mut s, mut c) = (0.0, 0.0, 0.0, 0.0);
+    for (p, &wi) in poses.iter().zip(w) {
+        x += wi * p[0];
+        y += wi * p[1];
+        s += wi * p[2].sin();
+        c += wi * p[2].cos();
+    }
+    [x, y, s.atan2(c)]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tracker_carries_odometry_between_processed_scans() {
+        let trig = UpdateTrigger {
+            linear: 0.5,
+            angular: 0.5,
+        };
+        let mut t = OdometryTracker::default();
+        assert!(t.observe([0.0; 3], &trig).2);
+        t.processed([0.0; 3]);
+        let (u, n, fire) = t.observe([0.3, 0.0, 0.0], &trig);
+        assert!(!fire && n == 1 && (u[0] - 0.3).abs() < 1e-12);
+        let (u, n, fire) = t.observe([0.6, 0.0, 0.0], &trig);
+        assert!(fire && n == 2 && (u[0] - 0.6).abs() < 1e-12);
+        t.processed([0.6, 0.0, 0.0]);
+        let (_, _, fire) = t.observe([0.6, 0.0, 0.6], &trig);
+        assert!(fire);
+    }
+
+    #[test]
+    fn circular_mean_across_the_cut() {
+        let m = weighted_mean_pose(&[[0.0, 0.0, 3.1], [2.0, 0.0, -3.1]], &[0.5, 0.5]);
+        assert!((m[0] - 1.0).abs() < 1e-12);
+        assert!(m[2].abs() > 3.1);
+    }
+}

@@ -1,0 +1,10 @@
+//! Rao-Blackwellized particle filters: RBPF-CLAM (CRM maps, closed-form predictive weights) and
+//! the RBPF-OGM baseline (GMapping-style log-odds maps with scan matching).
+//!
+//! Both filters share the input (a laser scan with the odometry pose at its time), the update
+//! triggers (like GMapping's linearUpdate / angularUpdate, with odometry carried between
+//! processed scans), the weighted-mean estimate and the resampling rule.
+
+pub mod common;
+
+pub use common::{weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger};
