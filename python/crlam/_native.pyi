@@ -9,6 +9,7 @@ __core_version__: str
 
 __all__ = [
     "__core_version__",
+    "ClamFilter",
     "CrmMap",
     "LogOddsMap",
     "SensorModel",
@@ -169,6 +170,63 @@ class LogOddsMap:
     def log_odds(self, rect: _CellRect | None = None) -> NDArray[np.float64]: ...
     def copy(self) -> LogOddsMap: ...
     def tile_stats(self) -> dict[str, int]: ...
+
+@final
+class ClamFilter:
+    def __new__(
+        cls,
+        initial_pose: NDArray[np.float64],
+        mapping_model: SensorModel,
+        weight_model: SensorModel,
+        *,
+        n_particles: int = 100,
+        resolution: float = 0.2,
+        origin: tuple[float, float] = ...,
+        n_levels: int = 10,
+        levels: str = "midpoints",
+        belief_floor: float = 1e-12,
+        tile_size: int = 32,
+        extent: _CellRect | None = None,
+        scan_update: str = "batch",
+        weight_stride: int = 1,
+        map_stride: int = 1,
+        tempering: float = 1.0,
+        resample_threshold: float = 0.5,
+        init_sigma: tuple[float, float, float] = ...,
+        motion: str = "gaussian",
+        motion_params: list[float] | None = None,
+        linear_update: float = 0.0,
+        angular_update: float = 0.0,
+        proposal: str = "odometry",
+        seed: int = 0,
+    ) -> ClamFilter: ...
+    def process(
+        self,
+        odom: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> tuple[bool, tuple[float, float, float], float, bool]: ...
+    def process_many(
+        self,
+        odoms: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> dict[str, NDArray[Any]]: ...
+    def estimate(self) -> tuple[float, float, float]: ...
+    def particle_poses(self) -> NDArray[np.float64]: ...
+    def log_weights(self) -> NDArray[np.float64]: ...
+    @property
+    def best_index(self) -> int: ...
+    @property
+    def n_resamples(self) -> int: ...
+    @property
+    def n_processed(self) -> int: ...
+    @property
+    def n_particles(self) -> int: ...
+    def best_map(self) -> CrmMap: ...
+    def map_memory(self) -> tuple[int, int, int]: ...
 
 def traverse_ray(
     origin_x: float,

@@ -435,6 +435,15 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
         s
     }
 
+    /// (address, bytes) of every allocated tile: equal addresses are the same shared tile, so
+    /// summing over distinct addresses gives the memory of a set of grids.
+    pub fn tile_addresses(&self) -> impl Iterator<Item = (usize, usize)> + '_ {
+        self.tiles
+            .iter()
+            .flatten()
+            .map(|t| (t.as_ptr() as usize, t.len() * std::mem::size_of::<T>()))
+    }
+
     /// Copies the cells of `rect` into a row-major `[iy][ix][stride]` buffer.
     pub fn export(&self, rect: CellRect) -> Vec<T> {
         let mut out = Vec::with_capacity(rect.n_cells() * self.stride);

@@ -5,6 +5,7 @@
 #![allow(clippy::too_many_arguments, clippy::type_complexity)]
 
 mod convert;
+mod filters;
 mod maps;
 
 use pyo3::prelude::*;
@@ -15,6 +16,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::SensorModel>()?;
     m.add_class::<maps::CrmMap>()?;
     m.add_class::<maps::LogOddsMap>()?;
+    m.add_class::<filters::ClamFilter>()?;
     m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
     m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;

@@ -185,6 +185,15 @@ pub struct CrmMap {
 }
 
 impl CrmMap {
+    /// Wraps a core map (e.g. a particle's).
+    pub fn from_core(inner: crm::CrmMap, tile_size: usize) -> Self {
+        Self {
+            inner,
+            scratch: CrmScratch::default(),
+            tile_size,
+        }
+    }
+
     fn rect_or_bounds(&self, rect: Option<(i64, i64, i64, i64)>) -> PyResult<CellRect> {
         Ok(rect_from(rect)?.unwrap_or_else(|| self.inner.grid().bounds()))
     }

@@ -5,6 +5,8 @@
 //! triggers (like GMapping's linearUpdate / angularUpdate, with odometry carried between
 //! processed scans), the weighted-mean estimate and the resampling rule.
 
+pub mod clam;
 pub mod common;
 
+pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
 pub use common::{weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger};

@@ -1,0 +1,593 @@
+//! RBPF-CLAM (crm-spec 4.3, the paper's Algorithm 1 corrected).
+//!
+//! Each particle has a pose, a log-weight and its own confidence-rich map. Per processed scan:
+//! propose a pose, weight it by the closed-form predictive likelihood of the scan under the
+//! particle's *pre-update* beliefs (`weight_model`, default `mixture`), then update its map at that
+//! pose (`mapping_model`, default `ijrr`). Resampling (systematic, when N_eff < threshold·n)
+//! makes children share their parent's map tiles copy-on-write.
+//!
+//! Determinism: every random draw of particle j at step k comes from `Rng::stream(seed, k, j)`,
+//! and particles are processed independently, so the result does not depend on the number of
+//! threads.
+
+use rayon::prelude::*;
+
+use crate::crm::{CrmConfig, CrmMap, CrmScratch, ScanOptions, ScanUpdateMode};
+use crate::error::{config_err, Result};
+use crate::motion::MotionModel;
+use crate::pose::{between, compose, wrap, Pose};
+use crate::rbpf::common::{
+    weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger,
+};
+use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
+use crate::rng::Rng;
+use crate::sensor::SensorModel;
+
+/// How particles are moved before weighting.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum ClamProposal {
+    /// The paper's proposal: sample the odometry motion model.
+    Odometry,
+    /// The CRM analogue of GMapping's improved proposal: hill-climb the predictive scan
+    /// log-likelihood from the odometry guess, evaluate it on a 3×3×3 lattice around the mode,
+    /// fit a Gaussian to likelihood × motion density there and sample from it; the weight
+    /// increment is the log of the lattice normaliser.
+    LikelihoodMode {
+        /// Initial hill-climbing steps (m, m, rad), halved `iterations` times.
+        step: [f64; 3],
+        iterations: usize,
+        /// Beam stride used while matching (the final weight uses `weight_stride`).
+        match_stride: usize,
+    },
+}
+
+impl ClamProposal {
+    /// Defaults of the improved proposal: 0.1 m / 0.05 rad steps, 4 halvings, every 3rd beam.
+    pub fn likelihood_mode() -> Self {
+        Self::LikelihoodMode {
+            step: [0.1, 0.1, 0.05],
+            iterations: 4,
+            match_stride: 3,
+        }
+    }
+}
+
+/// Settings of RBPF-CLAM (crm-spec 9).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ClamConfig {
+    pub n_particles: usize,
+    pub motion: MotionModel,
+    pub trigger: UpdateTrigger,
+    pub crm: CrmConfig,
+    pub mapping_model: SensorModel,
+    pub weight_model: SensorModel,
+    pub scan_update: ScanUpdateMode,
+    /// Beams used for the weights (every n-th; the paper: 1).
+    pub weight_stride: usize,
+    /// Beams used for the map update (every n-th; the paper: 1).
+    pub map_stride: usize,
+    /// Weight tempering τ_T: Δ log w = Σ log η / τ_T (the paper: 1).
+    pub tempering: f64,
+    pub resample_threshold: f64,
+    /// Standard deviations (m, m, rad) of the initial particle cloud around the first pose.
+    pub init_sigma: [f64; 3],
+    pub proposal: ClamProposal,
+    pub seed: u64,
+}
+
+impl ClamConfig {
+    /// The paper's settings on a grid: 100 particles, Gaussian odometry noise 0.01, every scan,
+    /// every beam, no tempering, `ijrr` mapping and `mixture` weights.
+    pub fn paper(crm: CrmConfig, z_max: f64) -> Self {
+        let res = crm.geometry.resolution;
+        Self {
+            n_particles: 100,
+            motion: MotionModel::paper(),
+            trigger: UpdateTrigger::every_scan(),
+            mapping_model: SensorModel::with_defaults(
+                crate::sensor::SensorModelKind::Ijrr,
+                z_max,
+                res,
+            ),
+            weight_model: SensorModel::with_defaults(
+                crate::sensor::SensorModelKind::Mixture,
+                z_max,
+                res,
+            ),
+            crm,
+            scan_update: ScanUpdateMode::Batch,
+            weight_stride: 1,
+            map_stride: 1,
+            tempering: 1.0,
+            resample_threshold: 0.5,
+            init_sigma: [0.0; 3],
+            proposal: ClamProposal::Odometry,
+            seed: 0,
+        }
+    }
+
+    pub fn validate(&self) -> Result<()> {
+        if self.n_particles == 0 {
+            return Err(config_err("n_particles", "must be >= 1"));
+        }
+        if self.weight_stride == 0 || self.map_stride == 0 {
+            return Err(config_err("beam_stride", "must be >= 1"));
+        }
+        if !(self.tempering.is_finite() && self.tempering > 0.0) {
+            return Err(config_err(
+                "tempering",
+                format!("must be finite and > 0, got {}", self.tempering),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.resample_threshold) {
+            return Err(config_err("resample_threshold", "must be in [0, 1]"));
+        }
+        if self
+            .init_sigma
+            .iter()
+            .any(|s| !(s.is_finite() && *s >= 0.0))
+        {
+            return Err(config_err("init_sigma", "must be finite and >= 0"));
+        }
+        if let ClamProposal::LikelihoodMode {
+            step, match_stride, ..
+        } = self.proposal
+        {
+            if match_stride == 0 || step.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+                return Err(config_err(
+                    "proposal",
+                    "steps must be > 0 and the match stride >= 1",
+                ));
+            }
+        }
+        self.motion.validate()?;
+        self.trigger.validate()?;
+        self.mapping_model.validate()?;
+        self.weight_model.validate()?;
+        Ok(())
+    }
+}
+
+/// One particle: pose, log-weight and its own map.
+#[derive(Clone, Debug)]
+pub struct ClamParticle {
+    pub pose: Pose,
+    pub log_w: f64,
+    pub map: CrmMap,
+}
+
+/// The RBPF-CLAM filter.
+#[derive(Debug)]
+pub struct RbpfClam {
+    cfg: ClamConfig,
+    particles: Vec<ClamParticle>,
+    tracker: OdometryTracker,
+    step: u64,
+    initial: Pose,
+    started: bool,
+    estimate: Pose,
+    estimate_odom: Pose,
+    best: usize,
+    n_resamples: usize,
+    n_processed: usize,
+}
+
+fn scan_opts(mode: ScanUpdateMode, stride: usize) -> ScanOptions {
+    ScanOptions {
+        mode,
+        beam_stride: stride,
+        zero_is_no_return: false,
+    }
+}
+
+impl RbpfClam {
+    /// A filter whose particles start at `initial` (spread by `init_sigma`) with prior maps.
+    pub fn new(cfg: ClamConfig, initial: Pose) -> Result<Self> {
+        cfg.validate()?;
+        let map = CrmMap::new(&cfg.crm)?;
+        let n = cfg.n_particles;
+        let particles = (0..n)
+            .map(|j| {
+                let mut rng = Rng::stream(cfg.seed, 0, j as u64);
+                let s = cfg.init_sigma;
+                let pose = [
+                    initial[0] + s[0] * rng.normal(),
+                    initial[1] + s[1] * rng.normal(),
+                    wrap(initial[2] + s[2] * rng.normal()),
+                ];
+                ClamParticle {
+                    pose,
+                    log_w: -(n as f64).ln(),
+                    map: map.clone(),
+                }
+            })
+            .collect();
+        Ok(Self {
+            cfg,
+            particles,
+            tracker: OdometryTracker::default(),
+            step: 0,
+            initial,
+            started: false,
+            estimate: initial,
+            estimate_odom: [0.0; 3],
+            best: 0,
+            n_resamples: 0,
+            n_processed: 0,
+        })
+    }
+
+    pub fn config(&self) -> &ClamConfig {
+        &self.cfg
+    }
+
+    pub fn particles(&self) -> &[ClamParticle] {
+        &self.particles
+    }
+
+    /// Index of the highest-weight particle (its map is the one reported, crm-spec B7).
+    pub fn best_index(&self) -> usize {
+        self.best
+    }
+
+    pub fn best_map(&self) -> &CrmMap {
+        &self.particles[self.best].map
+    }
+
+    pub fn estimate(&self) -> Pose {
+        self.estimate
+    }
+
+    pub fn n_resamples(&self) -> usize {
+        self.n_resamples
+    }
+
+    pub fn n_processed(&self) -> usize {
+        self.n_processed
+    }
+
+    /// (bytes of distinct map tiles over all particles, distinct tiles, tile references): what the
+    /// particle maps really occupy thanks to copy-on-write sharing.
+    pub fn map_memory(&self) -> (usize, usize, usize) {
+        let mut seen = std::collections::HashSet::new();
+        let (mut bytes, mut refs) = (0, 0);
+        for p in &self.particles {
+            for (addr, b) in p.map.grid().tile_addresses() {
+                refs += 1;
+                if seen.insert(addr) {
+                    bytes += b;
+                }
+            }
+        }
+        (bytes, seen.len(), refs)
+    }
+
+    /// Feeds one scan; processes it when the update trigger fires.
+    pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
+        scan.validate()?;
+        let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
+        if !self.started {
+            self.started = true;
+            self.integrate_first(scan)?;
+            return Ok(FilterStep {
+                processed: true,
+                estimate: self.estimate,
+                neff: self.cfg.n_particles as f64,
+                resampled: false,
+            });
+        }
+        if !fires {
+            let carried = compose(self.estimate, between(self.estimate_odom, scan.odom));
+            return Ok(FilterStep {
+                processed: false,
+                estimate: carried,
+                neff: f64::NAN,
+                resampled: false,
+            });
+        }
+        self.step += 1;
+        let cfg = &self.cfg;
+        let step = self.step;
+        let results: Vec<Result<()>> = self
+            .particles
+            .par_iter_mut()
+            .enumerate()
+            .map_init(CrmScratch::default, |sc, (j, p)| {
+                let mut rng = Rng::stream(cfg.seed, step, j as u64);
+                let (pose, dlogw) = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
+                p.pose = pose;
+                p.log_w += dlogw;
+                let sensor = compose(pose, scan.laser_offset);
+                let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+                p.map.update_scan(
+                    sensor,
+                    scan.angles,
+                    scan.ranges,
+                    &cfg.mapping_model,
+                    &opts,
+                    sc,
+                )?;
+                Ok(())
+            })
+            .collect();
+        results.into_iter().collect::<Result<Vec<()>>>()?;
+        let step_out = self.reweight_and_resample();
+        self.tracker.processed(scan.odom);
+        self.estimate_odom = scan.odom;
+        self.n_processed += 1;
+        Ok(step_out)
+    }
+
+    fn integrate_first(&mut self, scan: &ScanInput) -> Result<()> {
+        let cfg = &self.cfg;
+        let results: Vec<Result<()>> = self
+            .particles
+            .par_iter_mut()
+            .map_init(CrmScratch::default, |sc, p| {
+                let sensor = compose(p.pose, scan.laser_offset);
+                let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+                p.map
+                    .update_scan(
+                        sensor,
+                        scan.angles,
+                        scan.ranges,
+                        &cfg.mapping_model,
+                        &opts,
+                        sc,
+                    )
+                    .map(|_| ())
+            })
+            .collect();
+        results.into_iter().collect::<Result<Vec<()>>>()?;
+        let w = vec![1.0 / self.particles.len() as f64; self.particles.len()];
+        let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
+        self.estimate = if self.cfg.init_sigma == [0.0; 3] {
+            self.initial
+        } else {
+            weighted_mean_pose(&poses, &w)
+        };
+        self.tracker.processed(scan.odom);
+        self.estimate_odom = scan.odom;
+        self.n_processed += 1;
+        Ok(())
+    }
+
+    fn reweight_and_resample(&mut self) -> FilterStep {
+        let logw: Vec<f64> = self.particles.iter().map(|p| p.log_w).collect();
+        let w = normalize_log_weights(&logw);
+        let neff = effective_sample_size(&w);
+        let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
+        self.estimate = weighted_mean_pose(&poses, &w);
+        let best = w
+            .iter()
+            .enumerate()
+            .fold(0, |b, (i, &x)| if x > w[b] { i } else { b });
+        let n = self.particles.len();
+        // Keep log-weights bounded: subtract the max (weights are only relative).
+        let mx = logw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let resampled = neff < self.cfg.resample_threshold * n as f64;
+        if resampled {
+            let u0 = Rng::stream(self.cfg.seed, self.step, u64::MAX).uniform();
+            let idx = systematic_resample(&w, u0);
+            // Children are clones: their maps share every tile with the parent until written.
+            let new: Vec<ClamParticle> = idx
+                .iter()
+                .map(|&i| {
+                    let mut c = self.particles[i].clone();
+                    c.log_w = -(n as f64).ln();
+                    c
+                })
+                .collect();
+            self.best = idx.iter().position(|&i| i == best).unwrap_or(0);
+            self.particles = new;
+            self.n_resamples += 1;
+        } else {
+            for p in &mut self.particles {
+                p.log_w = if mx.is_finite() {
+                    p.log_w - mx
+                } else {
+                    -(n as f64).ln()
+                };
+            }
+            self.best = best;
+        }
+        FilterStep {
+            processed: true,
+            estimate: self.estimate,
+            neff,
+            resampled,
+        }
+    }
+}
+
+/// Proposes the particle's new pose and the log-weight increment.
+fn propose(
+    cfg: &ClamConfig,
+    p: &ClamParticle,
+    u: Pose,
+    n_steps: usize,
+    scan: &ScanInput,
+    rng: &mut Rng,
+    sc: &mut CrmScratch,
+) -> Result<(Pose, f64)> {
+    let weight_opts = scan_opts(cfg.scan_update, cfg.weight_stride);
+    let loglik = |pose: Pose, opts: &ScanOptions, sc: &mut CrmScratch| -> Result<f64> {
+        let sensor = compose(pose, scan.laser_offset);
+        let (ll, _) = p.map.scan_log_likelihood(
+            sensor,
+            scan.angles,
+            scan.ranges,
+            &cfg.weight_model,
+            opts,
+            sc,
+        )?;
+        Ok(ll / cfg.tempering)
+    };
+    match cfg.proposal {
+        ClamProposal::Odometry => {
+            let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
+            Ok((pose, loglik(pose, &weight_opts, sc)?))
+        }
+        ClamProposal::LikelihoodMode {
+            step,
+            iterations,
+            match_stride,
+        } => {
+            let match_opts = scan_opts(cfg.scan_update, match_stride);
+            let guess = compose(p.pose, u);
+            // The target is the proposal's own density, likelihood × motion prior: the prior keeps
+            // the climb from sliding along corridors of a poorly converged map.
+            let prior = |x: Pose| cfg.motion.log_density(p.pose, x, u, n_steps);
+            let mode = hill_climb(guess, step, iterations, |x| {
+                Ok(loglik(x, &match_opts, sc)? + prior(x))
+            })?;
+            // Lattice around the mode, at half the initial step: likelihood × motion density.
+            let fine = [step[0] / 2.0, step[1] / 2.0, step[2] / 2.0];
+            let mut pts = Vec::with_capacity(27);
+            let mut lw = Vec::with_capacity(27);
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dt in -1..=1 {
+                        let x = [
+                            mode[0] + dx as f64 * fine[0],
+                            mode[1] + dy as f64 * fine[1],
+                            wrap(mode[2] + dt as f64 * fine[2]),
+                        ];
+                        let l = loglik(x, &weight_opts, sc)? + prior(x);
+                        pts.push(x);
+                        lw.push(l);
+                    }
+                }
+            }
+            let m = lw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            if !m.is_finite() {
+                // No lattice point is plausible under the motion model: fall back to odometry.
+                let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
+                return Ok((pose, loglik(pose, &weight_opts, sc)?));
+            }
+            let w: Vec<f64> = lw.iter().map(|l| (l - m).exp()).collect();
+            let s: f64 = w.iter().sum();
+            let log_norm = m + s.ln();
+            let pose = sample_fitted_gaussian(&pts, &w, s, fine, rng);
+            Ok((pose, log_norm))
+        }
+    }
+}
+
+/// Coordinate hill climbing with step halving (GMapping's `optimize`, on any objective).
+fn hill_climb<F: FnMut(Pose) -> Result<f64>>(
+    start: Pose,
+    step: [f64; 3],
+    iterations: usize,
+    mut f: F,
+) -> Result<Pose> {
+    let mut best = start;
+    let mut best_v = f(start)?;
+    let mut st = step;
+    for _ in 0..=iterations {
+        let mut improved = true;
+        let mut guard = 0;
+        while improved && guard < 20 {
+            improved = false;
+            guard += 1;
+            for k in 0..6 {
+                let mut x = best;
+                let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+                x[k / 2] += sign * st[k / 2];
+                x[2] = wrap(x[2]);
+                let v = f(x)?;
+                if v > best_v {
+                    best_v = v;
+                    best = x;
+                    improved = true;
+                }
+            }
+        }
+        st = [st[0] / 2.0, st[1] / 2.0, st[2] / 2.0];
+    }
+    Ok(best)
+}
+
+/// Samples from the Gaussian fitted to weighted lattice points (circular in θ), with the
+/// covariance floored at a tenth of the lattice spacing so it stays positive definite.
+fn sample_fitted_gaussian(pts: &[Pose], w: &[f64], s: f64, fine: [f64; 3], rng: &mut Rng) -> Pose {
+    let (mut mx, mut my, mut ss, mut cc) = (0.0, 0.0, 0.0, 0.0);
+    for (p, &wi) in pts.iter().zip(w) {
+        mx += wi * p[0];
+        my += wi * p[1];
+        ss += wi * p[2].sin();
+        cc += wi * p[2].cos();
+    }
+    let mean = [mx / s, my / s, ss.atan2(cc)];
+    let mut cov = [[0.0f64; 3]; 3];
+    for (p, &wi) in pts.iter().zip(w) {
+        let d = [p[0] - mean[0], p[1] - mean[1], wrap(p[2] - mean[2])];
+        for a in 0..3 {
+            for b in 0..3 {
+                cov[a][b] += wi * d[a] * d[b] / s;
+            }
+        }
+    }
+    for a in 0..3 {
+        cov[a][a] += (0.1 * fine[a]).powi(2);
+    }
+    let l = cholesky3(cov);
+    let z = [rng.normal(), rng.normal(), rng.normal()];
+    [
+        mean[0] + l[0][0] * z[0],
+        mean[1] + l[1][0] * z[0] + l[1][1] * z[1],
+        wrap(mean[2] + l[2][0] * z[0] + l[2][1] * z[1] + l[2][2] * z[2]),
+    ]
+}
+
+/// Lower Cholesky factor of a symmetric positive (semi-)definite 3×3 matrix (non-positive
+/// pivots clamp to 0, so a degenerate direction gets no noise rather than NaN).
+fn cholesky3(a: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut l = [[0.0f64; 3]; 3];
+    for i in 0..3 {
+        for j in 0..=i {
+            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            if i == j {
+                l[i][j] = (a[i][i] - s).max(0.0).sqrt();
+            } else {
+                l[i][j] = if l[j][j] > 0.0 {
+                    (a[i][j] - s) / l[j][j]
+                } else {
+                    0.0
+                };
+            }
+        }
+    }
+    l
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_reconstructs() {
+        let a = [[4.0, 2.0, 0.4], [2.0, 3.0, 0.1], [0.4, 0.1, 1.0]];
+        let l = cholesky3(a);
+        for i in 0..3 {
+            for j in 0..3 {
+                let v: f64 = (0..3).map(|k| l[i][k] * l[j][k]).sum();
+                assert!((v - a[i][j]).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn hill_climb_finds_a_quadratic_peak() {
+        let target = [0.23, -0.11, 0.07];
+        let best = hill_climb([0.0; 3], [0.1, 0.1, 0.05], 6, |x| {
+            Ok(-((x[0] - target[0]).powi(2)
+                + (x[1] - target[1]).powi(2)
+                + (x[2] - target[2]).powi(2)))
+        })
+        .unwrap();
+        for i in 0..3 {
+            assert!((best[i] - target[i]).abs() < 5e-3, "{best:?}");
+        }
+    }
+}

@@ -1,0 +1,264 @@
+//! Python class for the RBPF-CLAM particle filter.
+
+use crlam_core::crm::{CrmConfig, LevelPlacement, ScanUpdateMode};
+use crlam_core::grid::{CellRect, GridGeometry};
+use crlam_core::motion::MotionModel;
+use crlam_core::rbpf::{ClamConfig, ClamProposal, RbpfClam, ScanInput, UpdateTrigger};
+use numpy::ndarray::{Array1, Array2};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::convert::{pose3, poses_n3, shape_err, slice1, IntoPy};
+use crate::maps::{CrmMap, SensorModel};
+
+/// Parses the motion model name and its parameters.
+pub fn motion_model(name: &str, params: Option<Vec<f64>>) -> PyResult<MotionModel> {
+    let m = match (name, params) {
+        ("gaussian", None) => MotionModel::paper(),
+        ("gaussian", Some(p)) if p.len() == 3 => MotionModel::Gaussian { sigma: [p[0], p[1], p[2]] },
+        ("thrun", None) => MotionModel::Thrun { alpha: [0.1, 0.1, 0.2, 0.05] },
+        ("thrun", Some(p)) if p.len() == 4 => MotionModel::Thrun { alpha: [p[0], p[1], p[2], p[3]] },
+        (n, p) => {
+            return Err(shape_err(format!(
+                "motion model {n:?} with parameters {p:?}: expected gaussian (3 sigmas) or thrun (4 alphas)"
+            )))
+        }
+    };
+    m.validate().py_err()?;
+    Ok(m)
+}
+
+/// RBPF-CLAM: particles with poses, log-weights and their own copy-on-write CRMs.
+#[pyclass(module = "crlam._native")]
+pub struct ClamFilter {
+    inner: RbpfClam,
+}
+
+fn step_tuple(s: crlam_core::rbpf::FilterStep) -> (bool, (f64, f64, f64), f64, bool) {
+    (
+        s.processed,
+        (s.estimate[0], s.estimate[1], s.estimate[2]),
+        s.neff,
+        s.resampled,
+    )
+}
+
+#[pymethods]
+impl ClamFilter {
+    #[new]
+    #[pyo3(signature = (initial_pose, mapping_model, weight_model, *, n_particles=100, resolution=0.2, origin=(0.0, 0.0),
+        n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
+        weight_stride=1, map_stride=1, tempering=1.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
+        motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry", seed=0))]
+    fn new(
+        initial_pose: PyReadonlyArray1<'_, f64>,
+        mapping_model: &SensorModel,
+        weight_model: &SensorModel,
+        n_particles: usize,
+        resolution: f64,
+        origin: (f64, f64),
+        n_levels: usize,
+        levels: &str,
+        belief_floor: f64,
+        tile_size: usize,
+        extent: Option<(i64, i64, i64, i64)>,
+        scan_update: &str,
+        weight_stride: usize,
+        map_stride: usize,
+        tempering: f64,
+        resample_threshold: f64,
+        init_sigma: (f64, f64, f64),
+        motion: &str,
+        motion_params: Option<Vec<f64>>,
+        linear_update: f64,
+        angular_update: f64,
+        proposal: &str,
+        seed: u64,
+    ) -> PyResult<Self> {
+        let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
+        let extent = match extent {
+            None => None,
+            Some((ix0, iy0, nx, ny)) if nx > 0 && ny > 0 => Some(CellRect { ix0, iy0, nx, ny }),
+            Some(t) => return Err(shape_err(format!("extent needs nx, ny > 0, got {t:?}"))),
+        };
+        let crm = CrmConfig {
+            geometry,
+            n_levels,
+            placement: LevelPlacement::parse(levels).py_err()?,
+            prior_mean: None,
+            belief_floor,
+            tile_size,
+            extent,
+        };
+        let proposal = match proposal {
+            "odometry" => ClamProposal::Odometry,
+            "likelihood_mode" => ClamProposal::likelihood_mode(),
+            other => {
+                return Err(shape_err(format!(
+                    "unknown proposal {other:?}; expected odometry or likelihood_mode"
+                )))
+            }
+        };
+        let cfg = ClamConfig {
+            n_particles,
+            motion: motion_model(motion, motion_params)?,
+            trigger: UpdateTrigger {
+                linear: linear_update,
+                angular: angular_update,
+            },
+            crm,
+            mapping_model: mapping_model.inner,
+            weight_model: weight_model.inner,
+            scan_update: ScanUpdateMode::parse(scan_update).py_err()?,
+            weight_stride,
+            map_stride,
+            tempering,
+            resample_threshold,
+            init_sigma: [init_sigma.0, init_sigma.1, init_sigma.2],
+            proposal,
+            seed,
+        };
+        Ok(Self {
+            inner: RbpfClam::new(cfg, pose3(&initial_pose)?).py_err()?,
+        })
+    }
+
+    /// Feeds one scan: (processed, estimate (x, y, θ), N_eff, resampled).
+    fn process(
+        &mut self,
+        py: Python<'_>,
+        odom: PyReadonlyArray1<'_, f64>,
+        angles: PyReadonlyArray1<'_, f64>,
+        ranges: PyReadonlyArray1<'_, f64>,
+        laser_offset: PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
+        let scan = ScanInput {
+            odom: pose3(&odom)?,
+            angles: slice1(&angles, "angles")?,
+            ranges: slice1(&ranges, "ranges")?,
+            laser_offset: pose3(&laser_offset)?,
+        };
+        let inner = &mut self.inner;
+        let s = py.allow_threads(|| inner.process(&scan)).py_err()?;
+        Ok(step_tuple(s))
+    }
+
+    /// Feeds n scans with shared beam angles: odoms (n, 3), ranges (n, m). Returns a dict of
+    /// arrays: estimates (n, 3), processed (n,), neff (n,), resampled (n,).
+    fn process_many<'py>(
+        &mut self,
+        py: Python<'py>,
+        odoms: PyReadonlyArray2<'py, f64>,
+        angles: PyReadonlyArray1<'py, f64>,
+        ranges: PyReadonlyArray2<'py, f64>,
+        laser_offset: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let odoms = poses_n3(&odoms)?;
+        let a = slice1(&angles, "angles")?;
+        let shape = ranges.shape();
+        if shape[0] != odoms.len() || shape[1] != a.len() {
+            return Err(shape_err(format!(
+                "ranges must have shape ({}, {}), got {shape:?}",
+                odoms.len(),
+                a.len()
+            )));
+        }
+        let r = ranges
+            .as_slice()
+            .map_err(|_| shape_err("ranges must be contiguous"))?;
+        let off = pose3(&laser_offset)?;
+        let inner = &mut self.inner;
+        let steps = py
+            .allow_threads(|| {
+                odoms
+                    .iter()
+                    .enumerate()
+                    .map(|(i, o)| {
+                        let scan = ScanInput {
+                            odom: *o,
+                            angles: a,
+                            ranges: &r[i * a.len()..(i + 1) * a.len()],
+                            laser_offset: off,
+                        };
+                        inner.process(&scan)
+                    })
+                    .collect::<crlam_core::Result<Vec<_>>>()
+            })
+            .py_err()?;
+        let n = steps.len();
+        let est: Vec<f64> = steps.iter().flat_map(|s| s.estimate).collect();
+        let d = PyDict::new(py);
+        d.set_item(
+            "estimates",
+            Array2::from_shape_vec((n, 3), est)
+                .map_err(|e| shape_err(e.to_string()))?
+                .into_pyarray(py),
+        )?;
+        d.set_item(
+            "processed",
+            Array1::from_iter(steps.iter().map(|s| s.processed)).into_pyarray(py),
+        )?;
+        d.set_item(
+            "neff",
+            Array1::from_iter(steps.iter().map(|s| s.neff)).into_pyarray(py),
+        )?;
+        d.set_item(
+            "resampled",
+            Array1::from_iter(steps.iter().map(|s| s.resampled)).into_pyarray(py),
+        )?;
+        Ok(d)
+    }
+
+    /// Current estimate (weighted mean, circular heading).
+    fn estimate(&self) -> (f64, f64, f64) {
+        let e = self.inner.estimate();
+        (e[0], e[1], e[2])
+    }
+
+    /// Particle poses, shape (n, 3).
+    fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let v: Vec<f64> = self.inner.particles().iter().flat_map(|p| p.pose).collect();
+        let n = self.inner.particles().len();
+        Ok(Array2::from_shape_vec((n, 3), v)
+            .map_err(|e| shape_err(e.to_string()))?
+            .into_pyarray(py))
+    }
+
+    /// Particle log-weights (unnormalised), shape (n,).
+    fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        Array1::from_iter(self.inner.particles().iter().map(|p| p.log_w)).into_pyarray(py)
+    }
+
+    #[getter]
+    fn best_index(&self) -> usize {
+        self.inner.best_index()
+    }
+    #[getter]
+    fn n_resamples(&self) -> usize {
+        self.inner.n_resamples()
+    }
+    #[getter]
+    fn n_processed(&self) -> usize {
+        self.inner.n_processed()
+    }
+    #[getter]
+    fn n_particles(&self) -> usize {
+        self.inner.particles().len()
+    }
+
+    /// The best particle's map (a copy-on-write copy).
+    fn best_map(&self) -> CrmMap {
+        CrmMap::from_core(
+            self.inner.best_map().clone(),
+            self.inner.config().crm.tile_size,
+        )
+    }
+
+    /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
+    fn map_memory(&self) -> (usize, usize, usize) {
+        self.inner.map_memory()
+    }
+}

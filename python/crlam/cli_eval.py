@@ -1,0 +1,267 @@
+"""The ``crlam eval`` and ``crlam data`` commands (argparse wiring and their actions).
+
+``cli.py`` calls :func:`add_eval_parser` and :func:`add_data_parser` with its subparsers; each
+subcommand sets ``func`` to a callable taking the parsed namespace and returning an exit code.
+Errors are raised as :class:`~crlam.errors.CrlamError` (or ``FileNotFoundError``) for the main
+entry point to print.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import textwrap
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from crlam.errors import ConfigError, DataFormatError
+
+if TYPE_CHECKING:
+    from crlam.eval.trajectory import ScanIndex
+
+__all__ = ["add_data_parser", "add_eval_parser", "cmd_data_fetch", "cmd_data_list", "cmd_eval", "load_trajectory"]
+
+_WIDTH = 100
+
+
+@dataclass(eq=False)
+class LoadedTrajectory:
+    """A trajectory file read for evaluation.
+
+    Attributes
+    ----------
+    stamps : ndarray, shape (n,)
+        Seconds, file order.
+    poses : ndarray, shape (n, 3)
+        ``(x, y, theta)`` (m, m, rad); for a CARMEN log, the scans' pose field.
+    fmt : str
+        ``"tum"`` or ``"carmen"``.
+    scans : ScanIndex or None
+        The per-scan index of a CARMEN log (needed to align it to a raw log).
+    """
+
+    stamps: NDArray[np.float64]
+    poses: NDArray[np.float64]
+    fmt: str
+    scans: ScanIndex | None = None
+
+
+def _is_carmen(path: str | os.PathLike[str]) -> bool:
+    """A CARMEN log starts (after comments) with a message name; a TUM file with a number."""
+    from crlam.io.carmen import open_binary
+
+    with open_binary(path) as fh:
+        for _, raw in zip(range(1000), fh):
+            tokens = raw.split()
+            if tokens and not tokens[0].startswith(b"#"):
+                return tokens[0][:1].isalpha()
+    return False
+
+
+def load_trajectory(path: str | os.PathLike[str]) -> LoadedTrajectory:
+    """Read a TUM file, or a CARMEN log (each laser scan's ipc stamp and pose field)."""
+    if _is_carmen(path):
+        from crlam.eval.trajectory import index_scans
+
+        scans = index_scans(path)
+        return LoadedTrajectory(scans.stamps, scans.poses, "carmen", scans)
+    from crlam.io.tum import read_tum
+
+    traj = read_tum(path)
+    return LoadedTrajectory(traj.timestamps, traj.poses, "tum")
+
+
+def _wrap(label: str, text: str) -> str:
+    return textwrap.fill(text, width=_WIDTH, initial_indent=f"  {label:<11s} ", subsequent_indent=" " * 14)
+
+
+def _fmt(v: float) -> str:
+    return "nan" if math.isnan(v) else f"{v:.4g}"
+
+
+def _json_safe(obj: Any) -> Any:
+    # NaN (a sample std of one value) is not valid JSON: write null instead.
+    if isinstance(obj, float) and not math.isfinite(obj):
+        return None
+    if isinstance(obj, dict):
+        return {k: _json_safe(v) for k, v in obj.items()}
+    return obj
+
+
+def cmd_eval(args: argparse.Namespace) -> int:
+    """Evaluate a trajectory with the relations metric or against a reference trajectory."""
+    from crlam.eval.trajectory import (
+        align_to_raw,
+        fill_trajectory,
+        index_scans,
+        reference_errors,
+        relations_error,
+    )
+    from crlam.io.relations import read_relations
+
+    if args.tolerance < 0 or not math.isfinite(args.tolerance):
+        raise ConfigError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
+    traj = load_trajectory(args.trajectory)
+    report: dict[str, Any] = {"trajectory": str(args.trajectory), "trajectory_format": traj.fmt, "raw_log": args.raw_log}
+    lines = [_wrap("trajectory", f"{args.trajectory} ({traj.fmt.upper()}, {traj.stamps.shape[0]} poses)")]
+    stamps, poses = traj.stamps, traj.poses
+    if args.raw_log:
+        raw = index_scans(args.raw_log)
+        if traj.scans is not None:
+            al = align_to_raw(traj.scans, raw, tolerance=args.tolerance)
+            stamps, poses = al.stamps, al.poses
+            report["alignment"] = {"rule": al.rule, "n_by_stamp": al.n_by_stamp, "n_by_ranges": al.n_by_ranges}
+            lines.append(_wrap("alignment", al.rule))
+        filled = fill_trajectory(stamps, poses, raw, tolerance=args.tolerance, backfill=not args.no_backfill)
+        stamps, poses = filled.stamps, filled.poses
+        report["fill"] = {
+            "rule": filled.rule,
+            "n_scans": len(filled),
+            "n_processed": filled.n_processed,
+            "n_filled": int(filled.filled.sum()),
+            "n_omitted": filled.n_omitted,
+            "n_unmatched_estimates": filled.n_unmatched_estimates,
+            "backfill": not args.no_backfill,
+        }
+        lines.append(_wrap("fill rule", filled.rule))
+        if filled.n_unmatched_estimates:
+            lines.append(_wrap("warning", f"{filled.n_unmatched_estimates} estimated poses match no scan of the raw log"))
+    if args.relations:
+        rel = read_relations(args.relations)
+        # Without backfill the scans before the first processed one have no pose: skip their relations.
+        on_missing: Literal["raise", "skip"] = "skip" if (args.skip_missing or args.no_backfill) else "raise"
+        try:
+            errs = relations_error(stamps, poses, rel, on_missing=on_missing, tolerance=args.tolerance)
+        except DataFormatError as exc:
+            hint = "" if args.raw_log else " or give --raw-log to fill the scans the trajectory lacks"
+            raise DataFormatError(f"{exc}; on the command line: --skip-missing{hint}") from exc
+        summary = errs.summary()
+        report.update(metric="relations", relations=str(args.relations), summary=summary)
+        lines.insert(0, "relations metric (Kuemmerle et al. 2009): E = delta_ref^-1 (+) P(t1)^-1 (+) P(t2)")
+        lines.append(
+            _wrap("relations", f"{args.relations}: {len(rel)} relations, {errs.n} evaluated, {errs.n_missing} skipped (no pose)")
+        )
+        lines += ["", f"  {'error':<16s} {'mean':>10s} {'std':>10s}"]
+        for key, label in (
+            ("trans", "|trans| (m)"),
+            ("rot", "|rot| (deg)"),
+            ("trans2", "trans^2 (m^2)"),
+            ("rot2", "rot^2 (deg^2)"),
+        ):
+            unit = {"trans": "m", "rot": "deg", "trans2": "m2", "rot2": "deg2"}[key]
+            mean, std = summary[f"{key}_mean_{unit}"], summary[f"{key}_std_{unit}"]
+            lines.append(f"  {label:<16s} {_fmt(mean):>10s} {_fmt(std):>10s}")
+    else:
+        ref = load_trajectory(args.reference)
+        res = reference_errors(stamps, poses, ref.stamps, ref.poses, tolerance=args.tolerance)
+        summary = res.summary()
+        report.update(metric="reference", reference=str(args.reference), summary=summary)
+        lines.insert(0, "errors against a reference trajectory (same frame, matched stamps)")
+        lines.append(_wrap("reference", f"{args.reference}: {res.n} poses matched, {res.n_unmatched} estimated poses unmatched"))
+        lines += [
+            "",
+            f"  MAE x (m)          {_fmt(summary['mae_x_m'])}",
+            f"  MAE y (m)          {_fmt(summary['mae_y_m'])}",
+            f"  MAE theta (deg)    {_fmt(summary['mae_theta_deg'])}  ({_fmt(summary['mae_theta_rad'])} rad)",
+            f"  RMSE position (m)  {_fmt(summary['rmse_position_m'])}",
+        ]
+    print("\n".join(lines))
+    if args.json:
+        Path(args.json).write_text(json.dumps(_json_safe(report), indent=2) + "\n", encoding="utf-8")
+        print(f"\nwritten {args.json}")
+    return 0
+
+
+def add_eval_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``eval`` to ``subparsers`` (the object ``ArgumentParser.add_subparsers`` returns)."""
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        "eval",
+        help="trajectory accuracy: relations metric (Kuemmerle et al. 2009) or errors against a reference",
+        description="Evaluate a trajectory (TUM file, or a CARMEN log whose scans' pose field is used) with the relations "
+        "metric or against a reference trajectory, print a table and optionally write JSON. With --raw-log every scan "
+        "of the raw log gets a pose first: processed scans keep theirs, the others take the last processed pose "
+        "(in file order) carried by the raw-odometry increment; a CARMEN trajectory whose stamps are not the raw "
+        "ipc stamps (the GMapping-corrected logs) is matched to the raw scans by identical readings.",
+    )
+    p.add_argument("trajectory", help="TUM file or CARMEN log (e.g. ../shared/data/corrected/aces-corrected.log.gz)")
+    g = p.add_mutually_exclusive_group(required=True)
+    g.add_argument("--relations", help=".relations file (t1 t2 x y z roll pitch yaw)")
+    g.add_argument("--reference", help="reference trajectory (TUM or CARMEN) in the same frame, matched by stamp")
+    p.add_argument("--raw-log", help="raw CARMEN log whose scans' odom fields fill the scans the trajectory lacks")
+    p.add_argument(
+        "--no-backfill",
+        action="store_true",
+        help="leave out the scans before the first processed one instead of filling them backwards; relations on them "
+        "are skipped and counted (this is how the README oracles were measured)",
+    )
+    p.add_argument("--skip-missing", action="store_true", help="skip (and count) relations whose stamps have no pose")
+    p.add_argument("--tolerance", type=float, default=1e-6, help="stamp matching tolerance after exact lookup, s (default: 1e-6)")
+    p.add_argument("--json", help="write the summary, the rules used and the inputs to this JSON file")
+    p.set_defaults(func=cmd_eval)
+    return p
+
+
+def cmd_data_list(args: argparse.Namespace) -> int:
+    """Print every known dataset, whether a local copy exists and where."""
+    from crlam.io.datasets import DATASETS, data_root
+    from crlam.io.fetch import REMOTE, cache_dir, locate
+
+    root = data_root()
+    print(f"data folder: {root if root is not None else '(none: set CRLAM_DATA)'}")
+    print(f"cache:       {cache_dir(args.cache)}\n")
+    print(f"{'name':<24s} {'size':>9s}  {'status':<11s} path")
+    for name in list(dict.fromkeys([*REMOTE, *DATASETS])):
+        loc = locate(name, cache=args.cache)
+        remote = REMOTE.get(name)
+        size = f"{remote.size / 1e6:.2f} MB" if remote else "-"
+        print(f"{name:<24s} {size:>9s}  {loc.source:<11s} {loc.path if loc.path is not None else '-'}")
+        desc = remote.description if remote else DATASETS[name].description
+        print(textwrap.fill(desc, width=_WIDTH, initial_indent=" " * 4, subsequent_indent=" " * 4))
+        print(f"    source: {remote.url if remote else 'no public download (derived file)'}")
+    return 0
+
+
+def cmd_data_fetch(args: argparse.Namespace) -> int:
+    """Download datasets into the cache, verifying their SHA-256."""
+    from crlam.io.fetch import REMOTE, fetch, locate
+
+    names = list(REMOTE) if args.names == ["all"] else list(args.names)
+    if args.url and len(names) != 1:
+        raise ConfigError("--url needs exactly one dataset name")
+    for name in names:
+        loc = locate(name, cache=args.cache)
+        if loc.source == "data folder" and not args.force:
+            print(f"{name}: available in the data folder at {loc.path} (use --force to download it into the cache)")
+            continue
+        path = fetch(name, cache=args.cache, url=args.url, progress=not args.quiet, force=args.force)
+        print(f"{name}: {path} (SHA-256 verified)")
+    return 0
+
+
+def add_data_parser(subparsers: Any) -> argparse.ArgumentParser:
+    """Add ``data`` (``list``, ``fetch``) to ``subparsers``."""
+    p: argparse.ArgumentParser = subparsers.add_parser(
+        "data",
+        help="list the real datasets and download them into a cache",
+        description="The real 2D laser datasets (Freiburg SLAM-evaluation logs and relations, GMapping-corrected logs) "
+        "are looked up in $CRLAM_DATA, then in the cache ($XDG_CACHE_HOME/crlam or ~/.cache/crlam).",
+    )
+    sub = p.add_subparsers(dest="data_command", metavar="ACTION")
+    sub.required = True
+    q = sub.add_parser("list", help="every dataset, whether a local copy exists and where")
+    q.add_argument("--cache", help="cache folder (default: $XDG_CACHE_HOME/crlam or ~/.cache/crlam)")
+    q.set_defaults(func=cmd_data_list)
+    q = sub.add_parser("fetch", help="download datasets into the cache (SHA-256 verified, atomic)")
+    q.add_argument("names", nargs="+", metavar="NAME", help="dataset names (see `crlam data list`), or all")
+    q.add_argument("--cache", help="cache folder (default: $XDG_CACHE_HOME/crlam or ~/.cache/crlam)")
+    q.add_argument("--url", help="download from this URL instead (mirror or file:// copy); the checksum is still verified")
+    q.add_argument("--force", action="store_true", help="download even if a local copy exists")
+    q.add_argument("--quiet", action="store_true", help="no progress bar")
+    q.set_defaults(func=cmd_data_fetch)
+    return p

@@ -1,0 +1,197 @@
+"""``crlam slam``: run a particle filter on a CARMEN log and write a self-describing run folder.
+
+The folder holds ``config.toml`` (every resolved setting), ``trajectory.tum`` (one pose per laser
+scan of the log, in file order, stamped with the scan's ipc timestamp), ``metrics.json``,
+``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best particle's map), ``trajectory.png`` (the
+trajectory over the map) and, with a reference, ``errors.png`` (error against time).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import resource
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+from tqdm import tqdm
+
+from crlam import __version__
+from crlam.errors import DataFormatError
+from crlam.eval.trajectory import reference_errors, relations_error
+from crlam.io.belief import save_belief
+from crlam.io.carmen import CarmenReader, LaserScan
+from crlam.io.nav2 import write_nav2_map
+from crlam.io.relations import read_relations
+from crlam.io.tum import read_tum, write_tum
+from crlam.slam import SlamConfig, SlamRun
+
+__all__ = ["SlamResult", "run_slam_log", "write_toml", "FILL_RULE"]
+
+FILL_RULE = (
+    "every laser scan gets a pose: processed scans the filter's weighted-mean estimate, the others the "
+    "estimate of the last processed scan composed with the raw-odometry increment since then"
+)
+
+
+@dataclass
+class SlamResult:
+    """What :func:`run_slam_log` produced."""
+
+    run: SlamRun
+    metrics: dict[str, Any]
+    out_dir: Path
+
+
+def peak_rss_mb() -> float:
+    """Peak resident memory of this process (MB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        f = float(v)
+        return repr(f) if math.isfinite(f) else ("nan" if math.isnan(f) else ("inf" if f > 0 else "-inf"))
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
+    """A flat TOML file of ``[section]`` tables (None values are written as comments)."""
+    lines = []
+    for name, table in sections.items():
+        lines.append(f"[{name}]")
+        for k, v in table.items():
+            lines.append(f"# {k} = (unset)" if v is None else f"{k} = {_toml_value(v)}")
+        lines.append("")
+    path.write_text("\n".join(lines))
+
+
+def _scan_inputs(scan: LaserScan, max_range: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    if not np.all(np.isfinite(scan.odom)):
+        raise DataFormatError(f"odometry pose {scan.odom.tolist()} is not finite", line=scan.line, field="odom")
+    ranges = np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
+    return scan.angles, ranges
+
+
+def run_slam_log(
+    log_path: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str],
+    config: SlamConfig,
+    *,
+    reference: str | os.PathLike[str] | None = None,
+    relations: str | os.PathLike[str] | None = None,
+    max_scans: int | None = None,
+    progress: bool = True,
+    figures: bool = True,
+) -> SlamResult:
+    """Runs ``config`` on a CARMEN log and writes the run folder (see the module docstring)."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    reader = CarmenReader(log_path)
+    run = SlamRun(config)
+    t0 = time.perf_counter()
+    bar = tqdm(
+        desc=f"{config.method} x{config.particles} {Path(log_path).name}", unit="scan", disable=not progress, mininterval=1.0
+    )
+    for rec in reader:
+        if not isinstance(rec, LaserScan):
+            continue
+        if max_scans is not None and run.n_scans >= max_scans:
+            break
+        angles, ranges = _scan_inputs(rec, config.max_range)
+        run.step(rec.odom, angles, ranges, rec.laser_offset, rec.timestamp)
+        bar.update(1)
+    bar.close()
+    wall = time.perf_counter() - t0
+    if run.n_scans == 0:
+        raise DataFormatError("the log holds no laser scans", path=str(log_path))
+    stamps, poses = run.trajectory()
+    write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam {config.method} trajectory of {Path(log_path).name}")
+    assert run.filter is not None
+    mem_bytes, n_tiles, n_refs = run.filter.map_memory()
+    metrics: dict[str, Any] = {
+        "crlam_version": __version__,
+        "log": str(log_path),
+        "method": config.method,
+        "particles": config.particles,
+        "seed": config.seed,
+        "wall_time_s": wall,
+        "scans_per_s": run.n_scans / max(wall, 1e-9),
+        "peak_rss_mb": peak_rss_mb(),
+        "map_memory_mb": mem_bytes / 2**20,
+        "map_tiles": {"distinct": n_tiles, "references": n_refs},
+        "n_scans": run.n_scans,
+        "n_processed": int(sum(run.processed)),
+        "neff_mean": float(np.mean(run.neff)) if run.neff else float("nan"),
+        "neff_min": float(np.min(run.neff)) if run.neff else float("nan"),
+        "n_resamples": run.filter.n_resamples,
+        "fill_rule": FILL_RULE,
+        "deviations_from_paper": config.deviations(),
+    }
+    ref_poses = None
+    if reference is not None:
+        ref = read_tum(reference)
+        errs = reference_errors(stamps, poses, ref.timestamps, ref.poses)
+        metrics["reference"] = {"path": str(reference), **errs.summary()}
+        ref_poses = (ref.timestamps, ref.poses, errs)
+    if relations is not None:
+        rel = relations_error(stamps, poses, read_relations(relations))
+        metrics["relations"] = {"path": str(relations), **rel.summary()}
+    best = run.best_map()
+    mean, var, ent = best.layers()
+    save_belief(out / "belief.npz", best.to_archive())
+    from crlam.experiments.known_poses import unknown_mask
+
+    unknown = unknown_mask(best, ent)
+    write_nav2_map(
+        out / "map.pgm", np.where(unknown, np.nan, mean.values), resolution=mean.resolution, origin=(*mean.origin, 0.0)
+    )
+    write_toml(
+        out / "config.toml",
+        {
+            "run": {
+                "log": str(log_path),
+                "reference": str(reference) if reference else None,
+                "relations": str(relations) if relations else None,
+                "max_scans": max_scans,
+                "crlam_version": __version__,
+            },
+            "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
+        },
+    )
+    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
+    if figures:
+        from crlam.viz.trajectories import save_error_figure, save_trajectory_figure
+
+        save_trajectory_figure(
+            out / "trajectory.png",
+            mean,
+            unknown,
+            poses,
+            reference=None if ref_poses is None else ref_poses[1],
+            title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, {config.particles} particles",
+        )
+        if ref_poses is not None:
+            save_error_figure(out / "errors.png", ref_poses[2], title=f"{Path(log_path).name}: error against the reference")
+    return SlamResult(run, metrics, out)
+
+
+def _jsonable(o: object) -> object:
+    if isinstance(o, (np.integer, np.floating)):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")

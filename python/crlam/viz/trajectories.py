@@ -1,0 +1,96 @@
+"""Figures of SLAM runs: trajectories over the map, and errors against time."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from numpy.typing import NDArray  # noqa: E402
+
+from crlam.eval.trajectory import ReferenceErrors  # noqa: E402
+from crlam.mapping import MapLayer  # noqa: E402
+from crlam.viz.maps import add_scale_bar  # noqa: E402
+
+__all__ = ["save_trajectory_figure", "save_error_figure", "save_trajectories_on_map"]
+
+
+def save_trajectories_on_map(
+    path: str | os.PathLike[str],
+    mean: MapLayer,
+    unknown: NDArray[np.bool_] | None,
+    trajectories: Mapping[str, NDArray[np.float64]],
+    *,
+    title: str = "",
+    dpi: int = 150,
+) -> Path:
+    """Several named trajectories (n, 2 or 3) over a map's expected occupancy."""
+    vals = np.ma.masked_array(mean.values, mask=unknown) if unknown is not None else mean.values
+    cm = matplotlib.colormaps["gray_r"].with_extremes(bad="#d8d8d8")
+    ny, nx = mean.shape
+    fig, ax = plt.subplots(figsize=(8, max(4.0, 8 * ny / max(nx, 1))), constrained_layout=True)
+    ax.imshow(vals, origin="lower", extent=mean.extent, cmap=cm, vmin=0, vmax=1, interpolation="nearest")
+    colours = ["tab:red", "tab:green", "tab:blue", "tab:orange", "tab:purple"]
+    for (name, t), c in zip(trajectories.items(), colours):
+        ax.plot(t[:, 0], t[:, 1], color=c, linewidth=0.9, alpha=0.9, label=name)
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+    add_scale_bar(ax, mean.extent)
+    if title:
+        ax.set_title(title)
+    out = Path(path)
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out
+
+
+def save_trajectory_figure(
+    path: str | os.PathLike[str],
+    mean: MapLayer,
+    unknown: NDArray[np.bool_] | None,
+    estimate: NDArray[np.float64],
+    *,
+    reference: NDArray[np.float64] | None = None,
+    title: str = "",
+) -> Path:
+    """The estimated trajectory (and the reference, if given) over the best particle's map."""
+    traj = {"estimate": estimate}
+    if reference is not None:
+        traj = {"reference": reference, "estimate": estimate}
+    return save_trajectories_on_map(path, mean, unknown, traj, title=title)
+
+
+def save_error_figure(
+    path: str | os.PathLike[str],
+    errors: ReferenceErrors | Sequence[tuple[str, ReferenceErrors]],
+    *,
+    title: str = "",
+    dpi: int = 150,
+) -> Path:
+    """Position and heading error against time, for one run or several named ones."""
+    runs = [("estimate", errors)] if isinstance(errors, ReferenceErrors) else list(errors)
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, constrained_layout=True)
+    for name, e in runs:
+        t = e.stamps - e.stamps[0]
+        axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), linewidth=0.8, label=name)
+        axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), linewidth=0.8, label=name)
+    axes[0].set_ylabel("position error [m]")
+    axes[1].set_ylabel("heading error [deg]")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    out = Path(path)
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out
