@@ -158,6 +158,57 @@ def cmd_slam(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_experiment(args: argparse.Namespace) -> int:
+    from crlam.slam import SlamConfig
+
+    out = Path(args.out)
+    if args.experiment == "table1":
+        from crlam.experiments.table1 import run_table1
+
+        base = SlamConfig(
+            particles=args.particles,
+            resolution=0.2,
+            max_range=8.0,
+            weight_stride=args.weight_stride,
+            tempering=args.tempering,
+            proposal=args.proposal,
+        )
+        run_table1(
+            out,
+            runs=args.runs,
+            scans=args.scans,
+            particles=args.particles,
+            methods=args.methods,
+            workers=args.workers,
+            base=base,
+            progress=not args.quiet,
+        )
+    else:
+        from crlam.experiments.real_logs import run_real_logs
+
+        base = SlamConfig(
+            resolution=args.resolution,
+            motion="thrun",
+            weight_stride=args.weight_stride,
+            tempering=args.tempering,
+            proposal=args.proposal,
+        )
+        run_real_logs(
+            out,
+            datasets=args.datasets,
+            methods=args.methods,
+            particles=args.particles_list,
+            seeds=args.seeds,
+            ranges=args.ranges,
+            base=base,
+            workers=args.workers,
+            max_scans=args.max_scans,
+            progress=not args.quiet,
+        )
+    print((out / "table.md").read_text())
+    return 0
+
+
 def cmd_bench(args: argparse.Namespace) -> int:
     from crlam.bench import run_benchmarks, write_json
 
@@ -265,6 +316,47 @@ def build_parser() -> argparse.ArgumentParser:
 
     add_eval_parser(sub)
     add_data_parser(sub)
+
+    p = sub.add_parser(
+        "experiment",
+        help="run a paper experiment (resumable) and write its table and figures",
+        description="Runs an experiment as a resumable sweep of SLAM runs in spawn worker processes; "
+        "rerunning the same command skips finished runs.",
+    )
+    exp = p.add_subparsers(dest="experiment", metavar="EXPERIMENT")
+    exp.required = True
+    t1 = exp.add_parser(
+        "table1",
+        help="Table I protocol on the simulated museum world",
+        description="Museum world, 1079 beams over 270 deg, 8 m, 0.2 m grid; Monte Carlo runs per method "
+        "against the exact ground truth; writes table.md/csv, results.json and the Fig. 2 figures.",
+    )
+    t1.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    t1.add_argument("--runs", type=_positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
+    t1.add_argument("--scans", type=_positive_int, default=5500, help="scans of the simulated log (default: 5500)")
+    t1.add_argument("--particles", type=_positive_int, default=100, help="particles (default: 100)")
+    t1.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"], help="filters to run")
+    rl = exp.add_parser(
+        "real-logs",
+        help="Intel and ACES raw logs with their relations",
+        description="Both methods on the raw Intel and ACES logs at several particle counts, seeds and ranges; "
+        "relations metric, wall time and memory next to the published numbers.",
+    )
+    rl.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    rl.add_argument("--datasets", nargs="+", choices=("intel", "aces"), default=["intel", "aces"])
+    rl.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"])
+    rl.add_argument("--particles", dest="particles_list", type=_positive_int, nargs="+", default=[30, 100])
+    rl.add_argument("--seeds", type=_positive_int, default=3, help="seeds per setting (default: 3)")
+    rl.add_argument("--ranges", nargs="+", default=["full", "8"], help="z_max settings: 'full' and/or metres (default: full 8)")
+    rl.add_argument("--resolution", type=_positive_float, default=0.1, help="cell size in metres (default: 0.1)")
+    rl.add_argument("--max-scans", type=_positive_int, default=None, help="only the first N scans of each log")
+    for q in (t1, rl):
+        q.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
+        q.add_argument("--weight-stride", type=_positive_int, default=1, help="beam stride of the weights (default: 1)")
+        q.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering (default: 1)")
+        q.add_argument("--proposal", choices=("odometry", "likelihood_mode"), default="odometry")
+        q.add_argument("--quiet", action="store_true", help="no progress output")
+        q.set_defaults(func=cmd_experiment)
 
     p = sub.add_parser(
         "bench",

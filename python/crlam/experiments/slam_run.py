@@ -148,7 +148,8 @@ def run_slam_log(
         metrics["reference"] = {"path": str(reference), **errs.summary()}
         ref_poses = (ref.timestamps, ref.poses, errs)
     if relations is not None:
-        rel = relations_error(stamps, poses, read_relations(relations))
+        # A run cut short by --max-scans cannot cover every relation; the others are counted.
+        rel = relations_error(stamps, poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
         metrics["relations"] = {"path": str(relations), **rel.summary()}
     best = run.best_map()
     mean, var, ent = best.layers()
@@ -172,7 +173,7 @@ def run_slam_log(
             "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
         },
     )
-    (out / "metrics.json").write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
+
     if figures:
         from crlam.viz.trajectories import save_error_figure, save_trajectory_figure
 
@@ -186,6 +187,10 @@ def run_slam_log(
         )
         if ref_poses is not None:
             save_error_figure(out / "errors.png", ref_poses[2], title=f"{Path(log_path).name}: error against the reference")
+    # metrics.json is written last and atomically: its presence marks a finished run (sweeps resume).
+    tmp = out / "metrics.json.tmp"
+    tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
+    tmp.replace(out / "metrics.json")
     return SlamResult(run, metrics, out)
 
 

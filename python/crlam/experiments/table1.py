@@ -1,0 +1,157 @@
+"""The paper's Table I protocol on the simulated museum world (``crlam experiment table1``).
+
+One simulated log (the museum-like world, the paper's LIDAR: 1079 beams over 270 deg, 8 m,
+0.2 m grid), ``runs`` Monte Carlo runs per method with different seeds, exact ground truth. The
+folder gets ``table.md`` / ``table.csv`` / ``results.json`` (MAE x, y, theta and average RMSE of
+position, mean ± std over runs), ``fig2_trajectories.png`` (trajectories on the CRM) and
+``fig2_errors.png`` (error against time), plus ``runs/<name>/`` for every run.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from crlam.eval.trajectory import aggregate_runs, reference_errors
+from crlam.experiments.sweep import RunSpec, run_sweep
+from crlam.io.belief import load_belief
+from crlam.io.tum import read_tum
+from crlam.mapping import ConfidenceRichMap
+from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
+from crlam.slam import SlamConfig
+
+__all__ = ["run_table1", "PAPER_TABLE1"]
+
+METRICS = ("mae_x_m", "mae_y_m", "mae_theta_deg", "rmse_position_m")
+LABELS = {"mae_x_m": "MAE x [m]", "mae_y_m": "MAE y [m]", "mae_theta_deg": "MAE theta [deg]", "rmse_position_m": "avg RMSE [m]"}
+METHOD_NAMES = {"ogm": "RBPF-OGM", "clam": "RBPF-CLAM"}
+
+#: Reported in the paper's Table I is only the ordering (CLAM below OGM); no numbers are copied.
+PAPER_TABLE1 = "the paper reports RBPF-CLAM with lower errors than RBPF-OGM on every metric"
+
+
+def ensure_simulation(sim_dir: Path, n_scans: int, sim_seed: int, world_seed: int) -> None:
+    """Simulates the museum log once (skipped when it is already there: resume)."""
+    if (sim_dir / "simulation.json").is_file():
+        return
+    log = simulate(SimulationConfig(world="museum", n_scans=n_scans, seed=sim_seed, world_seed=world_seed, sensor="paper_lidar"))
+    write_simulation(log, sim_dir)
+
+
+def _fmt(mean: float, std: float) -> str:
+    return f"{mean:.4f} ± {std:.4f}"
+
+
+def run_table1(
+    out: Path,
+    *,
+    runs: int = 15,
+    scans: int = 5500,
+    particles: int = 100,
+    methods: Sequence[str] = ("ogm", "clam"),
+    workers: int = 2,
+    sim_seed: int = 0,
+    world_seed: int = 0,
+    base: SlamConfig | None = None,
+    progress: bool = True,
+) -> dict[str, Any]:
+    """Runs (or resumes) the protocol and writes the table and figures; returns the results."""
+    out.mkdir(parents=True, exist_ok=True)
+    sim_dir = out / "simulation"
+    ensure_simulation(sim_dir, scans, sim_seed, world_seed)
+    base = base or SlamConfig(particles=particles, resolution=0.2, max_range=8.0)
+    specs = []
+    for m in methods:
+        for k in range(runs):
+            cfg = SlamConfig(**{**base.to_dict(), "method": m, "particles": particles, "seed": k})
+            specs.append(RunSpec(f"{m}_run{k:02d}", str(sim_dir / "log.clf"), cfg, reference=str(sim_dir / "groundtruth.tum")))
+    done, errors = run_sweep(specs, out, workers=workers, progress=progress)
+    rows: dict[str, dict[str, Any]] = {}
+    for m in methods:
+        summaries = [done[s.name]["reference"] for s in specs if s.config.method == m and s.name in done]
+        agg = aggregate_runs(summaries) if summaries else {}
+        walls = [done[s.name]["wall_time_s"] for s in specs if s.config.method == m and s.name in done]
+        rss = [done[s.name]["peak_rss_mb"] for s in specs if s.config.method == m and s.name in done]
+        rows[m] = {
+            "n_runs": len(summaries),
+            "metrics": agg,
+            "wall_time_s_mean": float(np.mean(walls)) if walls else None,
+            "peak_rss_mb_max": float(np.max(rss)) if rss else None,
+        }
+    results = {
+        "protocol": {
+            "world": "museum",
+            "scans": scans,
+            "particles": particles,
+            "runs": runs,
+            "sim_seed": sim_seed,
+            "world_seed": world_seed,
+            "lidar": "1079 beams / 270 deg / 8 m",
+            "resolution": base.resolution,
+        },
+        "config": base.to_dict(),
+        "deviations_from_paper": base.deviations(),
+        "rows": rows,
+        "errors": errors,
+        "paper": PAPER_TABLE1,
+    }
+    (out / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
+    _write_tables(out, methods, rows)
+    _write_figures(out, sim_dir, specs, done)
+    return results
+
+
+def _write_tables(out: Path, methods: Sequence[str], rows: dict[str, dict[str, Any]]) -> None:
+    head = "| method | runs | " + " | ".join(LABELS[k] for k in METRICS) + " | wall time / run [s] |"
+    lines = ["# Table I protocol (simulated museum world)", "", head, "|" + "---|" * (len(METRICS) + 3)]
+    with open(out / "table.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["method", "runs", *[f"{k}_{s}" for k in METRICS for s in ("mean", "std")], "wall_time_s_mean"])
+        for m in methods:
+            r = rows[m]
+            agg = r["metrics"]
+            cells = [_fmt(agg[k]["mean"], agg[k]["std"]) if k in agg else "n/a" for k in METRICS]
+            wall = f"{r['wall_time_s_mean']:.0f}" if r["wall_time_s_mean"] is not None else "n/a"
+            lines.append(f"| {METHOD_NAMES.get(m, m)} | {r['n_runs']} | " + " | ".join(cells) + f" | {wall} |")
+            w.writerow(
+                [
+                    m,
+                    r["n_runs"],
+                    *[agg[k][s] if k in agg else "" for k in METRICS for s in ("mean", "std")],
+                    r["wall_time_s_mean"],
+                ]
+            )
+    lines += ["", "Mean ± sample std over runs; errors against the exact ground truth at every scan.", ""]
+    (out / "table.md").write_text("\n".join(lines))
+
+
+def _write_figures(out: Path, sim_dir: Path, specs: Sequence[RunSpec], done: dict[str, Any]) -> None:
+    from crlam.experiments.known_poses import unknown_mask
+    from crlam.viz.trajectories import save_error_figure, save_trajectories_on_map
+
+    gt = read_tum(sim_dir / "groundtruth.tum")
+    odo = read_tum(sim_dir / "odometry.tum")
+    firsts = {s.config.method: s for s in specs if s.name in done and s.name.endswith("run00")}
+    trajs = {"ground truth": gt.poses, "odometry": odo.poses}
+    errs = [("odometry", reference_errors(odo.timestamps, odo.poses, gt.timestamps, gt.poses))]
+    crm_run = firsts.get("clam")
+    for m, s in firsts.items():
+        t = read_tum(s.folder(out) / "trajectory.tum")
+        trajs[METHOD_NAMES.get(m, m)] = t.poses
+        errs.append((METHOD_NAMES.get(m, m), reference_errors(t.timestamps, t.poses, gt.timestamps, gt.poses)))
+    if crm_run is not None:
+        crm = ConfidenceRichMap.from_archive(load_belief(crm_run.folder(out) / "belief.npz"))
+        mean, _, ent = crm.layers()
+        save_trajectories_on_map(
+            out / "fig2_trajectories.png",
+            mean,
+            unknown_mask(crm, ent),
+            trajs,
+            title="Museum world: trajectories on the RBPF-CLAM map (run 0)",
+        )
+    save_error_figure(out / "fig2_errors.png", errs, title="Museum world: error against time (run 0)")
