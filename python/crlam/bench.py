@@ -34,6 +34,9 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
     BenchSpec("crm_beam_updates_per_s", size=600, quick_size=40, target_per_s=300_000.0),
     BenchSpec("crm_beam_updates_per_s_paper_scan", size=400, quick_size=30),
     BenchSpec("raycast_cells_per_s", size=2_000_000, quick_size=100_000),
+    # Issue 3 targets: >= 37 scans/s (the sensor's rate) for 100 particles x 1079 beams.
+    BenchSpec("rbpf_clam_scans_per_s_1079x100", size=20, quick_size=2, target_per_s=37.0),
+    BenchSpec("rbpf_clam_scans_per_s_180x30", size=100, quick_size=5),
 )
 
 
