@@ -147,3 +147,102 @@ pub fn raycast_cells(n_rays: usize) -> Result<BenchFigure> {
         cells_per_ray: cells as f64 / n_rays as f64,
     })
 }
+
+/// A 20 m x 20 m room with pillars and a loop through it: exact scans for the filter benchmarks.
+struct FilterWorkload {
+    odom: Vec<crate::pose::Pose>,
+    angles: Vec<f64>,
+    ranges: Vec<Vec<f64>>,
+}
+
+fn filter_workload(
+    n_scans: usize,
+    n_beams: usize,
+    fov_deg: f64,
+    z_max: f64,
+) -> Result<FilterWorkload> {
+    use crate::sim::WorldRaster;
+    let n = 400; // 0.05 m cells
+    let mut occ = vec![0u8; n * n];
+    for i in 0..n {
+        for t in 0..4 {
+            occ[t * n + i] = 1;
+            occ[(n - 1 - t) * n + i] = 1;
+            occ[i * n + t] = 1;
+            occ[i * n + n - 1 - t] = 1;
+        }
+    }
+    for (cx, cy) in [(100, 100), (300, 100), (100, 300), (300, 300), (200, 200)] {
+        for y in cy - 15..cy + 15 {
+            for x in cx - 15..cx + 15 {
+                occ[y * n + x] = 1;
+            }
+        }
+    }
+    let world = WorldRaster::new(GridGeometry::new([0.0, 0.0], 0.05)?, n, n, &occ)?;
+    let fov = fov_deg.to_radians();
+    let angles: Vec<f64> = (0..n_beams)
+        .map(|i| -fov / 2.0 + fov * i as f64 / (n_beams - 1) as f64)
+        .collect();
+    let odom: Vec<crate::pose::Pose> = (0..n_scans)
+        .map(|k| {
+            let a = k as f64 * 0.01;
+            [
+                10.0 + 5.0 * a.cos(),
+                10.0 + 5.0 * a.sin(),
+                a + std::f64::consts::FRAC_PI_2,
+            ]
+        })
+        .collect();
+    let mut flat = vec![0.0; n_scans * n_beams];
+    world.cast(&odom, &angles, z_max, &mut flat)?;
+    let ranges = flat.chunks(n_beams).map(|c| c.to_vec()).collect();
+    Ok(FilterWorkload {
+        odom,
+        angles,
+        ranges,
+    })
+}
+
+/// RBPF-CLAM scans per second on one thread (paper settings: every beam, odometry proposal).
+pub fn rbpf_clam_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<BenchFigure> {
+    use crate::rbpf::{ClamConfig, RbpfClam, ScanInput};
+    let (fov, z_max) = if n_beams == 1079 {
+        (270.0, 8.0)
+    } else {
+        (180.0, 8.0)
+    };
+    let w = filter_workload(n_scans + 1, n_beams, fov, z_max)?;
+    let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), z_max);
+    cfg.n_particles = n_particles;
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| crate::error::config_err("threads", e.to_string()))?;
+    let mut f = RbpfClam::new(cfg, w.odom[0])?;
+    let scan = |k: usize| ScanInput {
+        odom: w.odom[k],
+        angles: &w.angles,
+        ranges: &w.ranges[k],
+        laser_offset: [0.0; 3],
+    };
+    pool.install(|| f.process(&scan(0)))?;
+    let t = Instant::now();
+    for k in 1..=n_scans {
+        pool.install(|| f.process(&scan(k)))?;
+    }
+    let secs = t.elapsed().as_secs_f64();
+    let name = match (n_beams, n_particles) {
+        (1079, 100) => "rbpf_clam_scans_per_s_1079x100",
+        (180, 30) => "rbpf_clam_scans_per_s_180x30",
+        _ => "rbpf_clam_scans_per_s",
+    };
+    Ok(BenchFigure {
+        name,
+        per_second: n_scans as f64 / secs,
+        operations: n_scans as u64,
+        seconds: secs,
+        unit: "processed scan (all particles: weight + map update; 0.2 m grid, 8 m, one thread)",
+        cells_per_ray: f64::NAN,
+    })
+}

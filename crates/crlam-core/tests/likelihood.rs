@@ -16,7 +16,9 @@ fn eta(model: &SensorModel, mhat: &[f64], d: &[f64], z: f64) -> f64 {
 
 fn ray(n: usize) -> (Vec<f64>, Vec<f64>) {
     let d: Vec<f64> = (0..n).map(|l| 0.2 * l as f64 + 0.1).collect();
-    let mhat: Vec<f64> = (0..n).map(|l| 0.05 + 0.9 * (((l * 37) % 17) as f64 / 16.0)).collect();
+    let mhat: Vec<f64> = (0..n)
+        .map(|l| 0.05 + 0.9 * (((l * 37) % 17) as f64 / 16.0))
+        .collect();
     (d, mhat)
 }
 
@@ -27,7 +29,10 @@ fn item12_predictive_likelihood_is_proper() {
         let model = SensorModel::with_defaults(kind, 8.0, 0.2);
         let h = model.sigma_hit / 10.0;
         let n = (8.0 / h) as usize;
-        let cont: f64 = (0..n).map(|i| eta(&model, &mhat, &d, (i as f64 + 0.5) * h)).sum::<f64>() * h;
+        let cont: f64 = (0..n)
+            .map(|i| eta(&model, &mhat, &d, (i as f64 + 0.5) * h))
+            .sum::<f64>()
+            * h;
         let total = cont + eta(&model, &mhat, &d, f64::INFINITY);
         assert!((total - 1.0).abs() < 1e-3, "{kind:?}: total mass {total}");
     }
@@ -56,7 +61,10 @@ fn item14_ordering_on_a_converged_ray() {
         let like: Vec<f64> = d.iter().map(|&x| ijrr.on_ray(wall, x)).collect();
         update_ray(&mut b, &mu, &like, ijrr.infinity(wall), 1e-12);
     }
-    let mhat: Vec<f64> = b.chunks(10).map(|p| p.iter().zip(&mu).map(|(a, m)| a * m).sum()).collect();
+    let mhat: Vec<f64> = b
+        .chunks(10)
+        .map(|p| p.iter().zip(&mu).map(|(a, m)| a * m).sum())
+        .collect();
     let mut mix = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.2);
     mix.sigma_hit = 0.06;
     let at = eta(&mix, &mhat, &d, wall);
@@ -82,26 +90,48 @@ fn item14_true_pose_beats_displaced_poses_on_a_converged_map() {
         }
     }
     let world = WorldRaster::new(GridGeometry::new([0.0, 0.0], 0.05).unwrap(), n, n, &occ).unwrap();
-    let angles: Vec<f64> = (0..360).map(|i| i as f64 * std::f64::consts::PI / 180.0).collect();
+    let angles: Vec<f64> = (0..360)
+        .map(|i| i as f64 * std::f64::consts::PI / 180.0)
+        .collect();
     let truth = [4.1, 5.2, 0.3];
     let mut ranges = vec![0.0; 360];
     world.cast(&[truth], &angles, 8.0, &mut ranges).unwrap();
-    let mut map = CrmMap::new(&CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2).unwrap())).unwrap();
+    let mut map =
+        CrmMap::new(&CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2).unwrap())).unwrap();
     let ijrr = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.2);
     let mix = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.2);
     let mut sc = CrmScratch::default();
     let o = ScanOptions::default();
     for k in 0..20 {
         // Views from a few nearby poses so the map converges around the truth.
-        let p = compose(truth, [0.05 * (k % 5) as f64 - 0.1, 0.04 * (k % 3) as f64 - 0.04, 0.0]);
+        let p = compose(
+            truth,
+            [
+                0.05 * (k % 5) as f64 - 0.1,
+                0.04 * (k % 3) as f64 - 0.04,
+                0.0,
+            ],
+        );
         let mut r = vec![0.0; 360];
         world.cast(&[p], &angles, 8.0, &mut r).unwrap();
         map.update_scan(p, &angles, &r, &ijrr, &o, &mut sc).unwrap();
     }
-    let ll = |p: [f64; 3], sc: &mut CrmScratch| map.scan_log_likelihood(p, &angles, &ranges, &mix, &o, sc).unwrap().0;
+    let ll = |p: [f64; 3], sc: &mut CrmScratch| {
+        map.scan_log_likelihood(p, &angles, &ranges, &mix, &o, sc)
+            .unwrap()
+            .0
+    };
     let at = ll(truth, &mut sc);
-    for off in [[0.3, 0.0, 0.0], [0.0, -0.3, 0.0], [0.0, 0.0, 0.1], [0.0, 0.0, -0.1]] {
+    for off in [
+        [0.3, 0.0, 0.0],
+        [0.0, -0.3, 0.0],
+        [0.0, 0.0, 0.1],
+        [0.0, 0.0, -0.1],
+    ] {
         let other = ll(compose(truth, off), &mut sc);
-        assert!(at > other, "true pose {at:.1} vs displaced {off:?} {other:.1}");
+        assert!(
+            at > other,
+            "true pose {at:.1} vs displaced {off:?} {other:.1}"
+        );
     }
 }

@@ -733,6 +733,8 @@ pub fn run_benchmark<'py>(
                 Some(bench::crm_beam_updates(size, bench::CrmWorkload::PaperScan))
             }
             "raycast_cells_per_s" => Some(bench::raycast_cells(size)),
+            "rbpf_clam_scans_per_s_1079x100" => Some(bench::rbpf_clam_scans(size, 100, 1079)),
+            "rbpf_clam_scans_per_s_180x30" => Some(bench::rbpf_clam_scans(size, 30, 180)),
             _ => None,
         })
         .ok_or_else(|| shape_err(format!("unknown benchmark {name:?}")))?

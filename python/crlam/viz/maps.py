@@ -43,7 +43,7 @@ def add_scale_bar(ax: Axes, extent: Sequence[float], color: str = "black") -> No
         Rectangle(
             (xs - 0.01 * (x1 - x0), ys - 0.015 * (y1 - y0)),
             length + 0.02 * (x1 - x0),
-            0.07 * (y1 - y0),
+            0.045 * (y1 - y0),
             facecolor="white",
             edgecolor="none",
             alpha=0.85,
