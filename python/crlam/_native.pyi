@@ -12,6 +12,7 @@ __all__ = [
     "ClamFilter",
     "CrmMap",
     "LogOddsMap",
+    "OgmFilter",
     "SensorModel",
     "cast_ranges",
     "crm_update_ray",
@@ -226,6 +227,51 @@ class ClamFilter:
     @property
     def n_particles(self) -> int: ...
     def best_map(self) -> CrmMap: ...
+    def map_memory(self) -> tuple[int, int, int]: ...
+
+@final
+class OgmFilter:
+    def __new__(
+        cls,
+        initial_pose: NDArray[np.float64],
+        *,
+        n_particles: int = 30,
+        resolution: float = 0.05,
+        usable_range: float = 30.0,
+        motion: str = "thrun",
+        motion_params: list[float] | None = None,
+        linear_update: float = 0.0,
+        angular_update: float = 0.0,
+        resample_threshold: float = 0.5,
+        init_sigma: tuple[float, float, float] = ...,
+        seed: int = 0,
+    ) -> OgmFilter: ...
+    def process(
+        self,
+        odom: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> tuple[bool, tuple[float, float, float], float, bool]: ...
+    def process_many(
+        self,
+        odoms: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> dict[str, NDArray[Any]]: ...
+    def estimate(self) -> tuple[float, float, float]: ...
+    def particle_poses(self) -> NDArray[np.float64]: ...
+    def log_weights(self) -> NDArray[np.float64]: ...
+    @property
+    def best_index(self) -> int: ...
+    @property
+    def n_resamples(self) -> int: ...
+    @property
+    def n_processed(self) -> int: ...
+    @property
+    def n_particles(self) -> int: ...
+    def best_map(self) -> LogOddsMap: ...
     def map_memory(self) -> tuple[int, int, int]: ...
 
 def traverse_ray(

@@ -15,7 +15,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam import _native
 from crlam.errors import ConfigError
-from crlam.mapping import ConfidenceRichMap, MappingConfig
+from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
 
 __all__ = ["SlamConfig", "SlamStep", "SlamRun", "make_filter", "PAPER_DEFAULTS"]
 
@@ -151,16 +151,40 @@ PAPER_DEFAULTS: dict[str, Any] = {
 }
 
 
-def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> _native.ClamFilter:
-    """The native filter for ``config``, with particles at ``initial_pose``."""
-    if config.method != "clam":
-        raise ConfigError(f"method {config.method!r} is not available in this build")
+NativeFilter = _native.ClamFilter | _native.OgmFilter
+
+
+def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
+    """The native filter for ``config``, with particles at ``initial_pose``.
+
+    RBPF-OGM takes the same particle count, seed, triggers, motion model and grid; its map range
+    is ``max_range`` and its scan matcher has GMapping's settings.
+    """
+    pose = np.ascontiguousarray(initial_pose, dtype=np.float64)
+    params = list(config.motion_params) if config.motion_params is not None else None
+    if config.method == "ogm":
+        try:
+            return _native.OgmFilter(
+                pose,
+                n_particles=config.particles,
+                resolution=config.resolution,
+                usable_range=config.max_range,
+                motion=config.motion,
+                motion_params=params,
+                linear_update=config.linear_update,
+                angular_update=config.angular_update,
+                resample_threshold=config.resample_threshold,
+                init_sigma=config.init_sigma,
+                seed=config.seed,
+            )
+        except ValueError as e:
+            raise ConfigError(f"SlamConfig: {e}") from e
     mc = config.mapping_config()
     mapping = mc.sensor_model(config.mapping_model)
     weight = mc.sensor_model(config.weight_model)
     try:
         return _native.ClamFilter(
-            np.ascontiguousarray(initial_pose, dtype=np.float64),
+            pose,
             mapping,
             weight,
             n_particles=config.particles,
@@ -172,7 +196,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> _native.ClamFilt
             resample_threshold=config.resample_threshold,
             init_sigma=config.init_sigma,
             motion=config.motion,
-            motion_params=list(config.motion_params) if config.motion_params is not None else None,
+            motion_params=params,
             linear_update=config.linear_update,
             angular_update=config.angular_update,
             proposal=config.proposal,
@@ -197,7 +221,7 @@ class SlamRun:
     """Feeds scans to a filter and keeps one pose estimate per scan (file order)."""
 
     config: SlamConfig
-    filter: _native.ClamFilter | None = None
+    filter: NativeFilter | None = None
     estimates: list[NDArray[np.float64]] = field(default_factory=list)
     stamps: list[float] = field(default_factory=list)
     processed: list[bool] = field(default_factory=list)
@@ -230,10 +254,14 @@ class SlamRun:
         """(stamps (n,), poses (n, 3)), one per scan in file order."""
         return np.array(self.stamps), np.array(self.estimates).reshape(-1, 3)
 
-    def best_map(self) -> ConfidenceRichMap:
+    def best_map(self) -> ConfidenceRichMap | LogOddsOccupancyMap:
         """The highest-weight particle's map (crm-spec B7), wrapped for the Python API."""
         if self.filter is None:
             raise ConfigError("no scan has been processed yet")
+        if isinstance(self.filter, _native.OgmFilter):
+            lo = LogOddsOccupancyMap(LogOddsConfig(resolution=self.config.resolution, max_range=self.config.max_range))
+            lo.native = self.filter.best_map()
+            return lo
         m = ConfidenceRichMap(self.config.mapping_config())
         m.native = self.filter.best_map()
         return m

@@ -3,7 +3,11 @@
 use crlam_core::crm::{CrmConfig, LevelPlacement, ScanUpdateMode};
 use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
-use crlam_core::rbpf::{ClamConfig, ClamProposal, RbpfClam, ScanInput, UpdateTrigger};
+use crlam_core::ogm::LogOddsParams;
+use crlam_core::rbpf::{
+    ClamConfig, ClamProposal, FilterStep, OgmFilterConfig, RbpfClam, RbpfOgm, ScanInput,
+    UpdateTrigger,
+};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -12,7 +16,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::convert::{pose3, poses_n3, shape_err, slice1, IntoPy};
-use crate::maps::{CrmMap, SensorModel};
+use crate::maps::{CrmMap, LogOddsMap, SensorModel};
 
 /// Parses the motion model name and its parameters.
 pub fn motion_model(name: &str, params: Option<Vec<f64>>) -> PyResult<MotionModel> {
@@ -29,6 +33,96 @@ pub fn motion_model(name: &str, params: Option<Vec<f64>>) -> PyResult<MotionMode
     };
     m.validate().py_err()?;
     Ok(m)
+}
+
+/// Feeds n scans (odoms (n, 3), shared angles (m,), ranges (n, m)) to `process` with the GIL
+/// released, and returns a dict of arrays: estimates (n, 3), processed, neff, resampled (n,).
+fn feed_many<'py, F>(
+    py: Python<'py>,
+    odoms: &PyReadonlyArray2<'py, f64>,
+    angles: &PyReadonlyArray1<'py, f64>,
+    ranges: &PyReadonlyArray2<'py, f64>,
+    laser_offset: &PyReadonlyArray1<'py, f64>,
+    mut process: F,
+) -> PyResult<Bound<'py, PyDict>>
+where
+    F: FnMut(&ScanInput) -> crlam_core::Result<FilterStep> + Send,
+{
+    let odoms = poses_n3(odoms)?;
+    let a = slice1(angles, "angles")?;
+    let shape = ranges.shape();
+    if shape[0] != odoms.len() || shape[1] != a.len() {
+        return Err(shape_err(format!(
+            "ranges must have shape ({}, {}), got {shape:?}",
+            odoms.len(),
+            a.len()
+        )));
+    }
+    let r = ranges
+        .as_slice()
+        .map_err(|_| shape_err("ranges must be contiguous"))?;
+    let off = pose3(laser_offset)?;
+    let steps = py
+        .allow_threads(|| {
+            odoms
+                .iter()
+                .enumerate()
+                .map(|(i, o)| {
+                    let scan = ScanInput {
+                        odom: *o,
+                        angles: a,
+                        ranges: &r[i * a.len()..(i + 1) * a.len()],
+                        laser_offset: off,
+                    };
+                    process(&scan)
+                })
+                .collect::<crlam_core::Result<Vec<_>>>()
+        })
+        .py_err()?;
+    let n = steps.len();
+    let est: Vec<f64> = steps.iter().flat_map(|s| s.estimate).collect();
+    let d = PyDict::new(py);
+    d.set_item(
+        "estimates",
+        Array2::from_shape_vec((n, 3), est)
+            .map_err(|e| shape_err(e.to_string()))?
+            .into_pyarray(py),
+    )?;
+    d.set_item(
+        "processed",
+        Array1::from_iter(steps.iter().map(|s| s.processed)).into_pyarray(py),
+    )?;
+    d.set_item(
+        "neff",
+        Array1::from_iter(steps.iter().map(|s| s.neff)).into_pyarray(py),
+    )?;
+    d.set_item(
+        "resampled",
+        Array1::from_iter(steps.iter().map(|s| s.resampled)).into_pyarray(py),
+    )?;
+    Ok(d)
+}
+
+fn scan_of<'a>(
+    odom: &PyReadonlyArray1<'_, f64>,
+    angles: &'a PyReadonlyArray1<'_, f64>,
+    ranges: &'a PyReadonlyArray1<'_, f64>,
+    laser_offset: &PyReadonlyArray1<'_, f64>,
+) -> PyResult<ScanInput<'a>> {
+    Ok(ScanInput {
+        odom: pose3(odom)?,
+        angles: slice1(angles, "angles")?,
+        ranges: slice1(ranges, "ranges")?,
+        laser_offset: pose3(laser_offset)?,
+    })
+}
+
+fn poses_array<'py>(py: Python<'py>, poses: Vec<[f64; 3]>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let n = poses.len();
+    let v: Vec<f64> = poses.into_iter().flatten().collect();
+    Ok(Array2::from_shape_vec((n, 3), v)
+        .map_err(|e| shape_err(e.to_string()))?
+        .into_pyarray(py))
 }
 
 /// RBPF-CLAM: particles with poses, log-weights and their own copy-on-write CRMs.
@@ -135,12 +229,7 @@ impl ClamFilter {
         ranges: PyReadonlyArray1<'_, f64>,
         laser_offset: PyReadonlyArray1<'_, f64>,
     ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
-        let scan = ScanInput {
-            odom: pose3(&odom)?,
-            angles: slice1(&angles, "angles")?,
-            ranges: slice1(&ranges, "ranges")?,
-            laser_offset: pose3(&laser_offset)?,
-        };
+        let scan = scan_of(&odom, &angles, &ranges, &laser_offset)?;
         let inner = &mut self.inner;
         let s = py.allow_threads(|| inner.process(&scan)).py_err()?;
         Ok(step_tuple(s))
@@ -156,60 +245,10 @@ impl ClamFilter {
         ranges: PyReadonlyArray2<'py, f64>,
         laser_offset: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let odoms = poses_n3(&odoms)?;
-        let a = slice1(&angles, "angles")?;
-        let shape = ranges.shape();
-        if shape[0] != odoms.len() || shape[1] != a.len() {
-            return Err(shape_err(format!(
-                "ranges must have shape ({}, {}), got {shape:?}",
-                odoms.len(),
-                a.len()
-            )));
-        }
-        let r = ranges
-            .as_slice()
-            .map_err(|_| shape_err("ranges must be contiguous"))?;
-        let off = pose3(&laser_offset)?;
         let inner = &mut self.inner;
-        let steps = py
-            .allow_threads(|| {
-                odoms
-                    .iter()
-                    .enumerate()
-                    .map(|(i, o)| {
-                        let scan = ScanInput {
-                            odom: *o,
-                            angles: a,
-                            ranges: &r[i * a.len()..(i + 1) * a.len()],
-                            laser_offset: off,
-                        };
-                        inner.process(&scan)
-                    })
-                    .collect::<crlam_core::Result<Vec<_>>>()
-            })
-            .py_err()?;
-        let n = steps.len();
-        let est: Vec<f64> = steps.iter().flat_map(|s| s.estimate).collect();
-        let d = PyDict::new(py);
-        d.set_item(
-            "estimates",
-            Array2::from_shape_vec((n, 3), est)
-                .map_err(|e| shape_err(e.to_string()))?
-                .into_pyarray(py),
-        )?;
-        d.set_item(
-            "processed",
-            Array1::from_iter(steps.iter().map(|s| s.processed)).into_pyarray(py),
-        )?;
-        d.set_item(
-            "neff",
-            Array1::from_iter(steps.iter().map(|s| s.neff)).into_pyarray(py),
-        )?;
-        d.set_item(
-            "resampled",
-            Array1::from_iter(steps.iter().map(|s| s.resampled)).into_pyarray(py),
-        )?;
-        Ok(d)
+        feed_many(py, &odoms, &angles, &ranges, &laser_offset, |scan| {
+            inner.process(scan)
+        })
     }
 
     /// Current estimate (weighted mean, circular heading).
@@ -255,6 +294,130 @@ impl ClamFilter {
             self.inner.best_map().clone(),
             self.inner.config().crm.tile_size,
         )
+    }
+
+    /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
+    fn map_memory(&self) -> (usize, usize, usize) {
+        self.inner.map_memory()
+    }
+}
+
+/// RBPF-OGM: the GMapping-style baseline (log-odds maps, scan matching, improved proposal).
+#[pyclass(module = "crlam._native")]
+pub struct OgmFilter {
+    inner: RbpfOgm,
+}
+
+#[pymethods]
+impl OgmFilter {
+    #[new]
+    #[pyo3(signature = (initial_pose, *, n_particles=30, resolution=0.05, usable_range=30.0, motion="thrun", motion_params=None,
+        linear_update=0.0, angular_update=0.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0), seed=0))]
+    fn new(
+        initial_pose: PyReadonlyArray1<'_, f64>,
+        n_particles: usize,
+        resolution: f64,
+        usable_range: f64,
+        motion: &str,
+        motion_params: Option<Vec<f64>>,
+        linear_update: f64,
+        angular_update: f64,
+        resample_threshold: f64,
+        init_sigma: (f64, f64, f64),
+        seed: u64,
+    ) -> PyResult<Self> {
+        let defaults = OgmFilterConfig::default();
+        let motion = match (motion, &motion_params) {
+            ("thrun", None) => OgmFilterConfig::gmapping_motion(),
+            _ => motion_model(motion, motion_params)?,
+        };
+        let cfg = OgmFilterConfig {
+            n_particles,
+            motion,
+            trigger: UpdateTrigger {
+                linear: linear_update,
+                angular: angular_update,
+            },
+            resample_threshold,
+            geometry: GridGeometry::new([0.0, 0.0], resolution).py_err()?,
+            log_odds: LogOddsParams {
+                z_max: usable_range,
+                ..defaults.log_odds
+            },
+            // Readings arrive with no-returns as inf; every finite one is usable up to usable_range.
+            max_range: 1e6,
+            init_sigma: [init_sigma.0, init_sigma.1, init_sigma.2],
+            seed,
+            ..defaults
+        };
+        Ok(Self {
+            inner: RbpfOgm::new(cfg, pose3(&initial_pose)?).py_err()?,
+        })
+    }
+
+    /// Feeds one scan: (processed, estimate (x, y, θ), N_eff, resampled).
+    fn process(
+        &mut self,
+        py: Python<'_>,
+        odom: PyReadonlyArray1<'_, f64>,
+        angles: PyReadonlyArray1<'_, f64>,
+        ranges: PyReadonlyArray1<'_, f64>,
+        laser_offset: PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
+        let scan = scan_of(&odom, &angles, &ranges, &laser_offset)?;
+        let inner = &mut self.inner;
+        let s = py.allow_threads(|| inner.process(&scan)).py_err()?;
+        Ok(step_tuple(s))
+    }
+
+    /// Feeds n scans; see ``ClamFilter.process_many``.
+    fn process_many<'py>(
+        &mut self,
+        py: Python<'py>,
+        odoms: PyReadonlyArray2<'py, f64>,
+        angles: PyReadonlyArray1<'py, f64>,
+        ranges: PyReadonlyArray2<'py, f64>,
+        laser_offset: PyReadonlyArray1<'py, f64>,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let inner = &mut self.inner;
+        feed_many(py, &odoms, &angles, &ranges, &laser_offset, |scan| {
+            inner.process(scan)
+        })
+    }
+
+    fn estimate(&self) -> (f64, f64, f64) {
+        let e = self.inner.estimate();
+        (e[0], e[1], e[2])
+    }
+
+    fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        poses_array(py, self.inner.poses())
+    }
+
+    fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        Array1::from_vec(self.inner.log_weights()).into_pyarray(py)
+    }
+
+    #[getter]
+    fn best_index(&self) -> usize {
+        self.inner.best_index()
+    }
+    #[getter]
+    fn n_resamples(&self) -> usize {
+        self.inner.n_resamples()
+    }
+    #[getter]
+    fn n_processed(&self) -> usize {
+        self.inner.n_processed()
+    }
+    #[getter]
+    fn n_particles(&self) -> usize {
+        self.inner.particles().len()
+    }
+
+    /// The best particle's log-odds map (a copy-on-write copy).
+    fn best_map(&self) -> LogOddsMap {
+        LogOddsMap::from_core(self.inner.best_map().clone())
     }
 
     /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.

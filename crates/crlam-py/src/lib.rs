@@ -17,6 +17,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::CrmMap>()?;
     m.add_class::<maps::LogOddsMap>()?;
     m.add_class::<filters::ClamFilter>()?;
+    m.add_class::<filters::OgmFilter>()?;
     m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
     m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;

@@ -478,6 +478,13 @@ pub struct LogOddsMap {
     inner: LogOddsGrid,
 }
 
+impl LogOddsMap {
+    /// Wraps a core grid (e.g. a particle's).
+    pub fn from_core(inner: LogOddsGrid) -> Self {
+        Self { inner }
+    }
+}
+
 #[pymethods]
 impl LogOddsMap {
     #[new]

@@ -15,6 +15,7 @@ from tqdm import tqdm
 from crlam import _native
 from crlam.eval.trajectory import ReferenceErrors, reference_errors
 from crlam.experiments.known_poses import unknown_mask
+from crlam.mapping import ConfidenceRichMap
 from crlam.sim.simulate import SimulatedLog
 from crlam.slam import SlamConfig, SlamRun
 
@@ -82,6 +83,7 @@ def save_localization_figures(res: LocalizationResult, truth: NDArray[np.float64
     from crlam.viz.trajectories import save_error_figure, save_trajectories_on_map
 
     crm = res.clam_run.best_map()
+    assert isinstance(crm, ConfidenceRichMap)
     mean, _, ent = crm.layers()
     trajs = {"ground truth": truth[: res.n_scans], **res.estimates}
     a = save_trajectories_on_map(

@@ -81,8 +81,8 @@ def run_real_logs(
                     group = [done[s.name] for s in specs if s.name.startswith(f"{ds}_{m}_{n}p_{rg}m_") and s.name in done]
                     if not group:
                         continue
-                    trans = np.array([g["relations"]["trans_mean"] for g in group])
-                    rot = np.array([g["relations"]["rot_mean"] for g in group])
+                    trans = np.array([g["relations"]["trans_mean_m"] for g in group])
+                    rot = np.array([g["relations"]["rot_mean_deg"] for g in group])
                     rows.append(
                         {
                             "dataset": ds,
@@ -92,7 +92,7 @@ def run_real_logs(
                             "seeds": len(group),
                             "trans_mean_m": float(trans.mean()),
                             "trans_std_over_seeds_m": float(trans.std(ddof=1)) if len(group) > 1 else 0.0,
-                            "trans_within_run_std_m": float(np.mean([g["relations"]["trans_std"] for g in group])),
+                            "trans_within_run_std_m": float(np.mean([g["relations"]["trans_std_m"] for g in group])),
                             "rot_mean_deg": float(rot.mean()),
                             "wall_time_s": float(np.mean([g["wall_time_s"] for g in group])),
                             "peak_rss_mb": float(np.max([g["peak_rss_mb"] for g in group])),

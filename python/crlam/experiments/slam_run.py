@@ -151,12 +151,17 @@ def run_slam_log(
         # A run cut short by --max-scans cannot cover every relation; the others are counted.
         rel = relations_error(stamps, poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
         metrics["relations"] = {"path": str(relations), **rel.summary()}
-    best = run.best_map()
-    mean, var, ent = best.layers()
-    save_belief(out / "belief.npz", best.to_archive())
     from crlam.experiments.known_poses import unknown_mask
+    from crlam.mapping import ConfidenceRichMap
 
-    unknown = unknown_mask(best, ent)
+    best = run.best_map()
+    if isinstance(best, ConfidenceRichMap):
+        mean, _, ent = best.layers()
+        save_belief(out / "belief.npz", best.to_archive())
+        unknown = unknown_mask(best, ent)
+    else:
+        mean = best.probability()
+        unknown = best.native.log_odds(best.region()) == 0.0
     write_nav2_map(
         out / "map.pgm", np.where(unknown, np.nan, mean.values), resolution=mean.resolution, origin=(*mean.origin, 0.0)
     )

@@ -7,6 +7,10 @@
 
 pub mod clam;
 pub mod common;
+pub mod ogm;
+pub mod scanmatch;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
 pub use common::{weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger};
+pub use ogm::{OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
+pub use scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};

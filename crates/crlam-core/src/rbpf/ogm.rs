@@ -1,0 +1,644 @@
+//! RBPF-OGM: the GMapping-style baseline (Grisetti, Stachniss, Burgard 2007) that RBPF-CLAM is
+//! compared against.
+//!
+//! Per particle: a pose, a log-weight and its own log-odds grid ([`LogOddsGrid`], tiles shared
+//! copy-on-write with its relatives). Per processed scan, for every particle (in parallel, each
+//! with its own random stream, so results do not depend on the thread count):
+//!
+//! 1. draw x̃ from the motion model from the particle pose (the scan matcher's starting point);
+//! 2. hill-climb the scan score on the particle's map from x̃ ([`ScanMatcher::optimize`]);
+//! 3. if the score exceeds `min_score`: evaluate likelihood × motion prior on a lattice around the
+//!    match, fit a Gaussian, draw the new pose from it, and add log η = log Σ_k L_k p_k ΔV to the
+//!    log-weight (the improved proposal, paper Eqs. 9–11); otherwise keep x̃ and add log L(x̃)
+//!    (the plain motion proposal's weight);
+//! 4. integrate the scan into the particle's map at the new pose.
+//!
+//! Then weights are normalised, N_eff computed, and if N_eff < threshold·n the particles are
+//! resampled systematically (children share their parent's map tiles).
+//!
+//! GMapping's weight smoothing ("ogain") is kept: weights are normalised as
+//! exp((ℓ − ℓ_max) / (ogain · n)) for N_eff, resampling and the estimate; ogain = 0 uses the
+//! textbook weights exp(ℓ − ℓ_max).
+
+use rayon::prelude::*;
+
+use super::common::{weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger};
+use super::scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
+use crate::error::{config_err, Result};
+use crate::grid::{check_pose, GridGeometry};
+use crate::motion::MotionModel;
+use crate::ogm::{LogOddsGrid, LogOddsParams};
+use crate::pose::{compose, wrap, Pose};
+use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
+use crate::rng::Rng;
+
+/// Random-stream step reserved for the initial particle spread; processed scans use 1, 2, ...
+const INIT_STEP: u64 = 0;
+/// Random-stream index reserved for the resampling offset u0 (particle indices are smaller).
+const RESAMPLE_INDEX: u64 = u64::MAX;
+/// Largest particle count accepted (memory guard).
+const MAX_PARTICLES: usize = 100_000;
+
+/// Configuration of [`RbpfOgm`]. GMapping's parameter names are given in brackets.
+#[derive(Clone, Debug, PartialEq)]
+pub struct OgmFilterConfig {
+    /// [particles] 30.
+    pub n_particles: usize,
+    /// Odometry model. Default: Thrun's model with GMapping's srr 0.1, srt 0.2, str 0.1,
+    /// stt 0.2 as α = (stt², str², srr², srt²) = (0.04, 0.01, 0.01, 0.04): GMapping's
+    /// coefficients scale standard deviations, Thrun's α scale variances, so the squares give the
+    /// same noise for pure translations and pure rotations.
+    pub motion: MotionModel,
+    /// [linearUpdate, angularUpdate] Default: every scan. GMapping uses 1.0 m / 0.5 rad.
+    pub trigger: UpdateTrigger,
+    /// [resampleThreshold] Resample when N_eff < threshold · n. 0.5.
+    pub resample_threshold: f64,
+    /// [ogain] Weight smoothing: log-weights are divided by ogain · n before normalising. 3.
+    /// 0 disables it (textbook weights).
+    pub weight_smoothing: f64,
+    /// [delta] Map origin and resolution. 0.05 m, as GMapping (its scan matcher steps and
+    /// kernel are tuned for 5 cm cells).
+    pub geometry: GridGeometry,
+    /// Tile side of the copy-on-write map storage (cells). 32.
+    pub tile_size: usize,
+    /// Inverse sensor model of the maps. Its `z_max` is the usable range [maxUrange]: longer
+    /// readings are cropped to it for mapping (free space only) and not used for matching.
+    /// Default: [`LogOddsParams::new`] with z_max = 30 m.
+    pub log_odds: LogOddsParams,
+    /// [maxrange] Readings at or above this (and non-finite ones) are ignored entirely. 80 m.
+    pub max_range: f64,
+    /// Scan matcher (score, likelihood, hill climbing, beam stride).
+    pub matcher: MatcherParams,
+    /// Improved proposal (minimum score, lattice).
+    pub proposal: ProposalParams,
+    /// Standard deviations (m along, m across, rad) added in quadrature to the motion prior used
+    /// inside the improved proposal. Thrun's model has zero variance when the odometry did not
+    /// move, which would make the prior a point mass and every lattice pose impossible; the floor
+    /// stands for unmodelled slip per processed scan. (0.01, 0.01, 0.01).
+    pub motion_floor: [f64; 3],
+    /// Seed of all random streams.
+    pub seed: u64,
+    /// Standard deviations (m, m, rad) of the initial particle spread around the initial pose.
+    /// 0 (GMapping starts all particles at the same pose).
+    pub init_sigma: [f64; 3],
+}
+
+impl Default for OgmFilterConfig {
+    fn default() -> Self {
+        Self {
+            n_particles: 30,
+            motion: Self::gmapping_motion(),
+            trigger: UpdateTrigger::every_scan(),
+            resample_threshold: 0.5,
+            weight_smoothing: 3.0,
+            geometry: GridGeometry {
+                origin: [0.0, 0.0],
+                resolution: 0.05,
+            },
+            tile_size: 32,
+            log_odds: LogOddsParams::new(30.0),
+            max_range: 80.0,
+            matcher: MatcherParams::default(),
+            proposal: ProposalParams::default(),
+            motion_floor: [0.01, 0.01, 0.01],
+            seed: 0,
+            init_sigma: [0.0; 3],
+        }
+    }
+}
+
+impl OgmFilterConfig {
+    /// GMapping's default odometry noise (srr 0.1, srt 0.2, str 0.1, stt 0.2) as Thrun's α.
+    pub fn gmapping_motion() -> MotionModel {
+        MotionModel::Thrun {
+            alpha: [0.04, 0.01, 0.01, 0.04],
+        }
+    }
+
+    /// Checks every field; the error names the offending one.
+    pub fn validate(&self) -> Result<()> {
+        if !(1..=MAX_PARTICLES).contains(&self.n_particles) {
+            return Err(config_err(
+                "n_particles",
+                format!("must be in 1..={MAX_PARTICLES}, got {}", self.n_particles),
+            ));
+        }
+        self.motion.validate()?;
+        self.trigger.validate()?;
+        if !(0.0..=1.0).contains(&self.resample_threshold) {
+            return Err(config_err(
+                "resample_threshold",
+                format!("must be in [0, 1], got {}", self.resample_threshold),
+            ));
+        }
+        if !(self.weight_smoothing.is_finite() && self.weight_smoothing >= 0.0) {
+            return Err(config_err(
+                "weight_smoothing",
+                "must be finite and >= 0 (0 disables it)",
+            ));
+        }
+        GridGeometry::new(self.geometry.origin, self.geometry.resolution)?;
+        if !(self.tile_size.is_power_of_two() && (4..=256).contains(&self.tile_size)) {
+            return Err(config_err(
+                "tile_size",
+                format!("must be a power of two in 4..=256, got {}", self.tile_size),
+            ));
+        }
+        self.log_odds.validate()?;
+        if !(self.max_range > 0.0 && self.max_range >= self.log_odds.z_max) {
+            return Err(config_err(
+                "max_range",
+                format!(
+                    "must be >= the usable range log_odds.z_max = {}, got {}",
+                    self.log_odds.z_max, self.max_range
+                ),
+            ));
+        }
+        self.matcher.validate()?;
+        self.proposal.validate()?;
+        if !self.motion_floor.iter().all(|v| v.is_finite() && *v > 0.0) {
+            return Err(config_err("motion_floor", "must be finite and > 0"));
+        }
+        if !self.init_sigma.iter().all(|v| v.is_finite() && *v >= 0.0) {
+            return Err(config_err("init_sigma", "must be finite and >= 0"));
+        }
+        Ok(())
+    }
+}
+
+/// One particle: pose, log-weight (normalised: the weights exp(ℓ) sum to 1) and map.
+#[derive(Clone, Debug)]
+pub struct OgmParticle {
+    pub pose: Pose,
+    pub log_w: f64,
+    pub map: LogOddsGrid,
+}
+
+/// Map memory summed over particles. A tile shared by k particles is counted k times in
+/// `allocated_tiles` and `bytes_allocated`, and also in `shared_tiles`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct OgmMemoryStats {
+    pub n_particles: usize,
+    pub allocated_tiles: usize,
+    pub shared_tiles: usize,
+    pub bytes_allocated: usize,
+}
+
+/// Gaussian approximation of p(x | x', u) evaluated by the improved proposal: independent
+/// normals on the residual from x' ⊕ u along and across the direction of travel and in heading.
+/// Exact (up to the floor) for [`MotionModel::Gaussian`]; for Thrun's model it linearises the
+/// rot1/trans/rot2 noise and drops the across/heading correlation.
+struct MotionPrior {
+    mean: Pose,
+    /// sin and cos of the direction of the along axis.
+    frame: (f64, f64),
+    sigma: [f64; 3],
+}
+
+impl MotionPrior {
+    fn new(model: &MotionModel, prev: Pose, u: Pose, n_steps: usize, floor: [f64; 3]) -> Self {
+        let (phi, raw) = match *model {
+            MotionModel::Gaussian { sigma } => {
+                let k = (n_steps.max(1) as f64).sqrt();
+                (prev[2], sigma.map(|s| k * s))
+            }
+            MotionModel::Thrun { alpha } => {
+                let (r1, t, r2) = thrun_parts(u);
+                let s1 = (alpha[0] * r1 * r1 + alpha[1] * t * t).sqrt();
+                let st = (alpha[2] * t * t + alpha[3] * (r1 * r1 + r2 * r2)).sqrt();
+                let s2 = (alpha[0] * r2 * r2 + alpha[1] * t * t).sqrt();
+                (prev[2] + r1, [st, t.abs() * s1, s1.hypot(s2)])
+            }
+        };
+        Self {
+            mean: compose(prev, u),
+            frame: phi.sin_cos(),
+            sigma: [
+                raw[0].hypot(floor[0]),
+                raw[1].hypot(floor[1]),
+                raw[2].hypot(floor[2]),
+            ],
+        }
+    }
+
+    fn log_density(&self, x: Pose) -> f64 {
+        let (s, c) = self.frame;
+        let (dx, dy) = (x[0] - self.mean[0], x[1] - self.mean[1]);
+        let r = [c * dx + s * dy, -s * dx + c * dy, wrap(x[2] - self.mean[2])];
+        (0..3)
+            .map(|i| {
+                -0.5 * (r[i] / self.sigma[i]).powi(2) - self.sigma[i].ln() - 0.918_938_533_204_672_8
+            })
+            .sum()
+    }
+}
+
+/// (rot1, trans, rot2) of an odometry increment, with the same convention as
+/// [`MotionModel::Thrun`]: backward motion keeps rot1 small and makes trans negative.
+fn thrun_parts(u: Pose) -> (f64, f64, f64) {
+    let trans = u[0].hypot(u[1]);
+    if trans < 1e-9 {
+        return (0.0, 0.0, wrap(u[2]));
+    }
+    let mut rot1 = u[1].atan2(u[0]);
+    let mut t = trans;
+    if rot1.abs() > std::f64::consts::FRAC_PI_2 {
+        rot1 = wrap(rot1 + std::f64::consts::PI);
+        t = -trans;
+    }
+    (rot1, t, wrap(u[2] - rot1))
+}
+
+/// Everything a particle needs for one processed scan (shared, read-only).
+struct StepContext<'a> {
+    cfg: &'a OgmFilterConfig,
+    matcher: &'a ScanMatcher,
+    prepared: &'a PreparedScan,
+    u: Pose,
+    n_steps: usize,
+    map_angles: &'a [f64],
+    map_ranges: &'a [f64],
+    laser_offset: Pose,
+    step: u64,
+}
+
+/// Steps 1–4 of the module doc for one particle. Returns whether the match was accepted.
+fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Result<bool> {
+    let mut rng = Rng::stream(ctx.cfg.seed, ctx.step, index as u64);
+    let prev = p.pose;
+    let start = ctx.cfg.motion.sample(prev, ctx.u, ctx.n_steps, &mut rng);
+    let (matched, score) = ctx.matcher.optimize(&p.map, ctx.prepared, start)?;
+    let accepted = score > ctx.cfg.proposal.min_score;
+    let (pose, delta_log_w) = if accepted {
+        let prior = MotionPrior::new(
+            &ctx.cfg.motion,
+            prev,
+            ctx.u,
+            ctx.n_steps,
+            ctx.cfg.motion_floor,
+        );
+        let draw = ctx.matcher.improved_proposal(
+            &p.map,
+            ctx.prepared,
+            matched,
+            |x| prior.log_density(x),
+            &ctx.cfg.proposal,
+            &mut rng,
+        )?;
+        (draw.pose, draw.log_normalizer)
+    } else {
+        let fit = ctx.matcher.evaluate(&p.map, ctx.prepared, start)?;
+        (start, fit.log_likelihood)
+    };
+    p.pose = pose;
+    p.log_w += delta_log_w;
+    p.map.update_scan(
+        compose(pose, ctx.laser_offset),
+        ctx.map_angles,
+        ctx.map_ranges,
+    )?;
+    Ok(accepted)
+}
+
+/// The GMapping-style RBPF.
+///
+/// If `process` returns an error after validation (only possible when a map cannot grow, i.e.
+/// a pose far outside any sensible area), some particles may already have been updated: the
+/// filter should then be discarded.
+#[derive(Clone, Debug)]
+pub struct RbpfOgm {
+    cfg: OgmFilterConfig,
+    matcher: ScanMatcher,
+    particles: Vec<OgmParticle>,
+    tracker: OdometryTracker,
+    initialized: bool,
+    /// Processed scans after the first one (the step of the random streams).
+    step: u64,
+    /// Processed scans, the first one included.
+    n_processed: usize,
+    /// Estimate at the last processed scan.
+    estimate: Pose,
+    n_resamples: usize,
+    last_match_failures: usize,
+}
+
+impl RbpfOgm {
+    /// A filter with every particle at `initial_pose` (spread by `init_sigma`) and empty maps.
+    pub fn new(cfg: OgmFilterConfig, initial_pose: Pose) -> Result<Self> {
+        cfg.validate()?;
+        check_pose(initial_pose)?;
+        let map = LogOddsGrid::new(cfg.geometry, cfg.log_odds, cfg.tile_size, None)?;
+        let n = cfg.n_particles;
+        let particles = (0..n)
+            .map(|i| {
+                let mut rng = Rng::stream(cfg.seed, INIT_STEP, i as u64);
+                let s = cfg.init_sigma;
+                let pose = [
+                    initial_pose[0] + s[0] * rng.normal(),
+                    initial_pose[1] + s[1] * rng.normal(),
+                    wrap(initial_pose[2] + s[2] * rng.normal()),
+                ];
+                OgmParticle {
+                    pose,
+                    log_w: -(n as f64).ln(),
+                    map: map.clone(),
+                }
+            })
+            .collect();
+        Ok(Self {
+            matcher: ScanMatcher::new(cfg.matcher)?,
+            cfg,
+            particles,
+            tracker: OdometryTracker::default(),
+            initialized: false,
+            step: 0,
+            n_processed: 0,
+            estimate: initial_pose,
+            n_resamples: 0,
+            last_match_failures: 0,
+        })
+    }
+
+    pub fn config(&self) -> &OgmFilterConfig {
+        &self.cfg
+    }
+
+    /// Feeds one scan. The first scan only builds the maps; later scans are processed when the
+    /// trigger fires, else the estimate is carried forward by odometry.
+    pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
+        scan.validate()?;
+        // Everything that can refuse the input happens before the tracker records the scan.
+        let prepared = PreparedScan::new(
+            scan.angles,
+            scan.ranges,
+            scan.laser_offset,
+            self.cfg.log_odds.z_max,
+            self.cfg.matcher.beam_stride,
+        )?;
+        let (angles, ranges) = self.mapping_beams(scan);
+        let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
+        if !self.initialized {
+            self.initialize(scan, &angles, &ranges)?;
+            self.tracker.processed(scan.odom);
+            self.n_processed += 1;
+            return Ok(FilterStep {
+                processed: true,
+                estimate: self.estimate,
+                neff: self.particles.len() as f64,
+                resampled: false,
+            });
+        }
+        if !fires {
+            return Ok(FilterStep {
+                processed: false,
+                estimate: compose(self.estimate, u),
+                neff: f64::NAN,
+                resampled: false,
+            });
+        }
+        self.step += 1;
+        let ctx = StepContext {
+            cfg: &self.cfg,
+            matcher: &self.matcher,
+            prepared: &prepared,
+            u,
+            n_steps,
+            map_angles: &angles,
+            map_ranges: &ranges,
+            laser_offset: scan.laser_offset,
+            step: self.step,
+        };
+        let accepted: Vec<bool> = self
+            .particles
+            .par_iter_mut()
+            .enumerate()
+            .map(|(i, p)| advance_particle(&ctx, i, p))
+            .collect::<Result<_>>()?;
+        self.last_match_failures = accepted.iter().filter(|a| !**a).count();
+        self.tracker.processed(scan.odom);
+        self.n_processed += 1;
+        let (neff, resampled) = self.reweight_and_resample();
+        Ok(FilterStep {
+            processed: true,
+            estimate: self.estimate,
+            neff,
+            resampled,
+        })
+    }
+
+    /// The beams used for mapping: finite readings below `max_range` (GMapping skips the rest;
+    /// readings between the usable range and `max_range` are cropped by the grid update).
+    fn mapping_beams(&self, scan: &ScanInput) -> (Vec<f64>, Vec<f64>) {
+        scan.angles
+            .iter()
+            .zip(scan.ranges)
+            .filter(|(_, z)| z.is_finite() && **z < self.cfg.max_range)
+            .map(|(a, z)| (*a, *z))
+            .unzip()
+    }
+
+    /// Integrates the first scan. With no initial spread all particles share one map.
+    fn initialize(&mut self, scan: &ScanInput, angles: &[f64], ranges: &[f64]) -> Result<()> {
+        let offset = scan.laser_offset;
+        if self.cfg.init_sigma.iter().all(|s| *s == 0.0) {
+            let first = &mut self.particles[0];
+            first
+                .map
+                .update_scan(compose(first.pose, offset), angles, ranges)?;
+            let map = first.map.clone();
+            for p in &mut self.particles[1..] {
+                p.map = map.clone();
+            }
+        } else {
+            self.particles
+                .par_iter_mut()
+                .map(|p| {
+                    p.map
+                        .update_scan(compose(p.pose, offset), angles, ranges)
+                        .map(|_| ())
+                })
+                .collect::<Result<Vec<()>>>()?;
+        }
+        self.initialized = true;
+        self.estimate = self.mean_pose(&vec![
+            1.0 / self.particles.len() as f64;
+            self.particles.len()
+        ]);
+        Ok(())
+    }
+
+    /// Normalised weights used for N_eff, resampling and the estimate (smoothed if configured).
+    fn resampling_weights(&self) -> Vec<f64> {
+        let n = self.particles.len() as f64;
+        let scale = if self.cfg.weight_smoothing > 0.0 {
+            1.0 / (self.cfg.weight_smoothing * n)
+        } else {
+            1.0
+        };
+        let lw: Vec<f64> = self.particles.iter().map(|p| p.log_w * scale).collect();
+        normalize_log_weights(&lw)
+    }
+
+    /// Normalises the log-weights, resamples when N_eff is low, updates the estimate.
+    fn reweight_and_resample(&mut self) -> (f64, bool) {
+        // Keep log-weights normalised (log Σ exp = 0) so they never drift towards −∞.
+        // Subtracting the log-sum-exp (not taking ln of the normalised weights) keeps particles
+        // whose weight underflows at a finite log-weight.
+        let m = self
+            .particles
+            .iter()
+            .map(|p| p.log_w)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if m.is_finite() {
+            let lse = m + self
+                .particles
+                .iter()
+                .map(|p| (p.log_w - m).exp())
+                .sum::<f64>()
+                .ln();
+            for p in &mut self.particles {
+                p.log_w -= lse;
+            }
+        }
+        let mut w = self.resampling_weights();
+        let neff = effective_sample_size(&w);
+        let n = self.particles.len();
+        let resampled = neff < self.cfg.resample_threshold * n as f64;
+        if resampled {
+            let u0 = Rng::stream(self.cfg.seed, self.step, RESAMPLE_INDEX).uniform();
+            let parents = systematic_resample(&w, u0);
+            let log_n = -(n as f64).ln();
+            self.particles = parents
+                .iter()
+                .map(|&i| OgmParticle {
+                    log_w: log_n,
+                    ..self.particles[i].clone()
+                })
+                .collect();
+            self.n_resamples += 1;
+            w = vec![1.0 / n as f64; n];
+        }
+        self.estimate = self.mean_pose(&w);
+        (neff, resampled)
+    }
+
+    fn mean_pose(&self, w: &[f64]) -> Pose {
+        let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
+        weighted_mean_pose(&poses, w)
+    }
+
+    /// Weighted mean pose (circular heading) at the last processed scan.
+    pub fn estimate(&self) -> Pose {
+        self.estimate
+    }
+
+    /// Index of the highest-weight particle (the lowest index among ties).
+    pub fn best_index(&self) -> usize {
+        let mut best = 0;
+        for (i, p) in self.particles.iter().enumerate() {
+            if p.log_w > self.particles[best].log_w {
+                best = i;
+            }
+        }
+        best
+    }
+
+    /// The particles (pose, normalised log-weight, map).
+    pub fn particles(&self) -> &[OgmParticle] {
+        &self.particles
+    }
+
+    pub fn poses(&self) -> Vec<Pose> {
+        self.particles.iter().map(|p| p.pose).collect()
+    }
+
+    pub fn log_weights(&self) -> Vec<f64> {
+        self.particles.iter().map(|p| p.log_w).collect()
+    }
+
+    /// The map of the highest-weight particle.
+    pub fn best_map(&self) -> &LogOddsGrid {
+        &self.particles[self.best_index()].map
+    }
+
+    /// Number of resampling events so far.
+    pub fn n_resamples(&self) -> usize {
+        self.n_resamples
+    }
+
+    /// Processed scans, the first one included.
+    pub fn n_processed(&self) -> usize {
+        self.n_processed
+    }
+
+    /// Particles whose scan match was rejected at the last processed scan (they used the plain
+    /// motion proposal).
+    pub fn last_match_failures(&self) -> usize {
+        self.last_match_failures
+    }
+
+    /// Map memory summed over particles.
+    /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles: the
+    /// memory the maps really take with copy-on-write sharing.
+    pub fn map_memory(&self) -> (usize, usize, usize) {
+        let mut seen = std::collections::HashSet::new();
+        let (mut bytes, mut refs) = (0, 0);
+        for p in &self.particles {
+            for (addr, b) in p.map.grid().tile_addresses() {
+                refs += 1;
+                if seen.insert(addr) {
+                    bytes += b;
+                }
+            }
+        }
+        (bytes, seen.len(), refs)
+    }
+
+    pub fn memory_stats(&self) -> OgmMemoryStats {
+        let mut s = OgmMemoryStats {
+            n_particles: self.particles.len(),
+            ..Default::default()
+        };
+        for p in &self.particles {
+            let t = p.map.tile_stats();
+            s.allocated_tiles += t.n_allocated;
+            s.shared_tiles += t.n_shared;
+            s.bytes_allocated += t.bytes_allocated;
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn motion_prior_peaks_at_the_prediction_and_is_proper_without_motion() {
+        let m = OgmFilterConfig::gmapping_motion();
+        let prev = [1.0, 2.0, 0.3];
+        let u = [0.5, 0.0, 0.1];
+        let p = MotionPrior::new(&m, prev, u, 1, [0.01; 3]);
+        let at = p.log_density(compose(prev, u));
+        assert!(at > p.log_density(compose(prev, [0.55, 0.0, 0.1])));
+        assert!(at > p.log_density(compose(prev, [0.5, 0.02, 0.1])));
+        let still = MotionPrior::new(&m, prev, [0.0; 3], 1, [0.01; 3]);
+        assert!(still.log_density([1.01, 2.0, 0.3]).is_finite());
+    }
+
+    #[test]
+    fn gaussian_prior_matches_the_model_density() {
+        let m = MotionModel::Gaussian {
+            sigma: [0.02, 0.03, 0.01],
+        };
+        let prev = [0.5, -1.0, 2.0];
+        let u = [0.3, 0.1, -0.2];
+        let p = MotionPrior::new(&m, prev, u, 2, [1e-9; 3]);
+        for d in [[0.01, 0.0, 0.0], [0.0, -0.02, 0.01], [0.03, 0.01, -0.02]] {
+            let x = compose(prev, [u[0] + d[0], u[1] + d[1], u[2] + d[2]]);
+            let a = p.log_density(x);
+            let b = m.log_density(prev, x, u, 2);
+            assert!((a - b).abs() < 1e-6, "{a} vs {b}");
+        }
+    }
+}

@@ -1,0 +1,616 @@
+//! GMapping-style scan matching against a particle's own log-odds grid, and the improved
+//! proposal built on it (Grisetti, Stachniss, Burgard 2007, section IV).
+//!
+//! A beam "matches" when, within a (2k+1)² window of cells around its endpoint, there is an
+//! occupied cell (log-odds > 0, i.e. p > 0.5) whose companion cell, shifted by the same window
+//! offset from the endpoint's "free point" (the point √2·Δ back along the beam), is free
+//! (log-odds < 0). That check rejects the far side of thin walls: a wall seen from the wrong side
+//! has unknown, not free, cells in front of it. The distance d is taken from the endpoint to the
+//! centre of the closest such cell (GMapping uses the mean of the hits in the cell, which a
+//! log-odds grid does not store; cell centres cap the precision at about Δ/2).
+//!
+//! Per matched beam (GMapping's forms; both "sigmas" enter as variances, in m²):
+//! - score      `exp(−d² / score_sigma)`,
+//! - log-lik    `−d² / likelihood_sigma`; an unmatched beam adds `null_likelihood / likelihood_sigma`
+//!   (as if it were off by d² = −null_likelihood m²).
+//!
+//! The score drives the hill-climbing search ([`ScanMatcher::optimize`]); the log-likelihood
+//! drives the proposal and the weights ([`ScanMatcher::improved_proposal`]).
+
+use crate::error::{config_err, Result};
+use crate::grid::{check_pose, GridGeometry};
+use crate::ogm::LogOddsGrid;
+use crate::pose::{wrap, Pose};
+use crate::rng::Rng;
+
+/// Ranges (m) above this are refused as a usable range: they would push endpoints towards the
+/// index limits of the grid.
+const MAX_USABLE_RANGE: f64 = 1e5;
+/// Distance from the endpoint to the "free point", in cells: √2 guarantees that the free point
+/// lies in a different cell than the endpoint whatever the beam direction (GMapping's
+/// freeCellRatio).
+const FREE_CELL_RATIO: f64 = std::f64::consts::SQRT_2;
+/// Hard cap on accepted hill-climbing moves, so a pathological score surface cannot loop long.
+const MAX_MOVES: usize = 1000;
+/// Largest lattice half-width (in steps) of the proposal: (2·3+1)³ = 343 poses per particle.
+const MAX_HALF_STEPS: usize = 3;
+
+/// Index of the cell containing `p`, like [`GridGeometry::cell_of`] but multiplying by the
+/// precomputed inverse resolution and flooring inline (the division and the libm `floor` call
+/// showed in the matcher's profile). It may differ from `cell_of` only for points within an ulp
+/// of a cell boundary, which is immaterial to matching. Exact floor for |v| < 2⁶³, which valid
+/// poses and bounded ranges guarantee.
+#[inline]
+fn cell_of(g: &GridGeometry, inv_res: f64, p: [f64; 2]) -> (i64, i64) {
+    let floor = |v: f64| {
+        let i = v as i64;
+        i - i64::from((i as f64) > v)
+    };
+    (
+        floor((p[0] - g.origin[0]) * inv_res),
+        floor((p[1] - g.origin[1]) * inv_res),
+    )
+}
+
+/// Parameters of the scan matcher (GMapping names in brackets).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MatcherParams {
+    /// [sigma] Score kernel, m²: score per beam exp(−d²/score_sigma). 0.05.
+    pub score_sigma: f64,
+    /// [lsigma] Likelihood kernel, m²: log-lik per beam −d²/likelihood_sigma. 0.075.
+    pub likelihood_sigma: f64,
+    /// [nullLikelihood] Log-lik numerator of an unmatched beam (< 0). −0.5.
+    pub null_likelihood: f64,
+    /// [kernelSize] Half-width k of the search window in cells. 1.
+    pub kernel_size: usize,
+    /// [lstep] Initial translational step of the hill climbing (m). 0.05.
+    pub lstep: f64,
+    /// [astep] Initial rotational step (rad). 0.05.
+    pub astep: f64,
+    /// [iterations] Number of step halvings before the search stops. 5.
+    pub iterations: usize,
+    /// [lskip + 1] Use every `beam_stride`-th beam for score and likelihood. 1.
+    pub beam_stride: usize,
+}
+
+impl Default for MatcherParams {
+    fn default() -> Self {
+        Self {
+            score_sigma: 0.05,
+            likelihood_sigma: 0.075,
+            null_likelihood: -0.5,
+            kernel_size: 1,
+            lstep: 0.05,
+            astep: 0.05,
+            iterations: 5,
+            beam_stride: 1,
+        }
+    }
+}
+
+fn positive(v: f64) -> bool {
+    v.is_finite() && v > 0.0
+}
+
+impl MatcherParams {
+    pub fn validate(&self) -> Result<()> {
+        if !positive(self.score_sigma) {
+            return Err(config_err("matcher.score_sigma", "must be finite and > 0"));
+        }
+        if !positive(self.likelihood_sigma) {
+            return Err(config_err(
+                "matcher.likelihood_sigma",
+                "must be finite and > 0",
+            ));
+        }
+        if !(self.null_likelihood.is_finite() && self.null_likelihood < 0.0) {
+            return Err(config_err(
+                "matcher.null_likelihood",
+                "must be finite and < 0",
+            ));
+        }
+        if self.kernel_size > 5 {
+            return Err(config_err(
+                "matcher.kernel_size",
+                format!("at most 5 cells, got {}", self.kernel_size),
+            ));
+        }
+        if !(positive(self.lstep) && positive(self.astep)) {
+            return Err(config_err(
+                "matcher.lstep/astep",
+                "steps must be finite and > 0",
+            ));
+        }
+        if self.iterations > 30 {
+            return Err(config_err("matcher.iterations", "at most 30 halvings"));
+        }
+        if self.beam_stride == 0 {
+            return Err(config_err("matcher.beam_stride", "must be >= 1"));
+        }
+        Ok(())
+    }
+}
+
+/// Parameters of the improved proposal: the likelihood × motion prior is evaluated on a lattice
+/// of (2h+1)³ poses centred on the match, spanning ±`range` (world x, y, and heading).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProposalParams {
+    /// [minimumScore] A match is accepted when its score exceeds this. 0 (GMapping's default):
+    /// at least one beam must match.
+    pub min_score: f64,
+    /// Half-width h of the lattice in steps (1..=3); K = (2h+1)³ poses. 1 (K = 27, as GMapping).
+    pub half_steps: usize,
+    /// Half-extent of the lattice (m, m, rad). (0.05, 0.05, 0.025): one cell of 5 cm and half
+    /// the angular step, wider than GMapping's 5 cm defaults (±0.01 m, ±0.005 rad), whose
+    /// lattice is much narrower than the likelihood and so yields near-zero covariances.
+    pub range: [f64; 3],
+    /// Standard deviations (m, m, rad) added in quadrature to the fitted covariance, so that it
+    /// stays positive definite when the likelihood is sharper than the lattice spacing.
+    pub regularization: [f64; 3],
+}
+
+impl Default for ProposalParams {
+    fn default() -> Self {
+        Self {
+            min_score: 0.0,
+            half_steps: 1,
+            range: [0.05, 0.05, 0.025],
+            regularization: [0.005, 0.005, 0.0025],
+        }
+    }
+}
+
+impl ProposalParams {
+    pub fn validate(&self) -> Result<()> {
+        if !self.min_score.is_finite() {
+            return Err(config_err("proposal.min_score", "must be finite"));
+        }
+        if !(1..=MAX_HALF_STEPS).contains(&self.half_steps) {
+            return Err(config_err(
+                "proposal.half_steps",
+                format!("must be in 1..={MAX_HALF_STEPS}, got {}", self.half_steps),
+            ));
+        }
+        if !self.range.iter().all(|&v| positive(v)) {
+            return Err(config_err("proposal.range", "must be finite and > 0"));
+        }
+        if !self.regularization.iter().all(|&v| positive(v)) {
+            return Err(config_err(
+                "proposal.regularization",
+                "must be finite and > 0",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One beam of a prepared scan, in the robot frame.
+#[derive(Clone, Copy, Debug)]
+struct PreparedBeam {
+    /// Endpoint of the reading.
+    end: [f64; 2],
+    /// Unit direction of the beam.
+    dir: [f64; 2],
+}
+
+/// The beams of one scan that take part in matching (strided, hits below the usable range),
+/// precomputed in the robot frame so that evaluating a pose costs no trigonometry per beam.
+/// Built once per scan and shared by all particles.
+#[derive(Clone, Debug, Default)]
+pub struct PreparedScan {
+    beams: Vec<PreparedBeam>,
+}
+
+impl PreparedScan {
+    /// Keeps beams `i` with `i % stride == 0` and a reading `0 < z < usable_range`.
+    pub fn new(
+        angles: &[f64],
+        ranges: &[f64],
+        laser_offset: Pose,
+        usable_range: f64,
+        stride: usize,
+    ) -> Result<Self> {
+        if angles.len() != ranges.len() {
+            return Err(crate::error::CrlamError::Shape(format!(
+                "{} angles but {} ranges",
+                angles.len(),
+                ranges.len()
+            )));
+        }
+        if !(positive(usable_range) && usable_range <= MAX_USABLE_RANGE) {
+            return Err(config_err(
+                "usable_range",
+                format!("must be in (0, {MAX_USABLE_RANGE}], got {usable_range}"),
+            ));
+        }
+        if stride == 0 {
+            return Err(config_err("beam_stride", "must be >= 1"));
+        }
+        check_pose(laser_offset)?;
+        let (s, c) = laser_offset[2].sin_cos();
+        let beams = angles
+            .iter()
+            .zip(ranges)
+            .step_by(stride)
+            .filter(|(a, z)| a.is_finite() && z.is_finite() && **z > 0.0 && **z < usable_range)
+            .map(|(&a, &z)| {
+                let (sa, ca) = a.sin_cos();
+                // Beam direction in the laser frame, rotated into the robot frame.
+                let dir = [c * ca - s * sa, s * ca + c * sa];
+                let end = [laser_offset[0] + z * dir[0], laser_offset[1] + z * dir[1]];
+                PreparedBeam { end, dir }
+            })
+            .collect();
+        Ok(Self { beams })
+    }
+
+    /// Number of beams used for matching.
+    pub fn len(&self) -> usize {
+        self.beams.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.beams.is_empty()
+    }
+}
+
+/// Score and log-likelihood of a scan at one pose.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScanFit {
+    /// Σ over matched beams of exp(−d²/score_sigma).
+    pub score: f64,
+    /// Σ over beams of the per-beam log-likelihood (always finite).
+    pub log_likelihood: f64,
+    /// Beams that found a matching cell.
+    pub matched: usize,
+}
+
+/// Result of the improved proposal for one particle.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProposalDraw {
+    /// The sampled pose.
+    pub pose: Pose,
+    /// log η ≈ log ∫ p(z | m, x) p(x | x', u) dx, by the lattice sum Σ_k L_k p_k ΔV.
+    pub log_normalizer: f64,
+    /// Mean and covariance of the fitted Gaussian (world x, y, heading).
+    pub mean: Pose,
+    pub covariance: [[f64; 3]; 3],
+}
+
+/// Scan matcher over [`LogOddsGrid`]s.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ScanMatcher {
+    pub params: MatcherParams,
+}
+
+impl ScanMatcher {
+    pub fn new(params: MatcherParams) -> Result<Self> {
+        params.validate()?;
+        Ok(Self { params })
+    }
+
+    /// Squared distance from endpoint `e` to the closest occupied cell in the window whose
+    /// companion cell around the free point `f` is free; `None` if no cell qualifies.
+    #[inline]
+    fn best_match(
+        &self,
+        map: &LogOddsGrid,
+        g: &GridGeometry,
+        e: [f64; 2],
+        f: [f64; 2],
+    ) -> Option<f64> {
+        let inv_res = 1.0 / g.resolution;
+        let (ix, iy) = cell_of(g, inv_res, e);
+        let (fx, fy) = cell_of(g, inv_res, f);
+        // `get` is inlined; a read is a tile lookup, the dominant cost of the matcher.
+        let grid = map.grid();
+        let qualifies = |dx: i64, dy: i64| {
+            grid.get(ix + dx, iy + dy)[0] > 0.0 && grid.get(fx + dx, fy + dy)[0] < 0.0
+        };
+        let c0 = g.cell_center(ix, iy);
+        let (ox, oy) = (e[0] - c0[0], e[1] - c0[1]);
+        let res = g.resolution;
+        let dist2 =
+            |dx: i64, dy: i64| (ox - dx as f64 * res).powi(2) + (oy - dy as f64 * res).powi(2);
+        // The endpoint's own cell centre is the closest of the window (|offset| ≤ Δ/2 on each
+        // axis, every other centre is ≥ Δ/2 away on some axis), so when that cell qualifies the
+        // rest of the window cannot do better. This is the common case near the match.
+        if qualifies(0, 0) {
+            return Some(dist2(0, 0));
+        }
+        // Visit offsets nearest-side first on each axis (0, s, −s, 2s, −2s, ... with s the side
+        // of the cell centre the endpoint lies on): a close candidate found early lets the
+        // distance test skip the map reads of farther cells.
+        let k = self.params.kernel_size as i64;
+        let (sx, sy) = (
+            if ox >= 0.0 { 1 } else { -1 },
+            if oy >= 0.0 { 1 } else { -1 },
+        );
+        let nth = |s: i64, j: i64| {
+            if j % 2 == 1 {
+                s * (j + 1) / 2
+            } else {
+                -s * j / 2
+            }
+        };
+        let mut best = f64::INFINITY;
+        for jy in 0..=2 * k {
+            let dy = nth(sy, jy);
+            for jx in 0..=2 * k {
+                let dx = nth(sx, jx);
+                if (dx, dy) == (0, 0) {
+                    continue;
+                }
+                // Distance first: it needs no map read.
+                let d2 = dist2(dx, dy);
+                if d2 < best && qualifies(dx, dy) {
+                    best = d2;
+                }
+            }
+        }
+        best.is_finite().then_some(best)
+    }
+
+    /// Score and log-likelihood of `scan` with the robot at `pose` on `map`.
+    pub fn evaluate(&self, map: &LogOddsGrid, scan: &PreparedScan, pose: Pose) -> Result<ScanFit> {
+        // A valid pose (|x|, |y| ≤ 1e7) and a bounded usable range keep all cell indices far
+        // from integer overflow.
+        check_pose(pose)?;
+        let g = *map.grid().geometry();
+        let back = FREE_CELL_RATIO * g.resolution;
+        let (s, c) = pose[2].sin_cos();
+        let null = self.params.null_likelihood / self.params.likelihood_sigma;
+        let mut fit = ScanFit {
+            score: 0.0,
+            log_likelihood: 0.0,
+            matched: 0,
+        };
+        for b in &scan.beams {
+            let e = [
+                pose[0] + c * b.end[0] - s * b.end[1],
+                pose[1] + s * b.end[0] + c * b.end[1],
+            ];
+            let f = [
+                e[0] - back * (c * b.dir[0] - s * b.dir[1]),
+                e[1] - back * (s * b.dir[0] + c * b.dir[1]),
+            ];
+            match self.best_match(map, &g, e, f) {
+                Some(d2) => {
+                    fit.score += (-d2 / self.params.score_sigma).exp();
+                    fit.log_likelihood -= d2 / self.params.likelihood_sigma;
+                    fit.matched += 1;
+                }
+                None => fit.log_likelihood += null,
+            }
+        }
+        Ok(fit)
+    }
+
+    /// Hill climbing from `start` (GMapping's `optimize`): try ±lstep in world x and y and
+    /// ±astep in heading, move to the best neighbour while the score strictly improves, else
+    /// halve both steps; stop after `iterations` halvings. Returns the best pose and its score.
+    pub fn optimize(
+        &self,
+        map: &LogOddsGrid,
+        scan: &PreparedScan,
+        start: Pose,
+    ) -> Result<(Pose, f64)> {
+        let mut best = start;
+        let mut best_score = self.evaluate(map, scan, start)?.score;
+        let (mut l, mut a) = (self.params.lstep, self.params.astep);
+        let mut halvings = 0;
+        let mut moves = 0;
+        // Index of the move that led to `best`; its reverse (index ^ 1) leads back to the
+        // previous pose, whose score is known to be lower, so it is not evaluated again.
+        let mut last_move: Option<usize> = None;
+        while halvings <= self.params.iterations && moves < MAX_MOVES {
+            let steps = [
+                [l, 0.0, 0.0],
+                [-l, 0.0, 0.0],
+                [0.0, l, 0.0],
+                [0.0, -l, 0.0],
+                [0.0, 0.0, a],
+                [0.0, 0.0, -a],
+            ];
+            let mut cand: Option<(usize, Pose, f64)> = None;
+            for (i, d) in steps.iter().enumerate() {
+                if last_move == Some(i ^ 1) {
+                    continue;
+                }
+                let p = [best[0] + d[0], best[1] + d[1], wrap(best[2] + d[2])];
+                let s = self.evaluate(map, scan, p)?.score;
+                if s > cand.map_or(best_score, |c| c.2) {
+                    cand = Some((i, p, s));
+                }
+            }
+            match cand {
+                Some((i, p, s)) => {
+                    best = p;
+                    best_score = s;
+                    last_move = Some(i);
+                    moves += 1;
+                }
+                None => {
+                    l *= 0.5;
+                    a *= 0.5;
+                    halvings += 1;
+                    last_move = None;
+                }
+            }
+        }
+        Ok((best, best_score))
+    }
+
+    /// The improved proposal around the matched pose `center`: evaluate
+    /// log L_k + log_prior(x_k) on the lattice, fit a Gaussian to the normalised values (mean and
+    /// covariance of the lattice offsets, headings as offsets from `center` so the cut at ±π
+    /// does not matter), draw the new pose from it, and return log η = LSE_k(...) + log ΔV.
+    pub fn improved_proposal<F: Fn(Pose) -> f64>(
+        &self,
+        map: &LogOddsGrid,
+        scan: &PreparedScan,
+        center: Pose,
+        log_prior: F,
+        params: &ProposalParams,
+        rng: &mut Rng,
+    ) -> Result<ProposalDraw> {
+        let h = params.half_steps as i64;
+        let step = params.range.map(|r| r / h as f64);
+        let side = (2 * h + 1) as usize;
+        let mut values = Vec::with_capacity(side * side * side);
+        for ix in -h..=h {
+            for iy in -h..=h {
+                for it in -h..=h {
+                    let o = [
+                        ix as f64 * step[0],
+                        iy as f64 * step[1],
+                        it as f64 * step[2],
+                    ];
+                    let x = [center[0] + o[0], center[1] + o[1], wrap(center[2] + o[2])];
+                    let lw = self.evaluate(map, scan, x)?.log_likelihood + log_prior(x);
+                    values.push((o, lw));
+                }
+            }
+        }
+        let (mean_off, cov, lse) = fit_gaussian(&values, params.regularization);
+        let l = cholesky3(&cov).ok_or_else(|| crate::error::CrlamError::NonFinite {
+            field: "proposal covariance",
+            value: cov[0][0],
+        })?;
+        let n = [rng.normal(), rng.normal(), rng.normal()];
+        let mut pose = [0.0; 3];
+        for r in 0..3 {
+            let noise: f64 = (0..=r).map(|c| l[r][c] * n[c]).sum();
+            pose[r] = center[r] + mean_off[r] + noise;
+        }
+        pose[2] = wrap(pose[2]);
+        let mean = [
+            center[0] + mean_off[0],
+            center[1] + mean_off[1],
+            wrap(center[2] + mean_off[2]),
+        ];
+        let log_volume = (step[0] * step[1] * step[2]).ln();
+        Ok(ProposalDraw {
+            pose,
+            log_normalizer: lse + log_volume,
+            mean,
+            covariance: cov,
+        })
+    }
+}
+
+/// Weighted mean and covariance of lattice offsets with log-weights, plus their logsumexp.
+/// Weights are exp(lw − max), so the largest is 1 and the sum is ≥ 1 (no division by zero);
+/// a non-finite log-weight counts as zero weight.
+fn fit_gaussian(values: &[([f64; 3], f64)], reg: [f64; 3]) -> ([f64; 3], [[f64; 3]; 3], f64) {
+    let m = values
+        .iter()
+        .map(|v| v.1)
+        .filter(|v| v.is_finite())
+        .fold(f64::NEG_INFINITY, f64::max);
+    let weight = |lw: f64| {
+        if lw.is_finite() && m.is_finite() {
+            (lw - m).exp()
+        } else {
+            0.0
+        }
+    };
+    let mut sw = 0.0;
+    let mut mean = [0.0; 3];
+    for (o, lw) in values {
+        let w = weight(*lw);
+        sw += w;
+        for i in 0..3 {
+            mean[i] += w * o[i];
+        }
+    }
+    if sw <= 0.0 {
+        // Every value −∞ (cannot happen with a finite prior): fall back to the centre.
+        let cov = [
+            [reg[0] * reg[0], 0.0, 0.0],
+            [0.0, reg[1] * reg[1], 0.0],
+            [0.0, 0.0, reg[2] * reg[2]],
+        ];
+        return ([0.0; 3], cov, f64::NEG_INFINITY);
+    }
+    mean = mean.map(|v| v / sw);
+    let mut cov = [[0.0; 3]; 3];
+    for (o, lw) in values {
+        let w = weight(*lw) / sw;
+        let d = [o[0] - mean[0], o[1] - mean[1], o[2] - mean[2]];
+        for r in 0..3 {
+            for c in 0..3 {
+                cov[r][c] += w * d[r] * d[c];
+            }
+        }
+    }
+    for i in 0..3 {
+        cov[i][i] += reg[i] * reg[i];
+    }
+    (mean, cov, m + sw.ln())
+}
+
+/// Lower Cholesky factor of a symmetric 3×3 matrix; `None` unless positive definite.
+pub fn cholesky3(a: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let mut l = [[0.0; 3]; 3];
+    for r in 0..3 {
+        for c in 0..=r {
+            let s: f64 = (0..c).map(|k| l[r][k] * l[c][k]).sum();
+            if r == c {
+                let d = a[r][r] - s;
+                if !(d.is_finite() && d > 0.0) {
+                    return None;
+                }
+                l[r][c] = d.sqrt();
+            } else {
+                l[r][c] = (a[r][c] - s) / l[c][c];
+            }
+        }
+    }
+    Some(l)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_reconstructs_and_refuses_indefinite() {
+        let a = [[4.0, 2.0, 0.4], [2.0, 5.0, 1.0], [0.4, 1.0, 3.0]];
+        let l = cholesky3(&a).unwrap();
+        for r in 0..3 {
+            for c in 0..3 {
+                let v: f64 = (0..3).map(|k| l[r][k] * l[c][k]).sum();
+                assert!((v - a[r][c]).abs() < 1e-12);
+            }
+        }
+        assert!(cholesky3(&[[1.0, 2.0, 0.0], [2.0, 1.0, 0.0], [0.0, 0.0, 1.0]]).is_none());
+    }
+
+    #[test]
+    fn gaussian_fit_of_a_symmetric_lattice_is_centred() {
+        let mut v = Vec::new();
+        for i in -1..=1 {
+            let o = [i as f64 * 0.1, 0.0, 0.0];
+            v.push((o, -(i as f64).powi(2)));
+        }
+        let (m, cov, lse) = fit_gaussian(&v, [1e-3; 3]);
+        assert!(m.iter().all(|x| x.abs() < 1e-12));
+        let w = (-1f64).exp();
+        let var = 2.0 * w * 0.01 / (1.0 + 2.0 * w);
+        assert!((cov[0][0] - var - 1e-6).abs() < 1e-12);
+        assert!((lse - (1.0 + 2.0 * w).ln()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn prepared_scan_filters_and_strides() {
+        let a = [0.0, 0.1, 0.2, 0.3, 0.4];
+        let z = [1.0, f64::INFINITY, 2.0, 0.0, 9.0];
+        let s = PreparedScan::new(&a, &z, [0.0; 3], 5.0, 1).unwrap();
+        assert_eq!(s.len(), 2);
+        let s = PreparedScan::new(&a, &z, [0.0; 3], 5.0, 2).unwrap();
+        assert_eq!(s.len(), 2); // beams 0 and 2; 4 is beyond the usable range
+        assert!(PreparedScan::new(&a, &z[..3], [0.0; 3], 5.0, 1).is_err());
+        assert!(PreparedScan::new(&a, &z, [0.0; 3], f64::NAN, 1).is_err());
+    }
+}

@@ -1,0 +1,439 @@
+//! RBPF-OGM (the GMapping-style baseline) on a synthetic room with boxes: it beats raw odometry,
+//! its result does not depend on the number of threads, its scan matcher recovers a known
+//! offset, and its configuration is validated.
+
+use std::time::Instant;
+
+use crlam_core::error::CrlamError;
+use crlam_core::grid::GridGeometry;
+use crlam_core::motion::MotionModel;
+use crlam_core::ogm::{LogOddsGrid, LogOddsParams};
+use crlam_core::pose::{between, compose, wrap, Pose};
+use crlam_core::rbpf::{
+    FilterStep, OgmFilterConfig, PreparedScan, RbpfOgm, ScanInput, ScanMatcher, UpdateTrigger,
+};
+use crlam_core::rng::Rng;
+use crlam_core::sim::WorldRaster;
+
+const RES: f64 = 0.05;
+const NX: usize = 260; // 13 m
+const NY: usize = 180; // 9 m
+const Z_MAX: f64 = 10.0;
+const LASER: Pose = [0.1, 0.0, 0.0];
+
+/// A 12 m × 8 m room (walls 0.2 m thick, lower-left inner corner at (0.5, 0.5)) with boxes and
+/// wall protrusions, none on the robot's path.
+fn world() -> Vec<u8> {
+    let mut occ = vec![0u8; NX * NY];
+    let mut rect = |x0: f64, y0: f64, x1: f64, y1: f64| {
+        let c = |v: f64| (v / RES).round() as usize;
+        for y in c(y0)..c(y1) {
+            for x in c(x0)..c(x1) {
+                occ[y * NX + x] = 1;
+            }
+        }
+    };
+    rect(0.3, 0.3, 12.7, 0.5);
+    rect(0.3, 8.5, 12.7, 8.7);
+    rect(0.3, 0.3, 0.5, 8.7);
+    rect(12.5, 0.3, 12.7, 8.7);
+    rect(5.5, 3.8, 7.5, 5.2); // centre block
+    rect(0.5, 0.5, 1.3, 1.1); // corner boxes
+    rect(11.6, 7.7, 12.5, 8.5);
+    rect(4.2, 7.6, 4.6, 8.5); // protrusions
+    rect(8.6, 0.5, 9.0, 1.3);
+    rect(2.5, 4.2, 2.9, 4.6); // pillar inside the loop
+    occ
+}
+
+fn angles() -> Vec<f64> {
+    (0..180)
+        .map(|i| -std::f64::consts::FRAC_PI_2 + i as f64 * std::f64::consts::PI / 179.0)
+        .collect()
+}
+
+/// True poses on an ellipse around the centre block, noisy odometry, noisy ranges.
+struct Run {
+    truth: Vec<Pose>,
+    odom: Vec<Pose>,
+    angles: Vec<f64>,
+    ranges: Vec<Vec<f64>>,
+}
+
+fn truth_on_ellipse(n: usize, turns: f64) -> Vec<Pose> {
+    let (cx, cy, rx, ry) = (6.5, 4.5, 4.3, 2.6);
+    (0..n)
+        .map(|k| {
+            let s = turns * 2.0 * std::f64::consts::PI * k as f64 / n as f64;
+            let (dx, dy) = (-rx * s.sin(), ry * s.cos());
+            [cx + rx * s.cos(), cy + ry * s.sin(), dy.atan2(dx)]
+        })
+        .collect()
+}
+
+fn cast(truth: &[Pose], angles: &[f64], occ: &[u8]) -> Vec<Vec<f64>> {
+    let g = GridGeometry::new([0.0, 0.0], RES).unwrap();
+    let w = WorldRaster::new(g, NX, NY, occ).unwrap();
+    let sensors: Vec<Pose> = truth.iter().map(|p| compose(*p, LASER)).collect();
+    let mut flat = vec![0.0; truth.len() * angles.len()];
+    w.cast(&sensors, angles, Z_MAX, &mut flat).unwrap();
+    flat.chunks(angles.len()).map(|c| c.to_vec()).collect()
+}
+
+fn simulate(n: usize, turns: f64) -> Run {
+    let occ = world();
+    let angles = angles();
+    let truth = truth_on_ellipse(n, turns);
+    let mut rng = Rng::new(11);
+    let noise = MotionModel::Gaussian {
+        sigma: [0.01, 0.005, 0.008],
+    };
+    let mut odom = vec![[0.0; 3]];
+    for k in 1..n {
+        let u = between(truth[k - 1], truth[k]);
+        odom.push(noise.sample(odom[k - 1], u, 1, &mut rng));
+    }
+    let mut ranges = cast(&truth, &angles, &occ);
+    for scan in &mut ranges {
+        for z in scan.iter_mut().filter(|z| z.is_finite()) {
+            *z += 0.01 * rng.normal();
+        }
+    }
+    Run {
+        truth,
+        odom,
+        angles,
+        ranges,
+    }
+}
+
+fn config() -> OgmFilterConfig {
+    OgmFilterConfig {
+        log_odds: LogOddsParams::new(Z_MAX - 0.5),
+        max_range: Z_MAX,
+        trigger: UpdateTrigger {
+            linear: 0.25,
+            angular: 0.25,
+        },
+        seed: 7,
+        ..Default::default()
+    }
+}
+
+fn run_filter(run: &Run, cfg: OgmFilterConfig) -> (RbpfOgm, Vec<FilterStep>) {
+    let mut f = RbpfOgm::new(cfg, run.truth[0]).unwrap();
+    let steps = run
+        .odom
+        .iter()
+        .zip(&run.ranges)
+        .map(|(o, r)| {
+            f.process(&ScanInput {
+                odom: *o,
+                angles: &run.angles,
+                ranges: r,
+                laser_offset: LASER,
+            })
+            .unwrap()
+        })
+        .collect();
+    (f, steps)
+}
+
+fn position_error(a: Pose, b: Pose) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
+}
+
+/// Odometry expressed in the world frame (it starts at the first true pose).
+fn odometry_in_world(run: &Run) -> Vec<Pose> {
+    run.odom
+        .iter()
+        .map(|o| compose(run.truth[0], between(run.odom[0], *o)))
+        .collect()
+}
+
+#[test]
+fn beats_raw_odometry_on_a_loop() {
+    let run = simulate(240, 1.15);
+    let t0 = Instant::now();
+    let (f, steps) = run_filter(&run, config());
+    let secs = t0.elapsed().as_secs_f64();
+    let n_proc = steps.iter().filter(|s| s.processed).count();
+    let odo = odometry_in_world(&run);
+    let n = run.truth.len() as f64;
+    let e_filter: f64 = steps
+        .iter()
+        .zip(&run.truth)
+        .map(|(s, t)| position_error(s.estimate, *t))
+        .sum::<f64>()
+        / n;
+    let e_odom: f64 = odo
+        .iter()
+        .zip(&run.truth)
+        .map(|(o, t)| position_error(*o, *t))
+        .sum::<f64>()
+        / n;
+    let last = run.truth.len() - 1;
+    let final_filter = position_error(steps[last].estimate, run.truth[last]);
+    let final_odom = position_error(odo[last], run.truth[last]);
+    let heading = wrap(steps[last].estimate[2] - run.truth[last][2]).abs();
+    eprintln!(
+        "ogm: {n_proc} processed scans in {secs:.2} s ({:.1} scans/s); mean err {e_filter:.3} m \
+         vs odometry {e_odom:.3} m; final {final_filter:.3} m vs {final_odom:.3} m, heading \
+         {heading:.4} rad; resamples {}; memory {:?}",
+        n_proc as f64 / secs,
+        f.n_resamples(),
+        f.memory_stats()
+    );
+    assert!(
+        e_odom > 0.2,
+        "odometry drift too small for the test: {e_odom}"
+    );
+    assert!(e_filter < 0.5 * e_odom, "{e_filter} vs {e_odom}");
+    assert!(
+        final_filter < 0.5 * final_odom,
+        "{final_filter} vs {final_odom}"
+    );
+    assert!(e_filter < 0.1 && heading < 0.05);
+    assert_eq!(f.n_processed(), n_proc);
+}
+
+#[test]
+fn unprocessed_scans_carry_the_estimate_by_odometry() {
+    let run = simulate(30, 0.1);
+    let (_, steps) = run_filter(&run, config());
+    assert!(steps[0].processed);
+    let mut last = (steps[0].estimate, run.odom[0]);
+    let mut skipped = 0;
+    for (s, o) in steps.iter().zip(&run.odom).skip(1) {
+        if s.processed {
+            last = (s.estimate, *o);
+            assert!(s.neff >= 1.0 - 1e-9);
+        } else {
+            skipped += 1;
+            assert!(s.neff.is_nan() && !s.resampled);
+            let want = compose(last.0, between(last.1, *o));
+            for (w, e) in want.iter().zip(s.estimate) {
+                assert!((w - e).abs() < 1e-12);
+            }
+        }
+    }
+    assert!(skipped > 0);
+}
+
+#[test]
+fn result_does_not_depend_on_the_thread_count() {
+    let run = simulate(40, 0.2);
+    let mut cfg = config();
+    cfg.trigger = UpdateTrigger::every_scan();
+    cfg.weight_smoothing = 0.0; // textbook weights: resampling happens, and is compared too
+    let go = |threads: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        pool.install(|| run_filter(&run, cfg.clone()))
+    };
+    let (f1, s1) = go(1);
+    let (f2, s2) = go(2);
+    for (a, b) in s1.iter().zip(&s2) {
+        for i in 0..3 {
+            assert_eq!(a.estimate[i].to_bits(), b.estimate[i].to_bits());
+        }
+        assert_eq!(a.resampled, b.resampled);
+    }
+    let bits = |f: &RbpfOgm| {
+        f.log_weights()
+            .iter()
+            .chain(f.poses().iter().flatten())
+            .map(|v| v.to_bits())
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(bits(&f1), bits(&f2));
+    assert!(f1.n_resamples() > 0);
+}
+
+#[test]
+fn neff_is_in_range_and_resampling_keeps_n_particles() {
+    let run = simulate(40, 0.2);
+    let mut cfg = config();
+    cfg.n_particles = 12;
+    cfg.trigger = UpdateTrigger::every_scan();
+    cfg.weight_smoothing = 0.0;
+    cfg.resample_threshold = 1.0; // resample whenever the weights are not uniform
+    let mut f = RbpfOgm::new(cfg, run.truth[0]).unwrap();
+    let mut resampled = 0;
+    for (k, (o, r)) in run.odom.iter().zip(&run.ranges).enumerate() {
+        let s = f
+            .process(&ScanInput {
+                odom: *o,
+                angles: &run.angles,
+                ranges: r,
+                laser_offset: LASER,
+            })
+            .unwrap();
+        assert!(s.neff >= 1.0 - 1e-9 && s.neff <= 12.0 + 1e-9, "{}", s.neff);
+        assert_eq!(f.particles().len(), 12);
+        if k == 0 {
+            // The first scan is integrated once and every particle shares its tiles.
+            let mem = f.memory_stats();
+            assert!(mem.allocated_tiles > 0 && mem.shared_tiles == mem.allocated_tiles);
+        }
+        let sum: f64 = f.log_weights().iter().map(|l| l.exp()).sum();
+        assert!((sum - 1.0).abs() < 1e-9);
+        resampled += usize::from(s.resampled);
+        assert!(f.best_index() < 12);
+    }
+    assert!(resampled > 0 && resampled == f.n_resamples());
+    assert!(f.best_map().tile_stats().n_allocated > 0);
+}
+
+/// A map built from exact scans at known poses along the loop.
+fn reference_map(truth: &[Pose], angles: &[f64], ranges: &[Vec<f64>]) -> LogOddsGrid {
+    let g = GridGeometry::new([0.0, 0.0], RES).unwrap();
+    let mut m = LogOddsGrid::new(g, LogOddsParams::new(Z_MAX - 0.5), 32, None).unwrap();
+    for (p, r) in truth.iter().zip(ranges) {
+        m.update_scan(compose(*p, LASER), angles, r).unwrap();
+    }
+    m
+}
+
+#[test]
+fn scan_matcher_recovers_a_known_offset() {
+    let occ = world();
+    let angles = angles();
+    let truth = truth_on_ellipse(40, 1.0);
+    let ranges = cast(&truth, &angles, &occ);
+    let map = reference_map(&truth, &angles, &ranges);
+    let matcher = ScanMatcher::new(Default::default()).unwrap();
+    for k in [3usize, 17, 29] {
+        let p = truth[k];
+        let scan = PreparedScan::new(&angles, &ranges[k], LASER, Z_MAX - 0.5, 1).unwrap();
+        let at_truth = matcher.evaluate(&map, &scan, p).unwrap();
+        assert!(at_truth.matched > scan.len() * 3 / 4);
+        for off in [[0.1, 0.0, 0.05], [0.0, -0.1, -0.05], [-0.07, 0.07, 0.05]] {
+            let start = [p[0] + off[0], p[1] + off[1], wrap(p[2] + off[2])];
+            let (found, score) = matcher.optimize(&map, &scan, start).unwrap();
+            let before = matcher.evaluate(&map, &scan, start).unwrap().score;
+            assert!(score > before);
+            assert!(
+                position_error(found, p) < RES && wrap(found[2] - p[2]).abs() < 0.01,
+                "scan {k} offset {off:?}: found {found:?}, truth {p:?}"
+            );
+            // The likelihood peaks at the truth, not at the offset start.
+            let l_start = matcher.evaluate(&map, &scan, start).unwrap().log_likelihood;
+            assert!(at_truth.log_likelihood > l_start);
+        }
+    }
+}
+
+fn field_of(e: CrlamError) -> &'static str {
+    match e {
+        CrlamError::Config { field, .. } => field,
+        other => panic!("expected a config error, got {other:?}"),
+    }
+}
+
+#[test]
+fn config_validation_names_the_field() {
+    assert!(OgmFilterConfig::default().validate().is_ok());
+    let bad = |f: fn(&mut OgmFilterConfig)| {
+        let mut c = OgmFilterConfig::default();
+        f(&mut c);
+        field_of(RbpfOgm::new(c, [0.0; 3]).unwrap_err())
+    };
+    assert_eq!(bad(|c| c.n_particles = 0), "n_particles");
+    assert_eq!(bad(|c| c.resample_threshold = 1.5), "resample_threshold");
+    assert_eq!(bad(|c| c.weight_smoothing = f64::NAN), "weight_smoothing");
+    assert_eq!(bad(|c| c.geometry.resolution = 0.0), "resolution");
+    assert_eq!(bad(|c| c.tile_size = 48), "tile_size");
+    assert_eq!(bad(|c| c.max_range = 5.0), "max_range");
+    assert_eq!(bad(|c| c.log_odds.l_free = 0.1), "l_free");
+    assert_eq!(bad(|c| c.matcher.beam_stride = 0), "matcher.beam_stride");
+    assert_eq!(bad(|c| c.matcher.score_sigma = -1.0), "matcher.score_sigma");
+    assert_eq!(bad(|c| c.proposal.half_steps = 0), "proposal.half_steps");
+    assert_eq!(bad(|c| c.proposal.range[2] = 0.0), "proposal.range");
+    assert_eq!(bad(|c| c.motion_floor[0] = 0.0), "motion_floor");
+    assert_eq!(bad(|c| c.init_sigma[1] = -0.1), "init_sigma");
+    assert_eq!(
+        bad(|c| c.motion = MotionModel::Thrun {
+            alpha: [0.1, -0.1, 0.0, 0.0]
+        }),
+        "motion"
+    );
+    assert_eq!(
+        bad(|c| c.trigger = UpdateTrigger {
+            linear: -1.0,
+            angular: 0.0
+        }),
+        "update_trigger"
+    );
+}
+
+#[test]
+fn bad_input_is_an_error_not_a_panic() {
+    let mut f = RbpfOgm::new(config(), [1.0, 1.0, 0.0]).unwrap();
+    assert!(RbpfOgm::new(config(), [f64::NAN, 0.0, 0.0]).is_err());
+    let a = angles();
+    let r = vec![1.0; 179];
+    let scan = ScanInput {
+        odom: [0.0; 3],
+        angles: &a,
+        ranges: &r,
+        laser_offset: LASER,
+    };
+    assert!(matches!(f.process(&scan), Err(CrlamError::Shape(_))));
+    let r = vec![f64::NAN; 180];
+    let scan = ScanInput {
+        odom: [f64::INFINITY, 0.0, 0.0],
+        angles: &a,
+        ranges: &r,
+        laser_offset: LASER,
+    };
+    assert!(f.process(&scan).is_err());
+    // NaN readings are ignored, not fatal, and an empty scan leaves the filter on odometry.
+    for k in 0..3 {
+        let scan = ScanInput {
+            odom: [0.3 * k as f64, 0.0, 0.0],
+            angles: &a,
+            ranges: &r,
+            laser_offset: LASER,
+        };
+        let s = f.process(&scan).unwrap();
+        assert!(s.estimate.iter().all(|v| v.is_finite()));
+    }
+    assert_eq!(f.last_match_failures(), f.particles().len());
+}
+
+/// Throughput figure (not a check): 30 particles × 180 beams, every scan processed. Run with
+/// `cargo test --release -p crlam-core --test rbpf_ogm -- --ignored --nocapture`.
+#[test]
+#[ignore]
+fn throughput_every_scan() {
+    let run = simulate(240, 1.15);
+    let cfg = OgmFilterConfig {
+        trigger: UpdateTrigger::every_scan(),
+        ..config()
+    };
+    for threads in [1, 2] {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let t0 = Instant::now();
+        let (f, steps) = pool.install(|| run_filter(&run, cfg.clone()));
+        let secs = t0.elapsed().as_secs_f64();
+        let err = steps
+            .iter()
+            .zip(&run.truth)
+            .map(|(s, t)| position_error(s.estimate, *t))
+            .sum::<f64>()
+            / steps.len() as f64;
+        eprintln!(
+            "{threads} thread(s): {} scans in {secs:.2} s = {:.1} scans/s; mean err {err:.3} m; \
+             resamples {}",
+            steps.len(),
+            steps.len() as f64 / secs,
+            f.n_resamples()
+        );
+    }
+}
