@@ -37,6 +37,7 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
     # Issue 3 targets: >= 37 scans/s (the sensor's rate) for 100 particles x 1079 beams.
     BenchSpec("rbpf_clam_scans_per_s_1079x100", size=20, quick_size=2, target_per_s=37.0),
     BenchSpec("rbpf_clam_scans_per_s_180x30", size=100, quick_size=5),
+    BenchSpec("rbpf_ogm_scans_per_s_180x30", size=100, quick_size=5),
 )
 
 

@@ -246,3 +246,38 @@ pub fn rbpf_clam_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Re
         cells_per_ray: f64::NAN,
     })
 }
+
+/// RBPF-OGM (GMapping-style) scans per second on one thread, 180 beams over 180°, 0.05 m grid.
+pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
+    use crate::rbpf::{OgmFilterConfig, RbpfOgm, ScanInput};
+    let w = filter_workload(n_scans + 1, 180, 180.0, 8.0)?;
+    let cfg = OgmFilterConfig {
+        n_particles,
+        ..OgmFilterConfig::default()
+    };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| crate::error::config_err("threads", e.to_string()))?;
+    let mut f = RbpfOgm::new(cfg, w.odom[0])?;
+    let scan = |k: usize| ScanInput {
+        odom: w.odom[k],
+        angles: &w.angles,
+        ranges: &w.ranges[k],
+        laser_offset: [0.0; 3],
+    };
+    pool.install(|| f.process(&scan(0)))?;
+    let t = Instant::now();
+    for k in 1..=n_scans {
+        pool.install(|| f.process(&scan(k)))?;
+    }
+    let secs = t.elapsed().as_secs_f64();
+    Ok(BenchFigure {
+        name: "rbpf_ogm_scans_per_s_180x30",
+        per_second: n_scans as f64 / secs,
+        operations: n_scans as u64,
+        seconds: secs,
+        unit: "processed scan (all particles: scan matching, improved proposal, map update; 0.05 m grid, one thread)",
+        cells_per_ray: f64::NAN,
+    })
+}
