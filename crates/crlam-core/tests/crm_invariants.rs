@@ -535,3 +535,84 @@ fn bad_inputs_are_errors_not_panics() {
         "a hit beyond the fixed extent is a no-return over the truncated ray"
     );
 }
+
+#[test]
+fn fused_weigh_and_update_equals_likelihood_then_update() {
+    let g = GridGeometry::new([0.0, 0.0], 0.2).unwrap();
+    let mut rng = Rng(42);
+    for fixed in [false, true] {
+        let mut cfg = CrmConfig::new(g);
+        if fixed {
+            cfg.extent = Some(crlam_core::grid::CellRect {
+                ix0: -20,
+                iy0: -20,
+                nx: 40,
+                ny: 40,
+            });
+        }
+        let mut a = CrmMap::new(&cfg).unwrap();
+        let ijrr = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.2);
+        let mix = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.2);
+        let angles: Vec<f64> = (0..120).map(|i| -2.0 + i as f64 * 4.0 / 119.0).collect();
+        let mut sc = CrmScratch::default();
+        for k in 0..6 {
+            let pose = [
+                rng.next_f64() - 0.5,
+                rng.next_f64() - 0.5,
+                rng.next_f64() * 6.0,
+            ];
+            let ranges: Vec<f64> = (0..120)
+                .map(|i| {
+                    if (i + k) % 7 == 0 {
+                        f64::INFINITY
+                    } else if i % 11 == 0 {
+                        0.0
+                    } else {
+                        0.5 + 7.0 * rng.next_f64()
+                    }
+                })
+                .collect();
+            let mut b = a.clone();
+            let opts = ScanOptions {
+                beam_stride: 2,
+                ..ScanOptions::default()
+            };
+            let (ll_sep, used_sep) = a
+                .scan_log_likelihood(
+                    pose,
+                    &angles,
+                    &ranges,
+                    &mix,
+                    &ScanOptions {
+                        beam_stride: 3,
+                        ..opts
+                    },
+                    &mut sc,
+                )
+                .unwrap();
+            let st_sep = a
+                .update_scan(pose, &angles, &ranges, &ijrr, &opts, &mut sc)
+                .unwrap();
+            let (ll, used, st) = b
+                .weigh_and_update_scan(pose, &angles, &ranges, &mix, 3, &ijrr, &opts, &mut sc)
+                .unwrap();
+            assert_eq!(used, used_sep);
+            assert!(
+                (ll - ll_sep).abs() < 1e-9 * ll_sep.abs().max(1.0),
+                "{ll} vs {ll_sep}"
+            );
+            assert_eq!(st, st_sep);
+            let r = crlam_core::grid::CellRect {
+                ix0: -45,
+                iy0: -45,
+                nx: 90,
+                ny: 90,
+            };
+            assert_eq!(
+                a.beliefs(r),
+                b.beliefs(r),
+                "fixed extent: {fixed}, scan {k}"
+            );
+        }
+    }
+}

@@ -204,27 +204,32 @@ impl CrmMap {
     /// Traverses the ray of `plan`, filling `sc.cells` and `sc.mhat`. A fixed extent truncates
     /// the ray; a hit beyond the truncation becomes a no-return over the truncated ray (2.1).
     fn gather_ray(&self, plan: &mut BeamPlan, sc: &mut CrmScratch) {
+        let end = self.gather_cells(plan.origin, plan.angle, plan.length, sc);
+        self.truncation_to_no_return(plan, end);
+    }
+
+    /// Traverses a ray of `length` (clipped to a fixed extent) into `sc.cells` / `sc.mhat`;
+    /// returns where the traversal ended.
+    fn gather_cells(&self, origin: [f64; 2], angle: f64, length: f64, sc: &mut CrmScratch) -> f64 {
         sc.cells.clear();
         let g = *self.grid.geometry();
         let ext = self.grid.fixed_extent();
         let cells = &mut sc.cells;
-        let end = traverse_with(
-            &g,
-            plan.origin,
-            plan.angle,
-            plan.length,
-            ext.as_ref(),
-            |c| {
-                cells.push(c);
-                true
-            },
-        );
-        if ext.is_some() && !plan.no_return && end + 1e-9 < plan.z {
-            plan.no_return = true;
-        }
+        let end = traverse_with(&g, origin, angle, length, ext.as_ref(), |c| {
+            cells.push(c);
+            true
+        });
         sc.mhat.clear();
         for c in sc.cells.iter() {
             sc.mhat.push(self.mean_at(c.ix, c.iy));
+        }
+        end
+    }
+
+    /// A hit beyond where a fixed extent cut the ray is a no-return over the cut ray (2.1).
+    fn truncation_to_no_return(&self, plan: &mut BeamPlan, end: f64) {
+        if self.grid.fixed_extent().is_some() && !plan.no_return && end + 1e-9 < plan.z {
+            plan.no_return = true;
         }
     }
 
@@ -351,6 +356,105 @@ impl CrmMap {
             used += 1;
         }
         Ok((total, used))
+    }
+
+    /// Weighs a scan under the pre-update beliefs (Σ log η with `weight_model` over every
+    /// `weight_stride`-th beam, crm-spec 4.1) and then updates the map with `mapping_model`
+    /// (`opts`), walking each beam once. The result equals [`Self::scan_log_likelihood`] followed
+    /// by [`Self::update_scan`]; in batch mode both use the pre-scan beliefs, so one traversal
+    /// serves both (sequential mode falls back to the two calls). Returns (Σ log η, beams
+    /// weighed, update counters).
+    #[allow(clippy::too_many_arguments)]
+    pub fn weigh_and_update_scan(
+        &mut self,
+        pose: [f64; 3],
+        angles: &[f64],
+        ranges: &[f64],
+        weight_model: &SensorModel,
+        weight_stride: usize,
+        mapping_model: &SensorModel,
+        opts: &ScanOptions,
+        sc: &mut CrmScratch,
+    ) -> Result<(f64, usize, ScanStats)> {
+        let wopts = ScanOptions {
+            beam_stride: weight_stride,
+            ..*opts
+        };
+        if opts.mode != ScanUpdateMode::Batch {
+            let (ll, used) =
+                self.scan_log_likelihood(pose, angles, ranges, weight_model, &wopts, sc)?;
+            let st = self.update_scan(pose, angles, ranges, mapping_model, opts, sc)?;
+            return Ok((ll, used, st));
+        }
+        check_scan(angles, ranges, weight_model, &wopts)?;
+        check_scan(angles, ranges, mapping_model, opts)?;
+        self.grid
+            .prepare_scan(pose, weight_model.z_max.max(mapping_model.z_max))?;
+        let res = self.grid.geometry().resolution;
+        let origin = [pose[0], pose[1]];
+        let mut st = ScanStats::default();
+        let (mut total, mut used) = (0.0, 0);
+        sc.pending.clear();
+        for b in 0..angles.len() {
+            let angle = pose[2] + angles[b];
+            let w_plan = if b % weight_stride == 0 {
+                plan_beam(weight_model, &wopts, res, origin, angle, ranges[b]).ok()
+            } else {
+                None
+            };
+            let m_plan = if b % opts.beam_stride == 0 {
+                st.n_beams += 1;
+                let p = plan_beam(mapping_model, opts, res, origin, angle, ranges[b]).ok();
+                st.n_dropped_short += usize::from(p.is_none());
+                p
+            } else {
+                None
+            };
+            let length = w_plan
+                .map_or(0.0, |p| p.length)
+                .max(m_plan.map_or(0.0, |p| p.length));
+            if w_plan.is_none() && m_plan.is_none() {
+                continue;
+            }
+            let end = self.gather_cells(origin, angle, length, sc);
+            // The longer ray is evaluated first; the shorter one is then a prefix of it.
+            let weight_first = w_plan.map_or(0.0, |p| p.length) >= m_plan.map_or(0.0, |p| p.length);
+            for stage in 0..2 {
+                let is_weight = (stage == 0) == weight_first;
+                let Some(mut plan) = (if is_weight { w_plan } else { m_plan }) else {
+                    continue;
+                };
+                truncate_ray(sc, plan.length);
+                let cut = end.min(plan.length);
+                self.truncation_to_no_return(&mut plan, cut);
+                if is_weight {
+                    total += self.beam_alpha(weight_model, &plan, sc, false);
+                    used += 1;
+                    continue;
+                }
+                if sc.cells.is_empty() {
+                    st.n_empty_ray += 1;
+                    continue;
+                }
+                let log_eta = self.beam_alpha(mapping_model, &plan, sc, true);
+                if !log_eta.is_finite() {
+                    st.n_skipped_eta += 1;
+                    continue;
+                }
+                st.n_used += 1;
+                st.n_no_return += usize::from(plan.no_return);
+                for (l, c) in sc.cells.iter().enumerate() {
+                    sc.pending.push((c.ix, c.iy, sc.alpha[l], sc.mhat[l]));
+                }
+            }
+        }
+        self.flush_batch(
+            pose,
+            weight_model.z_max.max(mapping_model.z_max),
+            sc,
+            &mut st,
+        )?;
+        Ok((total, used, st))
     }
 
     /// Updates the map with one scan taken from the sensor pose `pose` (x, y, θ); beam b points
@@ -535,6 +639,21 @@ impl CrmMap {
             }
         }
         Ok(())
+    }
+}
+
+/// Cuts a gathered ray to `length`: drops cells that start at or beyond it and ends the last
+/// chord there, exactly as a traversal of that length would have reported them.
+fn truncate_ray(sc: &mut CrmScratch, length: f64) {
+    let keep = sc
+        .cells
+        .iter()
+        .take_while(|c| c.t_in < length && length - c.t_in >= crate::raycast::MIN_CHORD)
+        .count();
+    sc.cells.truncate(keep);
+    sc.mhat.truncate(keep);
+    if let Some(last) = sc.cells.last_mut() {
+        last.t_out = last.t_out.min(length);
     }
 }
 

@@ -294,11 +294,29 @@ impl RbpfClam {
             .enumerate()
             .map_init(CrmScratch::default, |sc, (j, p)| {
                 let mut rng = Rng::stream(cfg.seed, step, j as u64);
+                let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+                if cfg.proposal == ClamProposal::Odometry {
+                    // Weight and map update share one walk of every beam (same pre-scan beliefs).
+                    let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
+                    let sensor = compose(pose, scan.laser_offset);
+                    let (ll, _, _) = p.map.weigh_and_update_scan(
+                        sensor,
+                        scan.angles,
+                        scan.ranges,
+                        &cfg.weight_model,
+                        cfg.weight_stride,
+                        &cfg.mapping_model,
+                        &opts,
+                        sc,
+                    )?;
+                    p.pose = pose;
+                    p.log_w += ll / cfg.tempering;
+                    return Ok(());
+                }
                 let (pose, dlogw) = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
                 p.pose = pose;
                 p.log_w += dlogw;
                 let sensor = compose(pose, scan.laser_offset);
-                let opts = scan_opts(cfg.scan_update, cfg.map_stride);
                 p.map.update_scan(
                     sensor,
                     scan.angles,
