@@ -61,3 +61,25 @@ def test_table1_protocol_small(tmp_path: Path) -> None:
         assert (tmp_path / f).stat().st_size > 0
     again = run_table1(tmp_path, runs=2, scans=40, particles=3, methods=("clam",), workers=1, progress=False)
     assert json.dumps(again["rows"], sort_keys=True) == json.dumps(res["rows"], sort_keys=True)
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_real_logs_harness_on_a_slice_of_aces(data_dir: Path, tmp_path: Path) -> None:
+    from crlam.experiments.real_logs import run_real_logs
+
+    res = run_real_logs(
+        tmp_path,
+        datasets=("aces",),
+        methods=("clam", "ogm"),
+        particles=(3,),
+        seeds=1,
+        ranges=("8",),
+        workers=1,
+        max_scans=300,
+        progress=False,
+    )
+    assert not res["errors"], res["errors"]
+    assert {(r["method"], r["particles"]) for r in res["rows"]} == {("clam", 3), ("ogm", 3)}
+    table = (tmp_path / "table.md").read_text()
+    assert "RBPF-CLAM" in table and "RBPF-OGM" in table and "Cartographer" in table
