@@ -204,80 +204,79 @@ fn filter_workload(
     })
 }
 
-/// RBPF-CLAM scans per second on one thread (paper settings: every beam, odometry proposal).
-pub fn rbpf_clam_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<BenchFigure> {
-    use crate::rbpf::{ClamConfig, RbpfClam, ScanInput};
-    let (fov, z_max) = if n_beams == 1079 {
-        (270.0, 8.0)
-    } else {
-        (180.0, 8.0)
-    };
-    let w = filter_workload(n_scans + 1, n_beams, fov, z_max)?;
-    let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), z_max);
-    cfg.n_particles = n_particles;
+/// Seconds to feed scans 1..=n of a workload (after scan 0) to `process`, on one thread.
+fn time_filter<F>(w: &FilterWorkload, n_scans: usize, mut process: F) -> Result<f64>
+where
+    F: FnMut(&crate::rbpf::ScanInput) -> Result<crate::rbpf::FilterStep> + Send,
+{
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
         .map_err(|e| crate::error::config_err("threads", e.to_string()))?;
-    let mut f = RbpfClam::new(cfg, w.odom[0])?;
-    let scan = |k: usize| ScanInput {
+    let scan = |k: usize| crate::rbpf::ScanInput {
         odom: w.odom[k],
         angles: &w.angles,
         ranges: &w.ranges[k],
         laser_offset: [0.0; 3],
     };
-    pool.install(|| f.process(&scan(0)))?;
+    pool.install(|| process(&scan(0)))?;
     let t = Instant::now();
     for k in 1..=n_scans {
-        pool.install(|| f.process(&scan(k)))?;
+        pool.install(|| process(&scan(k)))?;
     }
-    let secs = t.elapsed().as_secs_f64();
+    Ok(t.elapsed().as_secs_f64())
+}
+
+fn filter_figure(name: &'static str, unit: &'static str, n_scans: usize, secs: f64) -> BenchFigure {
+    BenchFigure {
+        name,
+        per_second: n_scans as f64 / secs,
+        operations: n_scans as u64,
+        seconds: secs,
+        unit,
+        cells_per_ray: f64::NAN,
+    }
+}
+
+/// RBPF-CLAM scans per second on one thread (paper settings: every beam, odometry proposal).
+pub fn rbpf_clam_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<BenchFigure> {
+    use crate::rbpf::{ClamConfig, RbpfClam};
+    let fov = if n_beams == 1079 { 270.0 } else { 180.0 };
+    let w = filter_workload(n_scans + 1, n_beams, fov, 8.0)?;
+    let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), 8.0);
+    cfg.n_particles = n_particles;
+    let mut f = RbpfClam::new(cfg, w.odom[0])?;
+    let secs = time_filter(&w, n_scans, |s| f.process(s))?;
     let name = match (n_beams, n_particles) {
         (1079, 100) => "rbpf_clam_scans_per_s_1079x100",
         (180, 30) => "rbpf_clam_scans_per_s_180x30",
         _ => "rbpf_clam_scans_per_s",
     };
-    Ok(BenchFigure {
+    Ok(filter_figure(
         name,
-        per_second: n_scans as f64 / secs,
-        operations: n_scans as u64,
-        seconds: secs,
-        unit: "processed scan (all particles: weight + map update; 0.2 m grid, 8 m, one thread)",
-        cells_per_ray: f64::NAN,
-    })
+        "processed scan (all particles: weight + map update; 0.2 m grid, 8 m, one thread)",
+        n_scans,
+        secs,
+    ))
 }
 
 /// RBPF-OGM (GMapping-style) scans per second on one thread, 180 beams over 180°, 0.05 m grid.
 pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
-    use crate::rbpf::{OgmFilterConfig, RbpfOgm, ScanInput};
+    use crate::rbpf::{OgmFilterConfig, RbpfOgm};
     let w = filter_workload(n_scans + 1, 180, 180.0, 8.0)?;
-    let cfg = OgmFilterConfig {
-        n_particles,
-        ..OgmFilterConfig::default()
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .map_err(|e| crate::error::config_err("threads", e.to_string()))?;
-    let mut f = RbpfOgm::new(cfg, w.odom[0])?;
-    let scan = |k: usize| ScanInput {
-        odom: w.odom[k],
-        angles: &w.angles,
-        ranges: &w.ranges[k],
-        laser_offset: [0.0; 3],
-    };
-    pool.install(|| f.process(&scan(0)))?;
-    let t = Instant::now();
-    for k in 1..=n_scans {
-        pool.install(|| f.process(&scan(k)))?;
-    }
-    let secs = t.elapsed().as_secs_f64();
-    Ok(BenchFigure {
-        name: "rbpf_ogm_scans_per_s_180x30",
-        per_second: n_scans as f64 / secs,
-        operations: n_scans as u64,
-        seconds: secs,
-        unit: "processed scan (all particles: scan matching, improved proposal, map update; 0.05 m grid, one thread)",
-        cells_per_ray: f64::NAN,
-    })
+    let mut f = RbpfOgm::new(
+        OgmFilterConfig {
+            n_particles,
+            ..OgmFilterConfig::default()
+        },
+        w.odom[0],
+    )?;
+    let secs = time_filter(&w, n_scans, |s| f.process(s))?;
+    let unit = "processed scan (all particles: scan matching, improved proposal, map update; 0.05 m grid, one thread)";
+    Ok(filter_figure(
+        "rbpf_ogm_scans_per_s_180x30",
+        unit,
+        n_scans,
+        secs,
+    ))
 }

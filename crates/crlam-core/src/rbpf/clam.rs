@@ -249,17 +249,7 @@ impl RbpfClam {
     /// (bytes of distinct map tiles over all particles, distinct tiles, tile references): what the
     /// particle maps really occupy thanks to copy-on-write sharing.
     pub fn map_memory(&self) -> (usize, usize, usize) {
-        let mut seen = std::collections::HashSet::new();
-        let (mut bytes, mut refs) = (0, 0);
-        for p in &self.particles {
-            for (addr, b) in p.map.grid().tile_addresses() {
-                refs += 1;
-                if seen.insert(addr) {
-                    bytes += b;
-                }
-            }
-        }
-        (bytes, seen.len(), refs)
+        crate::rbpf::common::distinct_tile_memory(self.particles.iter().map(|p| p.map.grid()))
     }
 
     /// Feeds one scan; processes it when the update trigger fires.

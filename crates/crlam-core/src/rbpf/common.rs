@@ -134,6 +134,24 @@ impl OdometryTracker {
     }
 }
 
+/// (bytes of distinct tiles, distinct tiles, tile references) over a set of grids: what the
+/// particle maps really occupy with copy-on-write sharing (equal addresses are one tile).
+pub fn distinct_tile_memory<'a, T: Copy + Send + Sync + 'a>(
+    grids: impl Iterator<Item = &'a crate::grid::TiledGrid<T>>,
+) -> (usize, usize, usize) {
+    let mut seen = std::collections::HashSet::new();
+    let (mut bytes, mut refs) = (0, 0);
+    for g in grids {
+        for (addr, b) in g.tile_addresses() {
+            refs += 1;
+            if seen.insert(addr) {
+                bytes += b;
+            }
+        }
+    }
+    (bytes, seen.len(), refs)
+}
+
 /// Weighted mean pose with a circular mean for the heading (crm-spec 4.3).
 pub fn weighted_mean_pose(poses: &[Pose], w: &[f64]) -> Pose {
     let (mut x, mut y, mut s, mut c) = (0.0, 0.0, 0.0, 0.0);

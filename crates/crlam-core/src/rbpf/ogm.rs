@@ -581,17 +581,7 @@ impl RbpfOgm {
     /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles: the
     /// memory the maps really take with copy-on-write sharing.
     pub fn map_memory(&self) -> (usize, usize, usize) {
-        let mut seen = std::collections::HashSet::new();
-        let (mut bytes, mut refs) = (0, 0);
-        for p in &self.particles {
-            for (addr, b) in p.map.grid().tile_addresses() {
-                refs += 1;
-                if seen.insert(addr) {
-                    bytes += b;
-                }
-            }
-        }
-        (bytes, seen.len(), refs)
+        crate::rbpf::common::distinct_tile_memory(self.particles.iter().map(|p| p.map.grid()))
     }
 
     pub fn memory_stats(&self) -> OgmMemoryStats {
