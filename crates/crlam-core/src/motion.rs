@@ -95,7 +95,7 @@ fn log_normal(x: f64, sigma: f64) -> f64 {
 }
 
 /// (rot1, trans, rot2) of an increment; backward motion keeps rot1 small with a negative trans.
-fn decompose(u: Pose) -> (f64, f64, f64) {
+pub(crate) fn decompose(u: Pose) -> (f64, f64, f64) {
     let trans = u[0].hypot(u[1]);
     if trans < 1e-9 {
         return (0.0, 0.0, wrap(u[2]));

@@ -203,7 +203,7 @@ impl MotionPrior {
                 (prev[2], sigma.map(|s| k * s))
             }
             MotionModel::Thrun { alpha } => {
-                let (r1, t, r2) = thrun_parts(u);
+                let (r1, t, r2) = crate::motion::decompose(u);
                 let s1 = (alpha[0] * r1 * r1 + alpha[1] * t * t).sqrt();
                 let st = (alpha[2] * t * t + alpha[3] * (r1 * r1 + r2 * r2)).sqrt();
                 let s2 = (alpha[0] * r2 * r2 + alpha[1] * t * t).sqrt();
@@ -231,22 +231,6 @@ impl MotionPrior {
             })
             .sum()
     }
-}
-
-/// (rot1, trans, rot2) of an odometry increment, with the same convention as
-/// [`MotionModel::Thrun`]: backward motion keeps rot1 small and makes trans negative.
-fn thrun_parts(u: Pose) -> (f64, f64, f64) {
-    let trans = u[0].hypot(u[1]);
-    if trans < 1e-9 {
-        return (0.0, 0.0, wrap(u[2]));
-    }
-    let mut rot1 = u[1].atan2(u[0]);
-    let mut t = trans;
-    if rot1.abs() > std::f64::consts::FRAC_PI_2 {
-        rot1 = wrap(rot1 + std::f64::consts::PI);
-        t = -trans;
-    }
-    (rot1, t, wrap(u[2] - rot1))
 }
 
 /// Everything a particle needs for one processed scan (shared, read-only).
