@@ -79,7 +79,9 @@ def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
     path.write_text("\n".join(lines))
 
 
-def _scan_inputs(scan: LaserScan, max_range: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _scan_inputs(scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Beam bearings and ranges of a scan; readings at the sensor's own maximum become inf (the
+    filter's z_max then makes every longer reading a no-return as well)."""
     if not np.all(np.isfinite(scan.odom)):
         raise DataFormatError(f"odometry pose {scan.odom.tolist()} is not finite", line=scan.line, field="odom")
     ranges = np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
@@ -111,7 +113,7 @@ def run_slam_log(
             continue
         if max_scans is not None and run.n_scans >= max_scans:
             break
-        angles, ranges = _scan_inputs(rec, config.max_range)
+        angles, ranges = _scan_inputs(rec)
         run.step(rec.odom, angles, ranges, rec.laser_offset, rec.timestamp)
         bar.update(1)
     bar.close()
