@@ -13,11 +13,12 @@ matplotlib.use("Agg")  # files only; never needs a display (CI, workers)
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.axes import Axes  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
 from crlam.mapping import MapLayer  # noqa: E402
 
-__all__ = ["add_scale_bar", "plot_layer", "save_crm_figure", "save_world_figure"]
+__all__ = ["add_scale_bar", "metric_axes", "plot_layer", "save_figure", "save_crm_figure", "save_world_figure"]
 
 
 def _nice_length(span: float) -> float:
@@ -55,6 +56,22 @@ def add_scale_bar(ax: Axes, extent: Sequence[float], color: str = "black") -> No
     ax.text(xs + length / 2, ys + 0.012 * (y1 - y0), label, ha="center", va="bottom", color=color, fontsize=8, zorder=5)
 
 
+def metric_axes(ax: Axes, extent: Sequence[float]) -> None:
+    """Labels ``ax`` in metres, keeps the aspect true and adds a scale bar."""
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_aspect("equal")
+    add_scale_bar(ax, extent)
+
+
+def save_figure(fig: Figure, path: str | os.PathLike[str], dpi: int) -> Path:
+    """Writes ``fig`` to ``path`` and releases it."""
+    out = Path(path)
+    fig.savefig(out, dpi=dpi)
+    plt.close(fig)
+    return out
+
+
 def plot_layer(
     ax: Axes,
     layer: MapLayer,
@@ -71,10 +88,7 @@ def plot_layer(
     im = ax.imshow(vals, origin="lower", extent=layer.extent, cmap=cm, vmin=vmin, vmax=vmax, interpolation="nearest")
     cb = ax.figure.colorbar(im, ax=ax, fraction=0.046, pad=0.02)
     cb.set_label(label)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_aspect("equal")
-    add_scale_bar(ax, layer.extent)
+    metric_axes(ax, layer.extent)
 
 
 def save_crm_figure(
@@ -113,10 +127,7 @@ def save_crm_figure(
         axes[0].legend(loc="upper right", fontsize=8)
     if title:
         fig.suptitle(title)
-    out = Path(path)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi)
 
 
 def save_world_figure(
@@ -136,13 +147,7 @@ def save_world_figure(
     if trajectory is not None and len(trajectory):
         ax.plot(trajectory[:, 0], trajectory[:, 1], color="tab:red", linewidth=0.8)
         ax.plot(trajectory[0, 0], trajectory[0, 1], "o", color="tab:green", markersize=5)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_aspect("equal")
-    add_scale_bar(ax, layer.extent)
+    metric_axes(ax, layer.extent)
     if title:
         ax.set_title(title)
-    out = Path(path)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi)

@@ -16,7 +16,7 @@ from numpy.typing import NDArray  # noqa: E402
 
 from crlam.eval.trajectory import ReferenceErrors  # noqa: E402
 from crlam.mapping import MapLayer  # noqa: E402
-from crlam.viz.maps import add_scale_bar  # noqa: E402
+from crlam.viz.maps import metric_axes, save_figure  # noqa: E402
 
 __all__ = ["save_trajectory_figure", "save_error_figure", "save_trajectories_on_map"]
 
@@ -40,16 +40,10 @@ def save_trajectories_on_map(
     for (name, t), c in zip(trajectories.items(), colours):
         ax.plot(t[:, 0], t[:, 1], color=c, linewidth=0.9, alpha=0.9, label=name)
     ax.legend(loc="upper right", fontsize=8)
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.set_aspect("equal")
-    add_scale_bar(ax, mean.extent)
+    metric_axes(ax, mean.extent)
     if title:
         ax.set_title(title)
-    out = Path(path)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi)
 
 
 def save_trajectory_figure(
@@ -90,7 +84,4 @@ def save_error_figure(
     axes[0].legend(fontsize=8)
     if title:
         fig.suptitle(title)
-    out = Path(path)
-    fig.savefig(out, dpi=dpi)
-    plt.close(fig)
-    return out
+    return save_figure(fig, path, dpi)
