@@ -10,6 +10,7 @@ pub mod bench;
 pub mod crm;
 pub mod error;
 pub mod grid;
+pub mod info;
 pub mod motion;
 pub mod ogm;
 pub mod pose;
