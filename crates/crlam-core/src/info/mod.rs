@@ -8,12 +8,15 @@
 //! candidates is many `evaluate`s on one map state, which [`evaluate_batch`] runs in parallel with
 //! results identical to the serial loop (each candidate draws from its own random stream).
 
+pub mod bench;
 pub mod crmi;
 pub mod entropy;
 pub mod fsmi;
 pub mod gp;
+pub mod iig_mi;
 pub mod lattice;
 pub mod posecov;
+pub mod prior;
 pub mod ucrmi;
 
 use rayon::prelude::*;
