@@ -11,9 +11,15 @@ __all__ = [
     "__core_version__",
     "ClamFilter",
     "CrmMap",
+    "GpVarianceMap",
+    "InfoFunction",
+    "InfoUpdate",
     "LogOddsMap",
+    "OccupancyLattice",
     "OgmFilter",
+    "ParticleBelief",
     "SensorModel",
+    "candidate_seed",
     "cast_ranges",
     "crm_update_ray",
     "run_benchmark",
@@ -299,3 +305,139 @@ def crm_update_ray(
     belief_floor: float = 0.0,
 ) -> tuple[NDArray[np.float64], float]: ...
 def run_benchmark(name: str, size: int) -> dict[str, Any]: ...
+
+@final
+class OccupancyLattice:
+    def __new__(
+        cls, probabilities: NDArray[np.float64], resolution: float, origin: tuple[float, float] = (0.0, 0.0)
+    ) -> OccupancyLattice: ...
+    @property
+    def shape(self) -> tuple[int, int]: ...
+    @property
+    def resolution(self) -> float: ...
+    @property
+    def origin(self) -> tuple[float, float]: ...
+    def probabilities(self) -> NDArray[np.float64]: ...
+    def copy(self) -> OccupancyLattice: ...
+    def to_crm(self, n_levels: int = 10) -> CrmMap: ...
+
+@final
+class GpVarianceMap:
+    def __new__(cls, lattice: OccupancyLattice, prior_variance: float = 1.0) -> GpVarianceMap: ...
+    def variances(self) -> NDArray[np.float64]: ...
+    def copy(self) -> GpVarianceMap: ...
+
+@final
+class ParticleBelief:
+    @property
+    def particles(self) -> NDArray[np.float64]: ...
+    @property
+    def weights(self) -> NDArray[np.float64]: ...
+    @property
+    def entropy_nats(self) -> float: ...
+    @property
+    def map_gain_bits(self) -> float: ...
+    @property
+    def pose_gain_bits(self) -> float: ...
+    @property
+    def resampled(self) -> bool: ...
+    def mean_pose(self) -> tuple[float, float, float]: ...
+    def position_covariance(self) -> list[list[float]]: ...
+
+@final
+class InfoUpdate:
+    @property
+    def kind(self) -> str: ...
+    def summary(self) -> tuple[int, list[float]]: ...
+
+_State = CrmMap | OccupancyLattice | GpVarianceMap
+
+@final
+class InfoFunction:
+    @staticmethod
+    def crmi(
+        model: SensorModel,
+        *,
+        n_beams: int = 10,
+        beam_angles: str = "distinct",
+        lambda_z: float = 0.1,
+        quadrature: str = "cdf",
+        dedupe_cells: str = "sum",
+        units: str = "bits",
+        hit_threshold: float = 0.5,
+    ) -> InfoFunction: ...
+    @staticmethod
+    def ucrmi(
+        model: SensorModel,
+        weight_model: SensorModel,
+        *,
+        alpha: float = 0.5,
+        n_particles: int = 100,
+        n_beams: int = 10,
+        beam_angles: str = "distinct",
+        lambda_z: float = 0.1,
+        quadrature: str = "cdf",
+        dedupe_cells: str = "sum",
+        hit_threshold: float = 0.5,
+        edge_noise: tuple[float, float] = ...,
+        root_cov_diag: tuple[float, float, float] = ...,
+        resample_threshold: float = 0.5,
+    ) -> InfoFunction: ...
+    @staticmethod
+    def fsmi(
+        *,
+        variant: str = "full",
+        width_sigmas: float = 3.0,
+        points_per_cell: int = 16,
+        delta_occ: float = 1.5,
+        delta_emp: float = ...,
+        sigma: float = 0.05,
+        z_max: float = 5.0,
+        n_beams: int = 10,
+        beam_angles: str = "distinct",
+        p_occ: float = 0.65,
+    ) -> InfoFunction: ...
+    @staticmethod
+    def iig_mi(
+        *,
+        upper_bound: bool = False,
+        n_beams: int = 10,
+        beam_angles: str = "reference",
+        z_max: float = 5.0,
+        p_occ: float = 0.65,
+        int_res: float = 0.5,
+    ) -> InfoFunction: ...
+    @staticmethod
+    def gpvr(*, mode: str = "reference") -> InfoFunction: ...
+    @staticmethod
+    def ugpvr(*, mode: str = "reference") -> InfoFunction: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def units(self) -> str: ...
+    @property
+    def state_kind(self) -> str: ...
+    @property
+    def belief_kind(self) -> str: ...
+    def root_belief(self, pose: NDArray[np.float64], seed: int = 0) -> Any: ...
+    def evaluate(
+        self,
+        state: _State,
+        pose: NDArray[np.float64],
+        *,
+        parent: tuple[float, float] | None = None,
+        belief: Any = None,
+        seed: int = 0,
+    ) -> tuple[float, Any, InfoUpdate]: ...
+    def commit(self, state: _State, update: InfoUpdate) -> None: ...
+    def gains(
+        self,
+        state: _State,
+        poses: NDArray[np.float64],
+        *,
+        parents: NDArray[np.float64] | None = None,
+        belief: Any = None,
+        seed: int = 0,
+    ) -> NDArray[np.float64]: ...
+
+def candidate_seed(seed: int, index: int) -> int: ...

@@ -317,6 +317,10 @@ def build_parser() -> argparse.ArgumentParser:
     add_eval_parser(sub)
     add_data_parser(sub)
 
+    from crlam.cli_info import add_info_parser
+
+    add_info_parser(sub, _positive_float, _positive_int)
+
     p = sub.add_parser(
         "experiment",
         help="run a paper experiment (resumable) and write its table and figures",

@@ -6,6 +6,7 @@
 
 mod convert;
 mod filters;
+mod info;
 mod maps;
 
 use pyo3::prelude::*;
@@ -18,6 +19,12 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::LogOddsMap>()?;
     m.add_class::<filters::ClamFilter>()?;
     m.add_class::<filters::OgmFilter>()?;
+    m.add_class::<info::OccupancyLattice>()?;
+    m.add_class::<info::GpVarianceMap>()?;
+    m.add_class::<info::ParticleBelief>()?;
+    m.add_class::<info::InfoUpdate>()?;
+    m.add_class::<info::InfoFunction>()?;
+    m.add_function(wrap_pyfunction!(info::candidate_seed, m)?)?;
     m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
     m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;

@@ -197,6 +197,16 @@ impl CrmMap {
     fn rect_or_bounds(&self, rect: Option<(i64, i64, i64, i64)>) -> PyResult<CellRect> {
         Ok(rect_from(rect)?.unwrap_or_else(|| self.inner.grid().bounds()))
     }
+
+    /// The core map (read-only).
+    pub fn core(&self) -> &crm::CrmMap {
+        &self.inner
+    }
+
+    /// The core map, for in-place updates.
+    pub fn core_mut(&mut self) -> &mut crm::CrmMap {
+        &mut self.inner
+    }
 }
 
 #[pymethods]

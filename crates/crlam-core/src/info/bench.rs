@@ -7,64 +7,19 @@ use crate::error::{CrlamError, Result};
 use crate::grid::GridGeometry;
 use crate::info::crmi::{Crmi, CrmiConfig, CrmiScratch};
 use crate::info::fsmi::{Fsmi, FsmiVariant, DEFAULT_TRUNCATION_SIGMAS};
+use crate::info::gp::{GpVarianceMap, Gpvr, GpvrOptions, Ugpvr};
 use crate::info::iig_mi::IigMi;
 use crate::info::lattice::{traverse_lattice, BeamAngles, OccupancyLattice};
 use crate::info::prior::crm_from_lattice;
 use crate::info::{Candidate, InformationFunction};
 use crate::rng::Rng;
 
-/// The planner's lattice shape: nodes at −1, −0.8, …, 21 m (111 × 111).
-pub const CAVE_NODES: usize = 111;
-
-/// A deterministic cave-like world on the planner's lattice: border walls, a few rectangular
-/// blocks and scattered pillars, with the reference prior (0.85 on obstacles, 0.3 elsewhere).
-pub fn synthetic_cave() -> Result<OccupancyLattice> {
-    let g = GridGeometry::new([-1.1, -1.1], 0.2)?;
-    let n = CAVE_NODES;
-    let mut p = vec![0.3; n * n];
-    let mut rng = Rng::new(2022);
-    let blocks: Vec<[f64; 4]> = (0..12)
-        .map(|_| {
-            let (x, y) = (2.0 + 15.0 * rng.uniform(), 2.0 + 15.0 * rng.uniform());
-            [
-                x,
-                y,
-                x + 0.6 + 2.0 * rng.uniform(),
-                y + 0.6 + 2.0 * rng.uniform(),
-            ]
-        })
-        .collect();
-    for b in 0..n {
-        for a in 0..n {
-            let (x, y) = (-1.0 + 0.2 * a as f64, -1.0 + 0.2 * b as f64);
-            let border = (x.abs() < 0.05 || (x - 20.0).abs() < 0.05)
-                && (-0.05..=20.05).contains(&y)
-                || (y.abs() < 0.05 || (y - 20.0).abs() < 0.05) && (-0.05..=20.05).contains(&x);
-            let block = blocks
-                .iter()
-                .any(|r| x >= r[0] && x <= r[2] && y >= r[1] && y <= r[3]);
-            if border || block {
-                p[a + b * n] = 0.85;
-            }
-        }
-    }
-    OccupancyLattice::new(g, n, n, p)
-}
-
-/// Candidate poses inside the world, away from the border.
-pub fn bench_poses(n: usize) -> Vec<[f64; 3]> {
-    let mut rng = Rng::new(7);
-    (0..n)
-        .map(|_| [1.0 + 18.0 * rng.uniform(), 1.0 + 18.0 * rng.uniform(), 0.0])
-        .collect()
-}
-
 /// Microseconds per candidate pose of CRMI with the given configuration.
 pub fn crmi_us_per_pose(cfg: CrmiConfig, n_poses: usize) -> Result<f64> {
-    let lat = synthetic_cave()?;
+    let lat = synthetic_cave_lattice()?;
     let map = crm_from_lattice(&lat, 10)?;
     let crmi = Crmi::new(cfg)?;
-    let poses = bench_poses(n_poses);
+    let poses = room_poses(n_poses);
     let mut sc = CrmiScratch::default();
     let mut sink = 0.0;
     // Warm-up pass so that buffers are sized.
@@ -220,13 +175,135 @@ pub fn bench_fsmi_vs_julian(n_poses: usize, seed: u64) -> Result<FsmiBench> {
     })
 }
 
+/// A Cave-like lattice for checks and benchmarks: the planner's 111 × 111 nodes at 0.2 m
+/// (−1 … 21 m), prior 0.3, walls 0.85 on the border x, y ∈ {0, 20} and on x, y ∈ {5, 10, 15}
+/// with 1.2 m doors at 2.5, 7.5, 12.5 and 17.5 m: sixteen 5 m rooms, so most beams hit.
+pub fn synthetic_cave_lattice() -> Result<OccupancyLattice> {
+    let (n, res) = (111usize, 0.2);
+    let on = |v: f64, c: f64| (v - c).abs() < 0.05;
+    let door = |v: f64| [2.5, 7.5, 12.5, 17.5].iter().any(|&d| (v - d).abs() < 0.65);
+    let inside = |v: f64| (-0.05..=20.05).contains(&v);
+    let wall_at = |v: f64, along: f64| {
+        inside(along)
+            && (on(v, 0.0)
+                || on(v, 20.0)
+                || ([5.0, 10.0, 15.0].iter().any(|&c| on(v, c)) && !door(along)))
+    };
+    let prob = (0..n * n)
+        .map(|id| {
+            let (x, y) = (-1.0 + res * (id % n) as f64, -1.0 + res * (id / n) as f64);
+            if wall_at(x, y) || wall_at(y, x) {
+                0.85
+            } else {
+                0.3
+            }
+        })
+        .collect();
+    OccupancyLattice::new(GridGeometry::new([-1.1, -1.1], res)?, n, n, prob)
+}
+
+/// Timing of one information function on [`synthetic_cave_lattice`] (one thread, the fastest
+/// of three passes over the poses).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GpBench {
+    /// Wall-clock per `evaluate` (µs).
+    pub us_per_pose: f64,
+    /// Number of poses timed.
+    pub poses: usize,
+    /// Mean hits per scan.
+    pub mean_hits: f64,
+    /// Mean test points (hits + free points) per scan.
+    pub mean_test_points: f64,
+    /// Mean gain (nats) on the prior map.
+    pub mean_gain: f64,
+}
+
+/// Deterministic poses inside the rooms of [`synthetic_cave_lattice`].
+pub fn room_poses(n: usize) -> Vec<[f64; 3]> {
+    let offsets = [
+        [0.0, 0.0],
+        [0.7, -0.4],
+        [-0.6, 0.5],
+        [0.3, 0.9],
+        [-1.1, -0.8],
+    ];
+    (0..n)
+        .map(|i| {
+            let room = i % 16;
+            let o = offsets[(i / 16) % offsets.len()];
+            let x = 2.5 + 5.0 * (room % 4) as f64 + o[0];
+            let y = 2.5 + 5.0 * (room / 4) as f64 + o[1];
+            [x, y, 0.37 * i as f64]
+        })
+        .collect()
+}
+
+fn bench_with<F: InformationFunction<Map = GpVarianceMap>>(
+    f: &F,
+    gp: &GpvrOptions,
+    belief: &F::Belief,
+    n_poses: usize,
+) -> Result<GpBench> {
+    let map = GpVarianceMap::new(synthetic_cave_lattice()?);
+    let poses = room_poses(n_poses.max(1));
+    let cand = |p: &[f64; 3]| Candidate {
+        pose: *p,
+        parent: [p[0] - 1.0, p[1]],
+    };
+    for p in poses.iter().take(3) {
+        f.evaluate(&map, belief, &cand(p), 0)?;
+    }
+    // The fastest of three passes: the least disturbed by other load on the machine.
+    let (mut secs, mut gain) = (f64::INFINITY, 0.0);
+    for _ in 0..3 {
+        let t = Instant::now();
+        gain = 0.0;
+        for p in &poses {
+            gain += f.evaluate(&map, belief, &cand(p), 0)?.gain;
+        }
+        secs = secs.min(t.elapsed().as_secs_f64());
+    }
+    let (mut hits, mut pts) = (0usize, 0usize);
+    for p in &poses {
+        let s = Gpvr::new(*gp)?.scan_points(&map, *p)?;
+        hits += s.n_hits;
+        pts += s.test.len();
+    }
+    let np = poses.len() as f64;
+    Ok(GpBench {
+        us_per_pose: 1e6 * secs / np,
+        poses: poses.len(),
+        mean_hits: hits as f64 / np,
+        mean_test_points: pts as f64 / np,
+        mean_gain: gain / np,
+    })
+}
+
+/// µs per GPVR evaluation on the Cave-like lattice (10 beams, 5 m, 0.2 m nodes; one thread).
+pub fn bench_us_per_pose_gpvr(f: &Gpvr, n_poses: usize) -> Result<GpBench> {
+    bench_with(f, f.options(), &(), n_poses)
+}
+
+/// µs per UGPVR evaluation (including the 1 m edge propagation) from a depth-3 covariance.
+pub fn bench_us_per_pose_ugpvr(f: &Ugpvr, n_poses: usize) -> Result<GpBench> {
+    let mut s = crate::info::posecov::root_covariance();
+    for k in 0..3 {
+        let c = Candidate {
+            pose: [k as f64 + 1.0, 0.5 * k as f64, 0.0],
+            parent: [k as f64, 0.0],
+        };
+        s = f.propagate(&s, &c);
+    }
+    bench_with(f, &f.options().gp, &s, n_poses)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     #[test]
     fn synthetic_cave_has_walls_and_free_space() {
-        let l = synthetic_cave().unwrap();
+        let l = synthetic_cave_lattice().unwrap();
         let occ = l.probabilities().iter().filter(|&&p| p > 0.5).count();
         assert!(occ > 400 && occ < l.len() / 2, "{occ}");
     }

@@ -13,6 +13,7 @@ pub mod crmi;
 pub mod entropy;
 pub mod fsmi;
 pub mod gp;
+pub mod gp_kernel;
 pub mod iig_mi;
 pub mod lattice;
 pub mod posecov;

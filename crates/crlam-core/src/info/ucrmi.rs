@@ -155,6 +155,28 @@ impl Ucrmi {
         })
     }
 
+    /// Gains of candidates that each start from their own root belief at their own pose (a
+    /// surface: "how much would a robot that is here, with the root uncertainty, gain"), in
+    /// parallel; candidate i uses the seed `candidate_seed(seed, i)` for both its root and its
+    /// evaluation, so the result equals the serial loop.
+    pub fn gains_from_roots(
+        &self,
+        map: &CrmMap,
+        candidates: &[Candidate],
+        seed: u64,
+    ) -> Result<Vec<f64>> {
+        use rayon::prelude::*;
+        candidates
+            .par_iter()
+            .enumerate()
+            .map(|(i, c)| {
+                let s = crate::info::candidate_seed(seed, i as u64);
+                let root = self.root_belief(c.pose, s)?;
+                self.evaluate(map, &root, c, s).map(|e| e.gain)
+            })
+            .collect()
+    }
+
     /// Virtual-scan log-likelihood of each child under the shared map.
     fn child_log_likelihoods(
         &self,

@@ -1,0 +1,789 @@
+//! Python classes for the information functions: map states, pose beliefs, and one
+//! `InfoFunction` class that dispatches to the core functions.
+
+use crlam_core::grid::GridGeometry;
+use crlam_core::info::crmi::{CellDedupe, Crmi, CrmiConfig, CrmiQuadrature, VirtualScan};
+use crlam_core::info::entropy::{weighted_position_covariance, EdgeMotionNoise};
+use crlam_core::info::fsmi::{Fsmi, FsmiVariant, OgmiParams};
+use crlam_core::info::gp::{GpVarianceMap as CoreGpMap, Gpvr, Ugpvr};
+use crlam_core::info::iig_mi::IigMi;
+use crlam_core::info::lattice::{self, BeamAngles};
+use crlam_core::info::posecov::{root_covariance, Cov3};
+use crlam_core::info::prior;
+use crlam_core::info::ucrmi::{self, Ucrmi, UcrmiConfig};
+use crlam_core::info::{self as core_info, Candidate, InfoUnits, InformationFunction};
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+
+use crate::convert::{pose3, poses_n3, shape_err, IntoPy};
+use crate::maps::{CrmMap, SensorModel};
+
+/// Occupancy probabilities on a lattice of cell centres (planner-spec 2.2).
+#[pyclass(module = "crlam._native")]
+#[derive(Clone)]
+pub struct OccupancyLattice {
+    pub inner: lattice::OccupancyLattice,
+}
+
+fn lattice_from(
+    probabilities: &PyReadonlyArray2<'_, f64>,
+    resolution: f64,
+    origin: (f64, f64),
+) -> PyResult<lattice::OccupancyLattice> {
+    let shape = probabilities.shape();
+    let (ny, nx) = (shape[0], shape[1]);
+    let p = probabilities
+        .as_slice()
+        .map_err(|_| shape_err("probabilities must be a contiguous float64 array"))?;
+    let g = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
+    lattice::OccupancyLattice::new(g, nx, ny, p.to_vec()).py_err()
+}
+
+#[pymethods]
+impl OccupancyLattice {
+    /// `probabilities` (ny, nx): row iy, column ix is the cell whose lower-left corner is
+    /// origin + (ix, iy)·resolution.
+    #[new]
+    #[pyo3(signature = (probabilities, resolution, origin=(0.0, 0.0)))]
+    fn new(
+        probabilities: PyReadonlyArray2<'_, f64>,
+        resolution: f64,
+        origin: (f64, f64),
+    ) -> PyResult<Self> {
+        Ok(Self {
+            inner: lattice_from(&probabilities, resolution, origin)?,
+        })
+    }
+
+    #[getter]
+    fn shape(&self) -> (usize, usize) {
+        let (nx, ny) = self.inner.shape();
+        (ny, nx)
+    }
+
+    #[getter]
+    fn resolution(&self) -> f64 {
+        self.inner.geometry().resolution
+    }
+
+    #[getter]
+    fn origin(&self) -> (f64, f64) {
+        let o = self.inner.geometry().origin;
+        (o[0], o[1])
+    }
+
+    /// The probabilities as a (ny, nx) array.
+    fn probabilities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (nx, ny) = self.inner.shape();
+        let a = Array2::from_shape_vec((ny, nx), self.inner.probabilities().to_vec())
+            .map_err(|e| shape_err(e.to_string()))?;
+        Ok(a.into_pyarray(py))
+    }
+
+    fn copy(&self) -> Self {
+        self.clone()
+    }
+
+    /// A CRM over the same cells whose pmfs are tilted priors with these means (crm-spec 6.5).
+    #[pyo3(signature = (n_levels=10))]
+    fn to_crm(&self, n_levels: usize) -> PyResult<CrmMap> {
+        let m = prior::crm_from_lattice(&self.inner, n_levels).py_err()?;
+        Ok(CrmMap::from_core(m, 32))
+    }
+}
+
+/// GP variances on a lattice for GPVR/UGPVR; the lattice probabilities drive the ray casting.
+#[pyclass(module = "crlam._native")]
+#[derive(Clone)]
+pub struct GpVarianceMap {
+    pub inner: CoreGpMap,
+}
+
+#[pymethods]
+impl GpVarianceMap {
+    /// Prior variance `prior_variance` (1 in the reference) at every node.
+    #[new]
+    #[pyo3(signature = (lattice, prior_variance=1.0))]
+    fn new(lattice: &OccupancyLattice, prior_variance: f64) -> PyResult<Self> {
+        Ok(Self {
+            inner: CoreGpMap::with_variances(
+                lattice.inner.clone(),
+                vec![prior_variance; lattice.inner.len()],
+            )
+            .py_err()?,
+        })
+    }
+
+    /// Variances as a (ny, nx) array.
+    fn variances<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let (nx, ny) = self.inner.lattice().shape();
+        let a = Array2::from_shape_vec((ny, nx), self.inner.variances().to_vec())
+            .map_err(|e| shape_err(e.to_string()))?;
+        Ok(a.into_pyarray(py))
+    }
+
+    fn copy(&self) -> Self {
+        self.clone()
+    }
+}
+
+/// A particle set at a planner node (UCRMI).
+#[pyclass(module = "crlam._native", frozen)]
+#[derive(Clone)]
+pub struct ParticleBelief {
+    pub inner: ucrmi::ParticleBelief,
+}
+
+#[pymethods]
+impl ParticleBelief {
+    /// (n, 3) particle poses.
+    #[getter]
+    fn particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let n = self.inner.particles.len();
+        let flat: Vec<f64> = self.inner.particles.iter().flatten().copied().collect();
+        let a = Array2::from_shape_vec((n, 3), flat).map_err(|e| shape_err(e.to_string()))?;
+        Ok(a.into_pyarray(py))
+    }
+
+    #[getter]
+    fn weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        self.inner.weights().into_pyarray(py)
+    }
+
+    #[getter]
+    fn entropy_nats(&self) -> f64 {
+        self.inner.entropy_nats
+    }
+
+    #[getter]
+    fn map_gain_bits(&self) -> f64 {
+        self.inner.map_gain_bits
+    }
+
+    #[getter]
+    fn pose_gain_bits(&self) -> f64 {
+        self.inner.pose_gain_bits
+    }
+
+    #[getter]
+    fn resampled(&self) -> bool {
+        self.inner.resampled
+    }
+
+    fn mean_pose(&self) -> (f64, f64, f64) {
+        let m = self.inner.mean_pose();
+        (m[0], m[1], m[2])
+    }
+
+    /// Weighted 2×2 position covariance (m²).
+    fn position_covariance(&self) -> PyResult<[[f64; 2]; 2]> {
+        weighted_position_covariance(&self.inner.particles, &self.inner.weights()).py_err()
+    }
+}
+
+/// The map update a candidate's virtual scan would make (opaque; pass it to `commit`).
+#[pyclass(module = "crlam._native", frozen)]
+pub struct InfoUpdate {
+    inner: UpdateKind,
+}
+
+#[derive(Clone)]
+enum UpdateKind {
+    Scan(VirtualScan),
+    Nodes(Vec<(usize, f64)>),
+}
+
+#[pymethods]
+impl InfoUpdate {
+    /// "virtual_scan" (CRM functions) or "nodes" (lattice / GP functions).
+    #[getter]
+    fn kind(&self) -> &'static str {
+        match self.inner {
+            UpdateKind::Scan(_) => "virtual_scan",
+            UpdateKind::Nodes(_) => "nodes",
+        }
+    }
+
+    /// Ranges (m) of a virtual scan, or the number of changed nodes.
+    fn summary(&self) -> (usize, Vec<f64>) {
+        match &self.inner {
+            UpdateKind::Scan(s) => (s.ranges.len(), s.ranges.clone()),
+            UpdateKind::Nodes(v) => (v.len(), Vec::new()),
+        }
+    }
+}
+
+enum Func {
+    Crmi(Crmi),
+    Ucrmi(Ucrmi),
+    Fsmi(Fsmi),
+    IigMi(IigMi),
+    Gpvr(Gpvr),
+    Ugpvr(Ugpvr),
+}
+
+/// One of the information functions (crm-spec 5–6, planner-spec 4–5).
+#[pyclass(module = "crlam._native", frozen)]
+pub struct InfoFunction {
+    f: Func,
+}
+
+fn units_name(u: InfoUnits) -> &'static str {
+    u.name()
+}
+
+fn units_parse(name: &str) -> PyResult<InfoUnits> {
+    match name {
+        "bits" => Ok(InfoUnits::Bits),
+        "nats" => Ok(InfoUnits::Nats),
+        other => Err(shape_err(format!(
+            "units must be bits or nats, got {other:?}"
+        ))),
+    }
+}
+
+fn candidate(pose: [f64; 3], parent: Option<(f64, f64)>) -> Candidate {
+    match parent {
+        Some((x, y)) => Candidate {
+            pose,
+            parent: [x, y],
+        },
+        None => Candidate::at(pose),
+    }
+}
+
+fn cov3(c: Option<PyReadonlyArray2<'_, f64>>) -> PyResult<Option<Cov3>> {
+    let Some(c) = c else { return Ok(None) };
+    if c.shape() != [3, 3] {
+        return Err(shape_err(format!(
+            "covariance must be 3x3, got {:?}",
+            c.shape()
+        )));
+    }
+    let s = c
+        .as_slice()
+        .map_err(|_| shape_err("covariance must be a contiguous float64 array"))?;
+    Ok(Some([
+        [s[0], s[1], s[2]],
+        [s[3], s[4], s[5]],
+        [s[6], s[7], s[8]],
+    ]))
+}
+
+fn cov_array<'py>(py: Python<'py>, c: &Cov3) -> Bound<'py, PyArray2<f64>> {
+    let flat: Vec<f64> = c.iter().flatten().copied().collect();
+    Array2::from_shape_vec((3, 3), flat)
+        .expect("3x3")
+        .into_pyarray(py)
+}
+
+#[pymethods]
+impl InfoFunction {
+    /// CRMI by the exact discrete channel (crm-spec 5.2). `model` is the mapping model.
+    #[staticmethod]
+    #[pyo3(signature = (model, *, n_beams=10, beam_angles="distinct", lambda_z=0.1, quadrature="cdf", dedupe_cells="sum", units="bits", hit_threshold=0.5))]
+    fn crmi(
+        model: &SensorModel,
+        n_beams: usize,
+        beam_angles: &str,
+        lambda_z: f64,
+        quadrature: &str,
+        dedupe_cells: &str,
+        units: &str,
+        hit_threshold: f64,
+    ) -> PyResult<Self> {
+        let cfg = crmi_config(
+            model,
+            n_beams,
+            beam_angles,
+            lambda_z,
+            quadrature,
+            dedupe_cells,
+            units,
+            hit_threshold,
+        )?;
+        Ok(Self {
+            f: Func::Crmi(Crmi::new(cfg).py_err()?),
+        })
+    }
+
+    /// UCRMI at a node (crm-spec 6.4), in bits.
+    #[staticmethod]
+    #[pyo3(signature = (model, weight_model, *, alpha=0.5, n_particles=100, n_beams=10, beam_angles="distinct", lambda_z=0.1, quadrature="cdf", dedupe_cells="sum", hit_threshold=0.5, edge_noise=(0.01, 6.853891945200942e-6), root_cov_diag=(0.16, 0.01, 1e-6), resample_threshold=0.5))]
+    fn ucrmi(
+        model: &SensorModel,
+        weight_model: &SensorModel,
+        alpha: f64,
+        n_particles: usize,
+        n_beams: usize,
+        beam_angles: &str,
+        lambda_z: f64,
+        quadrature: &str,
+        dedupe_cells: &str,
+        hit_threshold: f64,
+        edge_noise: (f64, f64),
+        root_cov_diag: (f64, f64, f64),
+        resample_threshold: f64,
+    ) -> PyResult<Self> {
+        let crmi = crmi_config(
+            model,
+            n_beams,
+            beam_angles,
+            lambda_z,
+            quadrature,
+            dedupe_cells,
+            "bits",
+            hit_threshold,
+        )?;
+        let cfg = UcrmiConfig {
+            crmi,
+            alpha,
+            n_particles,
+            noise: EdgeMotionNoise {
+                q_xy: edge_noise.0,
+                q_theta: edge_noise.1,
+            },
+            root_cov_diag: [root_cov_diag.0, root_cov_diag.1, root_cov_diag.2],
+            weight_model: weight_model.inner,
+            resample_threshold,
+        };
+        Ok(Self {
+            f: Func::Ucrmi(Ucrmi::new(cfg).py_err()?),
+        })
+    }
+
+    /// OGMI on an occupancy lattice: `variant` full | truncated | noise_free | julian (nats).
+    #[staticmethod]
+    #[pyo3(signature = (*, variant="full", width_sigmas=3.0, points_per_cell=16, delta_occ=1.5, delta_emp=1.0/1.5, sigma=0.05, z_max=5.0, n_beams=10, beam_angles="distinct", p_occ=0.65))]
+    fn fsmi(
+        variant: &str,
+        width_sigmas: f64,
+        points_per_cell: usize,
+        delta_occ: f64,
+        delta_emp: f64,
+        sigma: f64,
+        z_max: f64,
+        n_beams: usize,
+        beam_angles: &str,
+        p_occ: f64,
+    ) -> PyResult<Self> {
+        let variant = match variant {
+            "full" => FsmiVariant::Full,
+            "truncated" => FsmiVariant::Truncated { width_sigmas },
+            "noise_free" => FsmiVariant::NoiseFree,
+            "julian" => FsmiVariant::Julian { points_per_cell },
+            other => {
+                return Err(shape_err(format!(
+                    "variant must be full, truncated, noise_free or julian, got {other:?}"
+                )))
+            }
+        };
+        let f = Fsmi {
+            params: OgmiParams {
+                delta_occ,
+                delta_emp,
+                sigma,
+                z_max,
+            },
+            variant,
+            n_beams,
+            beam_angles: BeamAngles::parse(beam_angles).py_err()?,
+            p_occ,
+        };
+        f.validate().py_err()?;
+        Ok(Self { f: Func::Fsmi(f) })
+    }
+
+    /// The IIG reference 'mi' heuristic (or 'miub' with `upper_bound`), nats.
+    #[staticmethod]
+    #[pyo3(signature = (*, upper_bound=false, n_beams=10, beam_angles="reference", z_max=5.0, p_occ=0.65, int_res=0.5))]
+    fn iig_mi(
+        upper_bound: bool,
+        n_beams: usize,
+        beam_angles: &str,
+        z_max: f64,
+        p_occ: f64,
+        int_res: f64,
+    ) -> PyResult<Self> {
+        let f = IigMi {
+            upper_bound,
+            n_beams,
+            beam_angles: BeamAngles::parse(beam_angles).py_err()?,
+            z_max,
+            p_occ,
+            int_res,
+        };
+        f.validate().py_err()?;
+        Ok(Self { f: Func::IigMi(f) })
+    }
+
+    /// GPVR on a GP variance map (planner-spec 5.2), nats; `mode` reference | clean.
+    #[staticmethod]
+    #[pyo3(signature = (*, mode="reference"))]
+    fn gpvr(mode: &str) -> PyResult<Self> {
+        let f = match mode {
+            "reference" => Gpvr::reference(),
+            "clean" => Gpvr::clean(),
+            other => {
+                return Err(shape_err(format!(
+                    "mode must be reference or clean, got {other:?}"
+                )))
+            }
+        };
+        Ok(Self { f: Func::Gpvr(f) })
+    }
+
+    /// UGPVR with the expected kernel (planner-spec 5.3), nats; `mode` reference | clean.
+    #[staticmethod]
+    #[pyo3(signature = (*, mode="reference"))]
+    fn ugpvr(mode: &str) -> PyResult<Self> {
+        let f = match mode {
+            "reference" => Ugpvr::reference(),
+            "clean" => Ugpvr::clean(),
+            other => {
+                return Err(shape_err(format!(
+                    "mode must be reference or clean, got {other:?}"
+                )))
+            }
+        };
+        Ok(Self { f: Func::Ugpvr(f) })
+    }
+
+    #[getter]
+    fn name(&self) -> &'static str {
+        match &self.f {
+            Func::Crmi(f) => f.name(),
+            Func::Ucrmi(f) => f.name(),
+            Func::Fsmi(f) => f.name(),
+            Func::IigMi(f) => f.name(),
+            Func::Gpvr(f) => f.name(),
+            Func::Ugpvr(f) => f.name(),
+        }
+    }
+
+    #[getter]
+    fn units(&self) -> &'static str {
+        units_name(match &self.f {
+            Func::Crmi(f) => f.units(),
+            Func::Ucrmi(f) => f.units(),
+            Func::Fsmi(f) => f.units(),
+            Func::IigMi(f) => f.units(),
+            Func::Gpvr(f) => f.units(),
+            Func::Ugpvr(f) => f.units(),
+        })
+    }
+
+    /// "crm", "lattice" or "gp": the map state the function reads.
+    #[getter]
+    fn state_kind(&self) -> &'static str {
+        match &self.f {
+            Func::Crmi(_) | Func::Ucrmi(_) => "crm",
+            Func::Fsmi(_) | Func::IigMi(_) => "lattice",
+            Func::Gpvr(_) | Func::Ugpvr(_) => "gp",
+        }
+    }
+
+    /// "none", "particles" or "covariance": the pose belief carried per node.
+    #[getter]
+    fn belief_kind(&self) -> &'static str {
+        match &self.f {
+            Func::Ucrmi(_) => "particles",
+            Func::Ugpvr(_) => "covariance",
+            _ => "none",
+        }
+    }
+
+    /// The root belief for a pose-aware function: particles for UCRMI (seeded), the root
+    /// covariance for UGPVR; None otherwise.
+    #[pyo3(signature = (pose, seed=0))]
+    fn root_belief(
+        &self,
+        py: Python<'_>,
+        pose: numpy::PyReadonlyArray1<'_, f64>,
+        seed: u64,
+    ) -> PyResult<PyObject> {
+        let p = pose3(&pose)?;
+        match &self.f {
+            Func::Ucrmi(f) => Ok(ParticleBelief {
+                inner: f.root_belief(p, seed).py_err()?,
+            }
+            .into_pyobject(py)?
+            .into_any()
+            .unbind()),
+            Func::Ugpvr(_) => Ok(cov_array(py, &root_covariance()).into_any().unbind()),
+            _ => Ok(py.None()),
+        }
+    }
+
+    /// Gain of one candidate (pure: `state` is not changed). `parent` is the (x, y) of the edge
+    /// start (default: the pose itself); `belief` the parent's pose belief for pose-aware
+    /// functions. Returns (gain, candidate belief or None, update).
+    #[pyo3(signature = (state, pose, *, parent=None, belief=None, seed=0))]
+    fn evaluate(
+        &self,
+        py: Python<'_>,
+        state: &Bound<'_, PyAny>,
+        pose: numpy::PyReadonlyArray1<'_, f64>,
+        parent: Option<(f64, f64)>,
+        belief: Option<&Bound<'_, PyAny>>,
+        seed: u64,
+    ) -> PyResult<(f64, PyObject, InfoUpdate)> {
+        let c = candidate(pose3(&pose)?, parent);
+        match &self.f {
+            Func::Crmi(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                let e = py
+                    .allow_threads(|| f.evaluate(mc, &(), &c, seed))
+                    .py_err()?;
+                Ok((
+                    e.gain,
+                    py.None(),
+                    InfoUpdate {
+                        inner: UpdateKind::Scan(e.update),
+                    },
+                ))
+            }
+            Func::Ucrmi(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                let b = particle_belief(f, belief, c.pose)?;
+                let e = py.allow_threads(|| f.evaluate(mc, &b, &c, seed)).py_err()?;
+                let obj = ParticleBelief { inner: e.belief }
+                    .into_pyobject(py)?
+                    .into_any()
+                    .unbind();
+                Ok((
+                    e.gain,
+                    obj,
+                    InfoUpdate {
+                        inner: UpdateKind::Scan(e.update),
+                    },
+                ))
+            }
+            Func::Fsmi(f) => {
+                let m = state.downcast::<OccupancyLattice>()?.borrow();
+                let mi = &m.inner;
+                let e = py
+                    .allow_threads(|| f.evaluate(mi, &(), &c, seed))
+                    .py_err()?;
+                Ok((
+                    e.gain,
+                    py.None(),
+                    InfoUpdate {
+                        inner: UpdateKind::Nodes(e.update),
+                    },
+                ))
+            }
+            Func::IigMi(f) => {
+                let m = state.downcast::<OccupancyLattice>()?.borrow();
+                let mi = &m.inner;
+                let e = py
+                    .allow_threads(|| f.evaluate(mi, &(), &c, seed))
+                    .py_err()?;
+                Ok((
+                    e.gain,
+                    py.None(),
+                    InfoUpdate {
+                        inner: UpdateKind::Nodes(e.update),
+                    },
+                ))
+            }
+            Func::Gpvr(f) => {
+                let m = state.downcast::<GpVarianceMap>()?.borrow();
+                let mi = &m.inner;
+                let e = py
+                    .allow_threads(|| f.evaluate(mi, &(), &c, seed))
+                    .py_err()?;
+                Ok((
+                    e.gain,
+                    py.None(),
+                    InfoUpdate {
+                        inner: UpdateKind::Nodes(e.update),
+                    },
+                ))
+            }
+            Func::Ugpvr(f) => {
+                let m = state.downcast::<GpVarianceMap>()?.borrow();
+                let mi = &m.inner;
+                let b = covariance_belief(belief)?;
+                let e = py.allow_threads(|| f.evaluate(mi, &b, &c, seed)).py_err()?;
+                let obj = cov_array(py, &e.belief).into_any().unbind();
+                Ok((
+                    e.gain,
+                    obj,
+                    InfoUpdate {
+                        inner: UpdateKind::Nodes(e.update),
+                    },
+                ))
+            }
+        }
+    }
+
+    /// Applies an update from `evaluate` to `state` (the planner's map mutation).
+    fn commit(&self, state: &Bound<'_, PyAny>, update: &InfoUpdate) -> PyResult<()> {
+        match (&self.f, &update.inner) {
+            (Func::Crmi(f), UpdateKind::Scan(s)) => {
+                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
+                f.commit(m.core_mut(), s).py_err()
+            }
+            (Func::Ucrmi(f), UpdateKind::Scan(s)) => {
+                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
+                f.commit(m.core_mut(), s).py_err()
+            }
+            (Func::Fsmi(f), UpdateKind::Nodes(v)) => {
+                let mut m = state.downcast::<OccupancyLattice>()?.borrow_mut();
+                f.commit(&mut m.inner, v).py_err()
+            }
+            (Func::IigMi(f), UpdateKind::Nodes(v)) => {
+                let mut m = state.downcast::<OccupancyLattice>()?.borrow_mut();
+                f.commit(&mut m.inner, v).py_err()
+            }
+            (Func::Gpvr(f), UpdateKind::Nodes(v)) => {
+                let mut m = state.downcast::<GpVarianceMap>()?.borrow_mut();
+                f.commit(&mut m.inner, v).py_err()
+            }
+            (Func::Ugpvr(f), UpdateKind::Nodes(v)) => {
+                let mut m = state.downcast::<GpVarianceMap>()?.borrow_mut();
+                f.commit(&mut m.inner, v).py_err()
+            }
+            _ => Err(shape_err(
+                "this update was not made by this kind of function",
+            )),
+        }
+    }
+
+    /// Gains of many candidates (n, 3) on one state, in parallel (rayon, GIL released);
+    /// identical to evaluating them one by one with seeds `candidate_seed(seed, i)`.
+    /// `parents` (n, 2) are the edge starts (default: each pose itself).
+    #[pyo3(signature = (state, poses, *, parents=None, belief=None, seed=0))]
+    fn gains<'py>(
+        &self,
+        py: Python<'py>,
+        state: &Bound<'py, PyAny>,
+        poses: PyReadonlyArray2<'py, f64>,
+        parents: Option<PyReadonlyArray2<'py, f64>>,
+        belief: Option<&Bound<'py, PyAny>>,
+        seed: u64,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let p = poses_n3(&poses)?;
+        let cands: Vec<Candidate> = match parents {
+            None => p.iter().map(|&q| Candidate::at(q)).collect(),
+            Some(par) => {
+                if par.shape() != [p.len(), 2] {
+                    return Err(shape_err(format!(
+                        "parents must have shape ({}, 2), got {:?}",
+                        p.len(),
+                        par.shape()
+                    )));
+                }
+                let s = par
+                    .as_slice()
+                    .map_err(|_| shape_err("parents must be a contiguous float64 array"))?;
+                p.iter()
+                    .zip(s.chunks(2))
+                    .map(|(&q, xy)| Candidate {
+                        pose: q,
+                        parent: [xy[0], xy[1]],
+                    })
+                    .collect()
+            }
+        };
+        let g = match &self.f {
+            Func::Crmi(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                py.allow_threads(|| core_info::gain_batch(f, mc, &(), &cands, seed))
+            }
+            Func::Ucrmi(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                match belief {
+                    Some(b) if !b.is_none() => {
+                        let b = b.downcast::<ParticleBelief>()?.get().inner.clone();
+                        py.allow_threads(|| core_info::gain_batch(f, mc, &b, &cands, seed))
+                    }
+                    // No parent: every candidate starts from its own root belief (a surface).
+                    _ => py.allow_threads(|| f.gains_from_roots(mc, &cands, seed)),
+                }
+            }
+            Func::Fsmi(f) => {
+                let m = state.downcast::<OccupancyLattice>()?.borrow();
+                let mi = &m.inner;
+                py.allow_threads(|| core_info::gain_batch(f, mi, &(), &cands, seed))
+            }
+            Func::IigMi(f) => {
+                let m = state.downcast::<OccupancyLattice>()?.borrow();
+                let mi = &m.inner;
+                py.allow_threads(|| core_info::gain_batch(f, mi, &(), &cands, seed))
+            }
+            Func::Gpvr(f) => {
+                let m = state.downcast::<GpVarianceMap>()?.borrow();
+                let mi = &m.inner;
+                py.allow_threads(|| core_info::gain_batch(f, mi, &(), &cands, seed))
+            }
+            Func::Ugpvr(f) => {
+                let m = state.downcast::<GpVarianceMap>()?.borrow();
+                let mi = &m.inner;
+                let b = covariance_belief(belief)?;
+                py.allow_threads(|| core_info::gain_batch(f, mi, &b, &cands, seed))
+            }
+        }
+        .py_err()?;
+        Ok(g.into_pyarray(py))
+    }
+}
+
+/// The parent particle set: the given belief, or (for surfaces) a root set at the pose.
+fn particle_belief(
+    f: &Ucrmi,
+    belief: Option<&Bound<'_, PyAny>>,
+    pose: [f64; 3],
+) -> PyResult<ucrmi::ParticleBelief> {
+    match belief {
+        Some(b) if !b.is_none() => Ok(b.downcast::<ParticleBelief>()?.get().inner.clone()),
+        _ => f.root_belief(pose, 0).py_err(),
+    }
+}
+
+/// The parent covariance: the given 3×3 array, or the root covariance.
+fn covariance_belief(belief: Option<&Bound<'_, PyAny>>) -> PyResult<Cov3> {
+    match belief {
+        Some(b) if !b.is_none() => {
+            let a: PyReadonlyArray2<'_, f64> = b.extract()?;
+            Ok(cov3(Some(a))?.expect("given"))
+        }
+        _ => Ok(root_covariance()),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn crmi_config(
+    model: &SensorModel,
+    n_beams: usize,
+    beam_angles: &str,
+    lambda_z: f64,
+    quadrature: &str,
+    dedupe_cells: &str,
+    units: &str,
+    hit_threshold: f64,
+) -> PyResult<CrmiConfig> {
+    let mut cfg = CrmiConfig::new(model.inner.z_max, 0.2);
+    cfg.model = model.inner;
+    cfg.n_beams = n_beams;
+    cfg.beam_angles = BeamAngles::parse(beam_angles).py_err()?;
+    cfg.lambda_z = lambda_z;
+    cfg.quadrature = CrmiQuadrature::parse(quadrature).py_err()?;
+    cfg.dedupe = CellDedupe::parse(dedupe_cells).py_err()?;
+    cfg.units = units_parse(units)?;
+    cfg.hit_threshold = hit_threshold;
+    cfg.validate().py_err()?;
+    Ok(cfg)
+}
+
+/// The seed a batch gives candidate `index` (for reproducing one batch entry serially).
+#[pyfunction]
+pub fn candidate_seed(seed: u64, index: u64) -> u64 {
+    core_info::candidate_seed(seed, index)
+}
