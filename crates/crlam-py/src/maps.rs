@@ -740,6 +740,21 @@ pub fn run_benchmark<'py>(
     size: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     use crlam_core::bench;
+    if let Some((us, details)) = py
+        .allow_threads(|| crlam_core::info::bench::info_figure(name, size))
+        .py_err()?
+    {
+        let d = PyDict::new(py);
+        d.set_item("name", name)?;
+        d.set_item("us_per_pose", us)?;
+        d.set_item("per_second", 1e6 / us)?;
+        d.set_item("operations", size)?;
+        d.set_item("unit", "candidate poses")?;
+        for (k, v) in details {
+            d.set_item(k, v)?;
+        }
+        return Ok(d);
+    }
     let fig = py
         .allow_threads(|| match name {
             "crm_beam_updates_per_s" => Some(bench::crm_beam_updates(

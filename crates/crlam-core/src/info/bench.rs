@@ -11,8 +11,10 @@ use crate::info::gp::{GpVarianceMap, Gpvr, GpvrOptions, Ugpvr};
 use crate::info::iig_mi::IigMi;
 use crate::info::lattice::{traverse_lattice, BeamAngles, OccupancyLattice};
 use crate::info::prior::crm_from_lattice;
+use crate::info::ucrmi::{Ucrmi, UcrmiConfig};
 use crate::info::{Candidate, InformationFunction};
 use crate::rng::Rng;
+use crate::sensor::{SensorModel, SensorModelKind};
 
 /// Microseconds per candidate pose of CRMI with the given configuration.
 pub fn crmi_us_per_pose(cfg: CrmiConfig, n_poses: usize) -> Result<f64> {
@@ -295,6 +297,97 @@ pub fn bench_us_per_pose_ugpvr(f: &Ugpvr, n_poses: usize) -> Result<GpBench> {
         s = f.propagate(&s, &c);
     }
     bench_with(f, &f.options().gp, &s, n_poses)
+}
+
+/// Microseconds per candidate of UCRMI (100 particles, α = 0.5): each candidate extends a node
+/// 1 m away whose root particle set is drawn once.
+pub fn ucrmi_us_per_pose(n_poses: usize) -> Result<f64> {
+    let lat = synthetic_cave_lattice()?;
+    let map = crm_from_lattice(&lat, 10)?;
+    let f = Ucrmi::new(UcrmiConfig::new(5.0, 0.2))?;
+    let poses = room_poses(n_poses.max(1));
+    let roots: Vec<_> = poses
+        .iter()
+        .enumerate()
+        .map(|(i, p)| f.root_belief([p[0] - 1.0, p[1], 0.0], i as u64))
+        .collect::<Result<_>>()?;
+    let t = Instant::now();
+    let mut sink = 0.0;
+    for (i, p) in poses.iter().enumerate() {
+        let c = Candidate {
+            pose: *p,
+            parent: [p[0] - 1.0, p[1]],
+        };
+        sink += f.evaluate(&map, &roots[i], &c, i as u64)?.gain;
+    }
+    std::hint::black_box(sink);
+    Ok(t.elapsed().as_secs_f64() * 1e6 / poses.len() as f64)
+}
+
+/// One named figure of the information benchmarks: µs per candidate pose (one thread) and
+/// details. `None` for an unknown name.
+pub fn info_figure(name: &str, size: usize) -> Result<Option<(f64, Vec<(&'static str, f64)>)>> {
+    let n = size.max(1);
+    Ok(Some(match name {
+        "crmi_us_per_pose" => (crmi_us_per_pose(CrmiConfig::new(5.0, 0.2), n)?, vec![]),
+        "crmi_mixture_us_per_pose" => {
+            let mut c = CrmiConfig::new(5.0, 0.2);
+            c.model = SensorModel::with_defaults(SensorModelKind::Mixture, 5.0, 0.2);
+            (crmi_us_per_pose(c, n)?, vec![])
+        }
+        "ucrmi_us_per_pose" => (ucrmi_us_per_pose(n)?, vec![]),
+        "fsmi_us_per_pose" | "ogmi_julian_us_per_pose" | "iig_mi_us_per_pose" => {
+            let b = bench_fsmi_vs_julian(n, 1)?;
+            let details = vec![
+                ("full_us", b.full_us),
+                ("truncated_us", b.truncated_us),
+                ("noise_free_us", b.noise_free_us),
+                ("julian_us", b.julian_us),
+                ("julian_points_per_cell", b.julian_points_per_cell as f64),
+                ("julian_max_rel_err", b.julian_max_rel_err),
+                ("truncated_max_rel_err", b.truncated_max_rel_err),
+                ("speedup_full_over_julian", b.julian_us / b.full_us),
+                (
+                    "speedup_truncated_over_julian",
+                    b.julian_us / b.truncated_us,
+                ),
+                (
+                    "speedup_noise_free_over_julian",
+                    b.julian_us / b.noise_free_us,
+                ),
+                ("cells_per_beam", b.cells_per_beam),
+            ];
+            let v = match name {
+                "fsmi_us_per_pose" => b.full_us,
+                "ogmi_julian_us_per_pose" => b.julian_us,
+                _ => b.iig_mi_us,
+            };
+            (v, details)
+        }
+        "gpvr_us_per_pose" => {
+            let r = bench_us_per_pose_gpvr(&Gpvr::reference(), n)?;
+            let c = bench_us_per_pose_gpvr(&Gpvr::clean(), n)?;
+            (
+                r.us_per_pose,
+                vec![
+                    ("clean_us", c.us_per_pose),
+                    ("mean_test_points", r.mean_test_points),
+                ],
+            )
+        }
+        "ugpvr_us_per_pose" => {
+            let r = bench_us_per_pose_ugpvr(&Ugpvr::reference(), n)?;
+            let c = bench_us_per_pose_ugpvr(&Ugpvr::clean(), (n / 5).max(1))?;
+            (
+                r.us_per_pose,
+                vec![
+                    ("clean_us", c.us_per_pose),
+                    ("mean_test_points", r.mean_test_points),
+                ],
+            )
+        }
+        _ => return Ok(None),
+    }))
 }
 
 #[cfg(test)]

@@ -18,6 +18,7 @@ use crate::crm::update::{cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::crm::CrmMap;
 use crate::error::{config_err, Result};
 use crate::grid::check_pose;
+use crate::info::fastmath::{ln_normal, normal_tail, tail_difference};
 use crate::info::lattice::BeamAngles;
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
 use crate::raycast::traverse_with;
@@ -228,22 +229,13 @@ impl BeamChannel {
             if w_h > 0.0 {
                 for e in q_lo..=q_hi + 1 {
                     let u = (self.edges[e] - dl) / sig;
-                    self.tails.push(if u > 0.0 {
-                        (true, normal_cdf(-u))
-                    } else {
-                        (false, normal_cdf(u))
-                    });
+                    self.tails.push(normal_tail(u));
                 }
             }
-            let tail_diff = |ea: (bool, f64), eb: (bool, f64)| match (ea.0, eb.0) {
-                (false, false) => eb.1 - ea.1,
-                (true, true) => ea.1 - eb.1,
-                _ => (1.0 - eb.1) - ea.1,
-            };
             // Normaliser: the Gaussian mass over the support bins (which lie inside [0, z_max],
             // so this also truncates at the range limits); the midpoint rule uses Z_h(d).
             let z_norm = match (self.tails.first(), self.tails.last(), cfg.quadrature) {
-                (Some(&a), Some(&b), CrmiQuadrature::Cdf) => tail_diff(a, b),
+                (Some(&a), Some(&b), CrmiQuadrature::Cdf) => tail_difference(a, b),
                 _ => normal_cdf((z_max - dl) / sig) - normal_cdf(-dl / sig),
             };
             for q in lo..=hi {
@@ -252,7 +244,7 @@ impl BeamChannel {
                 if !self.tails.is_empty() && q >= q_lo && q <= q_hi && z_norm > 0.0 {
                     let mass = match cfg.quadrature {
                         CrmiQuadrature::Cdf => {
-                            tail_diff(self.tails[q - q_lo], self.tails[q + 1 - q_lo])
+                            tail_difference(self.tails[q - q_lo], self.tails[q + 1 - q_lo])
                         }
                         CrmiQuadrature::Midpoint => midpoint_hit_mass(a, b, dl, sig),
                     };
@@ -464,35 +456,6 @@ fn posterior_entropy(p: &[f64], log_p: &[f64], mu: &[f64], alpha: f64, mhat: f64
     } else {
         0.0
     }
-}
-
-/// Natural log of a positive, normal, finite x to within a few ulp, branch-free: x = 2^e·m with
-/// m ∈ [√½, √2), ln m = 2 atanh(s), s = (m − 1)/(m + 1), |s| ≤ 0.172, by its series to s^21
-/// (truncation below 1e-17). The exponent is read as a float through the 2^52 trick so that
-/// the whole function vectorises.
-#[inline(always)]
-fn ln_normal(x: f64) -> f64 {
-    const MANTISSA: u64 = 0x000f_ffff_ffff_ffff;
-    const ONE: u64 = 0x3ff0_0000_0000_0000;
-    const TWO52: f64 = 4_503_599_627_370_496.0;
-    let bits = x.to_bits();
-    let e_field = f64::from_bits(TWO52.to_bits() | (bits >> 52)) - TWO52;
-    let m = f64::from_bits((bits & MANTISSA) | ONE);
-    let big = m > std::f64::consts::SQRT_2;
-    let m = if big { 0.5 * m } else { m };
-    let e = e_field - 1023.0 + if big { 1.0 } else { 0.0 };
-    let s = (m - 1.0) / (m + 1.0);
-    let z = s * s;
-    let poly = 1.0
-        + z * (1.0 / 3.0
-            + z * (1.0 / 5.0
-                + z * (1.0 / 7.0
-                    + z * (1.0 / 9.0
-                        + z * (1.0 / 11.0
-                            + z * (1.0 / 13.0
-                                + z * (1.0 / 15.0
-                                    + z * (1.0 / 17.0 + z * (1.0 / 19.0 + z / 21.0)))))))));
-    e * std::f64::consts::LN_2 + 2.0 * s * poly
 }
 
 /// Pooled per-cell MI (nats) of one beam into `sc.per_cell`, from `sc.probs` (N × K), `sc.dist`.
@@ -818,31 +781,4 @@ pub fn commit_virtual_scan(
         &mut sc,
     )?;
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn fast_log_is_accurate_over_the_normal_range() {
-        let mut rng = crate::rng::Rng::new(1);
-        let mut worst: f64 = 0.0;
-        for _ in 0..200_000 {
-            let x = (rng.uniform() * 1400.0 - 700.0).exp2() * (1.0 + rng.uniform());
-            let (a, b) = (ln_normal(x), x.ln());
-            worst = worst.max((a - b).abs() / b.abs().max(1.0));
-        }
-        for x in [
-            1.0,
-            2.0,
-            0.5,
-            std::f64::consts::SQRT_2,
-            f64::MIN_POSITIVE,
-            f64::MAX,
-        ] {
-            worst = worst.max((ln_normal(x) - x.ln()).abs() / x.ln().abs().max(1.0));
-        }
-        assert!(worst < 1e-15, "{worst}");
-    }
 }

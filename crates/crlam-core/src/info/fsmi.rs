@@ -16,6 +16,7 @@
 //! on the lattice; [`crate::info::iig_mi::IigMi`] is the IIG reference 'mi' heuristic (4.3).
 
 use crate::error::{config_err, CrlamError, Result};
+use crate::info::fastmath::normal_cdf_fast;
 use crate::info::lattice::{traverse_lattice, BeamAngles, LatticeCell, OccupancyLattice};
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
 use crate::raycast::rect_box;
@@ -355,7 +356,7 @@ fn gaussian_expectation(
         if x.abs() > CDF_SATURATION {
             f64::from(u8::from(x > 0.0))
         } else {
-            normal_cdf(x)
+            normal_cdf_fast(x)
         }
     };
     let mut acc = c[hi] * cdf(hi + 1) - c[lo] * cdf(lo);

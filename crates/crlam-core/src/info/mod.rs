@@ -11,6 +11,7 @@
 pub mod bench;
 pub mod crmi;
 pub mod entropy;
+pub mod fastmath;
 pub mod fsmi;
 pub mod gp;
 pub mod gp_kernel;
