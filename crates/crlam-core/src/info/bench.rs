@@ -324,9 +324,12 @@ pub fn ucrmi_us_per_pose(n_poses: usize) -> Result<f64> {
     Ok(t.elapsed().as_secs_f64() * 1e6 / poses.len() as f64)
 }
 
+/// A benchmark result: µs per candidate pose and named details.
+pub type InfoFigure = (f64, Vec<(&'static str, f64)>);
+
 /// One named figure of the information benchmarks: µs per candidate pose (one thread) and
 /// details. `None` for an unknown name.
-pub fn info_figure(name: &str, size: usize) -> Result<Option<(f64, Vec<(&'static str, f64)>)>> {
+pub fn info_figure(name: &str, size: usize) -> Result<Option<InfoFigure>> {
     let n = size.max(1);
     Ok(Some(match name {
         "crmi_us_per_pose" => (crmi_us_per_pose(CrmiConfig::new(5.0, 0.2), n)?, vec![]),
