@@ -209,3 +209,18 @@ def test_cave_prior_matches_the_planner_lattice(data_dir: Path) -> None:
     assert int((p == 0.85).sum()) == 2356 + 400 - on_border
     # Every pixel of the border walls and nothing in the 1 m margin.
     assert np.all(p[:5] == 0.3) and np.all(p[5, 5:106] == 0.85)
+
+
+@pytest.mark.parametrize("variant", ["ml_scan_binary", "r1_map"])
+def test_authors_crmi_variants_run_through_the_api(variant: str) -> None:
+    prior = small_prior()
+    f = make_function("crmi", crmi_variant=variant)
+    assert f.settings["variant"] == variant and f.units == "bits"
+    state = f.make_state(prior.lattice)
+    poses = prior.node_positions(prior.free)[::41]
+    g = f.gains(state, poses)
+    assert np.all(np.isfinite(g)) and g.max() > 0
+    e = f.evaluate(state, poses[0])
+    assert e.update.kind == "virtual_scan"
+    with pytest.raises(CrlamError):
+        make_function("crmi", crmi_variant="nope")

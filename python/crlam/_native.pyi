@@ -365,6 +365,8 @@ class InfoFunction:
         dedupe_cells: str = "sum",
         units: str = "bits",
         hit_threshold: float = 0.5,
+        variant: str = "exact",
+        resolution: float = 0.2,
     ) -> InfoFunction: ...
     @staticmethod
     def ucrmi(

@@ -30,6 +30,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         alpha=args.alpha,
         n_particles=args.particles,
         crm_model=args.crm_model,
+        crmi_variant=args.crmi_variant,
     )
     if args.belief:
         archive = load_belief(args.belief)
@@ -85,6 +86,12 @@ def add_info_parser(subparsers: Any, positive_float: Any, positive_int: Any) -> 
     p.add_argument("--mode", choices=("clean", "reference"), default="clean", help="reference quirks or clean (default)")
     p.add_argument("--alpha", type=float, default=0.5, help="UCRMI weight of the map term (default: 0.5)")
     p.add_argument("--particles", type=positive_int, default=100, help="UCRMI particles (default: 100)")
+    p.add_argument(
+        "--crmi-variant",
+        choices=("exact", "ml_scan_binary", "r1_map"),
+        default="exact",
+        help="CRMI by the exact channel (default) or the authors' approximations, for comparison",
+    )
     p.add_argument("--crm-model", choices=("ijrr", "mixture"), default="ijrr", help="CRM mapping model (default: ijrr)")
     p.add_argument("--p-occupied", type=float, default=0.85, help="prior of occupied cells (default: 0.85)")
     p.add_argument("--p-free", type=float, default=0.3, help="prior of free cells (default: 0.3)")

@@ -427,3 +427,89 @@ fn bad_settings_are_refused() {
     assert!(crmi.gain_with(&m, [f64::NAN, 0.0, 0.0], &mut sc).is_err());
     let _ = BeamAngles::Reference;
 }
+
+mod authors_variants {
+    use super::*;
+    use crlam_core::info::crmi_authors::{r1_mi_map, AuthorsCrmiConfig, MlScanBinary, R1Map};
+
+    fn room() -> CrmMap {
+        map_with(|ix, iy| {
+            if ix == 40 || ix == 60 || iy == 40 || iy == 60 {
+                one_hot(9, 1e-3)
+            } else {
+                vec![0.1; 10]
+            }
+        })
+    }
+
+    #[test]
+    fn most_likely_scan_stops_at_the_first_likely_wall() {
+        let m = room();
+        let cfg = AuthorsCrmiConfig::new(5.0, 0.2);
+        // From (10.1, 10.1) the wall column ix = 60 starts at x = 12.0: 1.9 m, rounded to 2.0.
+        let s = cfg.most_likely_scan(&m, [10.1, 10.1, 0.0]);
+        assert!((s.ranges[0] - 2.0).abs() < 1e-9, "{:?}", s.ranges);
+        // An unknown map (m̂ = 0.5, not above 0.5) gives no-returns.
+        let u = map_with(|_, _| vec![0.1; 10]);
+        let s = cfg.most_likely_scan(&u, [10.1, 10.1, 0.0]);
+        assert!(s.ranges.iter().all(|&r| r == 5.0));
+    }
+
+    #[test]
+    fn ml_scan_binary_drops_entropy_and_repeats_gain_less() {
+        let mut m = room();
+        let f = MlScanBinary::new(AuthorsCrmiConfig::new(5.0, 0.2)).unwrap();
+        let c = Candidate::at([10.1, 10.1, 0.0]);
+        let e1 = f.evaluate(&m, &(), &c, 0).unwrap();
+        assert!(e1.gain > 1.0, "{}", e1.gain);
+        assert_eq!(f.evaluate(&m, &(), &c, 0).unwrap().gain, e1.gain);
+        // The binary entropy is flat at m̂ = 0.5, so the first updates of unknown cells lose
+        // little of it and later ones more; once the cells are confident the gain vanishes.
+        let mut gains = vec![e1.gain];
+        for _ in 0..40 {
+            let e = f.evaluate(&m, &(), &c, 0).unwrap();
+            f.commit(&mut m, &e.update).unwrap();
+            gains.push(e.gain);
+        }
+        let peak = gains.iter().cloned().fold(0.0, f64::max);
+        assert!(*gains.last().unwrap() < 0.2 * peak, "{gains:?}");
+        // A fully known map has no binary entropy to lose.
+        let known = map_with(|ix, iy| one_hot(if ix == 60 || iy == 60 { 9 } else { 0 }, 0.0));
+        let g = f.evaluate(&known, &(), &c, 0).unwrap().gain;
+        assert!(g.abs() < 0.5, "{g}");
+    }
+
+    #[test]
+    fn r1_map_is_floored_bounded_and_below_the_prior_entropy() {
+        let mut m = room();
+        let before = m.clone();
+        let model = AuthorsCrmiConfig::new(5.0, 0.2).model;
+        let angles: Vec<f64> = (0..12)
+            .map(|k| k as f64 * std::f64::consts::TAU / 12.0)
+            .collect();
+        let ranges = vec![1.9; 12];
+        let cells = r1_mi_map(&mut m, [10.1, 10.1, 0.0], &angles, &ranges, &model).unwrap();
+        assert!(cells.len() > 100);
+        for &((x, y), v) in &cells {
+            let h0 = crlam_core::info::bernoulli_entropy(before.mean_at(x, y)) / LN2;
+            assert!((0.01..=1.0).contains(&v), "{v}");
+            assert!(v <= h0.max(0.01) + 1e-12, "cell ({x},{y}): {v} > {h0}");
+        }
+        // R1's integration lowers the cells the beams reach.
+        let lowered = cells
+            .iter()
+            .filter(|&&((x, y), v)| {
+                v < crlam_core::info::bernoulli_entropy(before.mean_at(x, y)) / LN2 - 1e-3
+            })
+            .count();
+        assert!(lowered > 20, "{lowered}");
+        // The map was updated with the scan.
+        assert!(m.mean_at(52, 50) < before.mean_at(52, 50));
+        let f = R1Map::new(AuthorsCrmiConfig::new(5.0, 0.2)).unwrap();
+        let g = f
+            .evaluate(&room(), &(), &Candidate::at([10.1, 10.1, 0.0]), 0)
+            .unwrap()
+            .gain;
+        assert!(g > 0.0 && g.is_finite());
+    }
+}

@@ -3,6 +3,7 @@
 
 use crlam_core::grid::GridGeometry;
 use crlam_core::info::crmi::{CellDedupe, Crmi, CrmiConfig, CrmiQuadrature, VirtualScan};
+use crlam_core::info::crmi_authors::{AuthorsCrmiConfig, MlScanBinary, R1Map};
 use crlam_core::info::entropy::{weighted_position_covariance, EdgeMotionNoise};
 use crlam_core::info::fsmi::{Fsmi, FsmiVariant, OgmiParams};
 use crlam_core::info::gp::{GpVarianceMap as CoreGpMap, Gpvr, Ugpvr};
@@ -216,6 +217,8 @@ impl InfoUpdate {
 
 enum Func {
     Crmi(Crmi),
+    CrmiMl(MlScanBinary),
+    CrmiR1(R1Map),
     Ucrmi(Ucrmi),
     Fsmi(Fsmi),
     IigMi(IigMi),
@@ -280,9 +283,11 @@ fn cov_array<'py>(py: Python<'py>, c: &Cov3) -> Bound<'py, PyArray2<f64>> {
 
 #[pymethods]
 impl InfoFunction {
-    /// CRMI by the exact discrete channel (crm-spec 5.2). `model` is the mapping model.
+    /// CRMI (bits). `variant` "exact" is the discrete channel of crm-spec 5.2 with `model` the
+    /// mapping model; "ml_scan_binary" (5.4) and "r1_map" (5.3) are the authors' variants, which
+    /// use the `authors_code` update at `resolution` (m) and ignore the channel settings.
     #[staticmethod]
-    #[pyo3(signature = (model, *, n_beams=10, beam_angles="distinct", lambda_z=0.1, quadrature="cdf", dedupe_cells="sum", units="bits", hit_threshold=0.5))]
+    #[pyo3(signature = (model, *, n_beams=10, beam_angles="distinct", lambda_z=0.1, quadrature="cdf", dedupe_cells="sum", units="bits", hit_threshold=0.5, variant="exact", resolution=0.2))]
     fn crmi(
         model: &SensorModel,
         n_beams: usize,
@@ -292,7 +297,25 @@ impl InfoFunction {
         dedupe_cells: &str,
         units: &str,
         hit_threshold: f64,
+        variant: &str,
+        resolution: f64,
     ) -> PyResult<Self> {
+        if variant != "exact" {
+            let mut cfg = AuthorsCrmiConfig::new(model.inner.z_max, resolution);
+            cfg.n_beams = n_beams;
+            cfg.beam_angles = BeamAngles::parse(beam_angles).py_err()?;
+            cfg.hit_threshold = hit_threshold;
+            let f = match variant {
+                "ml_scan_binary" => Func::CrmiMl(MlScanBinary::new(cfg).py_err()?),
+                "r1_map" => Func::CrmiR1(R1Map::new(cfg).py_err()?),
+                other => {
+                    return Err(shape_err(format!(
+                        "variant must be exact, ml_scan_binary or r1_map, got {other:?}"
+                    )))
+                }
+            };
+            return Ok(Self { f });
+        }
         let cfg = crmi_config(
             model,
             n_beams,
@@ -454,6 +477,8 @@ impl InfoFunction {
     fn name(&self) -> &'static str {
         match &self.f {
             Func::Crmi(f) => f.name(),
+            Func::CrmiMl(f) => f.name(),
+            Func::CrmiR1(f) => f.name(),
             Func::Ucrmi(f) => f.name(),
             Func::Fsmi(f) => f.name(),
             Func::IigMi(f) => f.name(),
@@ -466,6 +491,8 @@ impl InfoFunction {
     fn units(&self) -> &'static str {
         units_name(match &self.f {
             Func::Crmi(f) => f.units(),
+            Func::CrmiMl(f) => f.units(),
+            Func::CrmiR1(f) => f.units(),
             Func::Ucrmi(f) => f.units(),
             Func::Fsmi(f) => f.units(),
             Func::IigMi(f) => f.units(),
@@ -478,7 +505,7 @@ impl InfoFunction {
     #[getter]
     fn state_kind(&self) -> &'static str {
         match &self.f {
-            Func::Crmi(_) | Func::Ucrmi(_) => "crm",
+            Func::Crmi(_) | Func::CrmiMl(_) | Func::CrmiR1(_) | Func::Ucrmi(_) => "crm",
             Func::Fsmi(_) | Func::IigMi(_) => "lattice",
             Func::Gpvr(_) | Func::Ugpvr(_) => "gp",
         }
@@ -532,6 +559,34 @@ impl InfoFunction {
         let c = candidate(pose3(&pose)?, parent);
         match &self.f {
             Func::Crmi(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                let e = py
+                    .allow_threads(|| f.evaluate(mc, &(), &c, seed))
+                    .py_err()?;
+                Ok((
+                    e.gain,
+                    py.None(),
+                    InfoUpdate {
+                        inner: UpdateKind::Scan(e.update),
+                    },
+                ))
+            }
+            Func::CrmiMl(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                let e = py
+                    .allow_threads(|| f.evaluate(mc, &(), &c, seed))
+                    .py_err()?;
+                Ok((
+                    e.gain,
+                    py.None(),
+                    InfoUpdate {
+                        inner: UpdateKind::Scan(e.update),
+                    },
+                ))
+            }
+            Func::CrmiR1(f) => {
                 let m = state.downcast::<CrmMap>()?.borrow();
                 let mc = m.core();
                 let e = py
@@ -628,6 +683,14 @@ impl InfoFunction {
                 let mut m = state.downcast::<CrmMap>()?.borrow_mut();
                 f.commit(m.core_mut(), s).py_err()
             }
+            (Func::CrmiMl(f), UpdateKind::Scan(s)) => {
+                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
+                f.commit(m.core_mut(), s).py_err()
+            }
+            (Func::CrmiR1(f), UpdateKind::Scan(s)) => {
+                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
+                f.commit(m.core_mut(), s).py_err()
+            }
             (Func::Ucrmi(f), UpdateKind::Scan(s)) => {
                 let mut m = state.downcast::<CrmMap>()?.borrow_mut();
                 f.commit(m.core_mut(), s).py_err()
@@ -692,6 +755,16 @@ impl InfoFunction {
         };
         let g = match &self.f {
             Func::Crmi(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                py.allow_threads(|| core_info::gain_batch(f, mc, &(), &cands, seed))
+            }
+            Func::CrmiMl(f) => {
+                let m = state.downcast::<CrmMap>()?.borrow();
+                let mc = m.core();
+                py.allow_threads(|| core_info::gain_batch(f, mc, &(), &cands, seed))
+            }
+            Func::CrmiR1(f) => {
                 let m = state.downcast::<CrmMap>()?.borrow();
                 let mc = m.core();
                 py.allow_threads(|| core_info::gain_batch(f, mc, &(), &cands, seed))

@@ -175,6 +175,7 @@ def make_function(
     fsmi_variant: str = "full",
     julian_points_per_cell: int = 16,
     n_levels: int = 10,
+    crmi_variant: str = "exact",
 ) -> InformationFunction:
     """Builds an information function by name (see the module table).
 
@@ -207,6 +208,10 @@ def make_function(
         (``full | truncated | noise_free``); ``ogmi`` always integrates numerically.
     n_levels : int
         K of the CRM state built by :meth:`InformationFunction.make_state`.
+    crmi_variant : str
+        ``"exact"`` (crm-spec 5.2, default), or the authors' ``"ml_scan_binary"`` (5.4: binary
+        entropy drop of one update with the most likely scan) and ``"r1_map"`` (5.3: R1's
+        per-cell Bernoulli MI map), for comparison only; both use the ``authors_code`` update.
     """
     if name not in FUNCTION_NAMES:
         raise ConfigError(f"unknown information function {name!r}; expected one of {', '.join(FUNCTION_NAMES)}")
@@ -231,8 +236,16 @@ def make_function(
         settings.update(crm_model=crm_model, lambda_z=lambda_z, quadrature=quadrature, dedupe_cells=dedupe_cells)
         settings["sigma_hit"] = model.sigma_hit
         if name == "crmi":
+            settings["variant"] = crmi_variant
             native = _native.InfoFunction.crmi(
-                model, n_beams=n_beams, beam_angles=angles, lambda_z=lambda_z, quadrature=quadrature, dedupe_cells=dedupe_cells
+                model,
+                n_beams=n_beams,
+                beam_angles=angles,
+                lambda_z=lambda_z,
+                quadrature=quadrature,
+                dedupe_cells=dedupe_cells,
+                variant=crmi_variant,
+                resolution=resolution,
             )
         else:
             wm = _crm_models(z_max, resolution, weight_model, sigma_hit)

@@ -10,6 +10,7 @@
 
 pub mod bench;
 pub mod crmi;
+pub mod crmi_authors;
 pub mod entropy;
 pub mod fastmath;
 pub mod fsmi;
