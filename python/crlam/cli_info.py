@@ -13,9 +13,9 @@ def cmd_info(args: argparse.Namespace) -> int:
     """Evaluate the function over the map's free cells and write surface.npy/png and info.json."""
     import numpy as np
 
+    from crlam.errors import ConfigError
     from crlam.info import compute_surface, load_map_prior, make_function, prior_from_crm_mean, save_surface
     from crlam.io.belief import load_belief
-    from crlam.errors import ConfigError
     from crlam.mapping import ConfidenceRichMap
 
     if (args.map is None) == (args.belief is None):

@@ -1,16 +1,14 @@
-//! Python classes for the information functions: map states, pose beliefs, and one
-//! `InfoFunction` class that dispatches to the core functions.
+//! The Python `InfoFunction` class: one class that dispatches to every core information
+//! function, with evaluation, commit and parallel batches (GIL released).
 
-use crlam_core::grid::GridGeometry;
-use crlam_core::info::crmi::{CellDedupe, Crmi, CrmiConfig, CrmiQuadrature, VirtualScan};
+use crlam_core::info::crmi::{CellDedupe, Crmi, CrmiConfig, CrmiQuadrature};
 use crlam_core::info::crmi_authors::{AuthorsCrmiConfig, MlScanBinary, R1Map};
-use crlam_core::info::entropy::{weighted_position_covariance, EdgeMotionNoise};
+use crlam_core::info::entropy::EdgeMotionNoise;
 use crlam_core::info::fsmi::{Fsmi, FsmiVariant, OgmiParams};
-use crlam_core::info::gp::{GpVarianceMap as CoreGpMap, Gpvr, Ugpvr};
+use crlam_core::info::gp::{Gpvr, Ugpvr};
 use crlam_core::info::iig_mi::IigMi;
-use crlam_core::info::lattice::{self, BeamAngles};
+use crlam_core::info::lattice::BeamAngles;
 use crlam_core::info::posecov::{root_covariance, Cov3};
-use crlam_core::info::prior;
 use crlam_core::info::ucrmi::{self, Ucrmi, UcrmiConfig};
 use crlam_core::info::{self as core_info, Candidate, InfoUnits, InformationFunction};
 use numpy::ndarray::Array2;
@@ -18,202 +16,8 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMet
 use pyo3::prelude::*;
 
 use crate::convert::{pose3, poses_n3, shape_err, IntoPy};
+use crate::info_state::{GpVarianceMap, InfoUpdate, OccupancyLattice, ParticleBelief, UpdateKind};
 use crate::maps::{CrmMap, SensorModel};
-
-/// Occupancy probabilities on a lattice of cell centres (planner-spec 2.2).
-#[pyclass(module = "crlam._native")]
-#[derive(Clone)]
-pub struct OccupancyLattice {
-    pub inner: lattice::OccupancyLattice,
-}
-
-fn lattice_from(
-    probabilities: &PyReadonlyArray2<'_, f64>,
-    resolution: f64,
-    origin: (f64, f64),
-) -> PyResult<lattice::OccupancyLattice> {
-    let shape = probabilities.shape();
-    let (ny, nx) = (shape[0], shape[1]);
-    let p = probabilities
-        .as_slice()
-        .map_err(|_| shape_err("probabilities must be a contiguous float64 array"))?;
-    let g = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
-    lattice::OccupancyLattice::new(g, nx, ny, p.to_vec()).py_err()
-}
-
-#[pymethods]
-impl OccupancyLattice {
-    /// `probabilities` (ny, nx): row iy, column ix is the cell whose lower-left corner is
-    /// origin + (ix, iy)·resolution.
-    #[new]
-    #[pyo3(signature = (probabilities, resolution, origin=(0.0, 0.0)))]
-    fn new(
-        probabilities: PyReadonlyArray2<'_, f64>,
-        resolution: f64,
-        origin: (f64, f64),
-    ) -> PyResult<Self> {
-        Ok(Self {
-            inner: lattice_from(&probabilities, resolution, origin)?,
-        })
-    }
-
-    #[getter]
-    fn shape(&self) -> (usize, usize) {
-        let (nx, ny) = self.inner.shape();
-        (ny, nx)
-    }
-
-    #[getter]
-    fn resolution(&self) -> f64 {
-        self.inner.geometry().resolution
-    }
-
-    #[getter]
-    fn origin(&self) -> (f64, f64) {
-        let o = self.inner.geometry().origin;
-        (o[0], o[1])
-    }
-
-    /// The probabilities as a (ny, nx) array.
-    fn probabilities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let (nx, ny) = self.inner.shape();
-        let a = Array2::from_shape_vec((ny, nx), self.inner.probabilities().to_vec())
-            .map_err(|e| shape_err(e.to_string()))?;
-        Ok(a.into_pyarray(py))
-    }
-
-    fn copy(&self) -> Self {
-        self.clone()
-    }
-
-    /// A CRM over the same cells whose pmfs are tilted priors with these means (crm-spec 6.5).
-    #[pyo3(signature = (n_levels=10))]
-    fn to_crm(&self, n_levels: usize) -> PyResult<CrmMap> {
-        let m = prior::crm_from_lattice(&self.inner, n_levels).py_err()?;
-        Ok(CrmMap::from_core(m, 32))
-    }
-}
-
-/// GP variances on a lattice for GPVR/UGPVR; the lattice probabilities drive the ray casting.
-#[pyclass(module = "crlam._native")]
-#[derive(Clone)]
-pub struct GpVarianceMap {
-    pub inner: CoreGpMap,
-}
-
-#[pymethods]
-impl GpVarianceMap {
-    /// Prior variance `prior_variance` (1 in the reference) at every node.
-    #[new]
-    #[pyo3(signature = (lattice, prior_variance=1.0))]
-    fn new(lattice: &OccupancyLattice, prior_variance: f64) -> PyResult<Self> {
-        Ok(Self {
-            inner: CoreGpMap::with_variances(
-                lattice.inner.clone(),
-                vec![prior_variance; lattice.inner.len()],
-            )
-            .py_err()?,
-        })
-    }
-
-    /// Variances as a (ny, nx) array.
-    fn variances<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let (nx, ny) = self.inner.lattice().shape();
-        let a = Array2::from_shape_vec((ny, nx), self.inner.variances().to_vec())
-            .map_err(|e| shape_err(e.to_string()))?;
-        Ok(a.into_pyarray(py))
-    }
-
-    fn copy(&self) -> Self {
-        self.clone()
-    }
-}
-
-/// A particle set at a planner node (UCRMI).
-#[pyclass(module = "crlam._native", frozen)]
-#[derive(Clone)]
-pub struct ParticleBelief {
-    pub inner: ucrmi::ParticleBelief,
-}
-
-#[pymethods]
-impl ParticleBelief {
-    /// (n, 3) particle poses.
-    #[getter]
-    fn particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let n = self.inner.particles.len();
-        let flat: Vec<f64> = self.inner.particles.iter().flatten().copied().collect();
-        let a = Array2::from_shape_vec((n, 3), flat).map_err(|e| shape_err(e.to_string()))?;
-        Ok(a.into_pyarray(py))
-    }
-
-    #[getter]
-    fn weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        self.inner.weights().into_pyarray(py)
-    }
-
-    #[getter]
-    fn entropy_nats(&self) -> f64 {
-        self.inner.entropy_nats
-    }
-
-    #[getter]
-    fn map_gain_bits(&self) -> f64 {
-        self.inner.map_gain_bits
-    }
-
-    #[getter]
-    fn pose_gain_bits(&self) -> f64 {
-        self.inner.pose_gain_bits
-    }
-
-    #[getter]
-    fn resampled(&self) -> bool {
-        self.inner.resampled
-    }
-
-    fn mean_pose(&self) -> (f64, f64, f64) {
-        let m = self.inner.mean_pose();
-        (m[0], m[1], m[2])
-    }
-
-    /// Weighted 2×2 position covariance (m²).
-    fn position_covariance(&self) -> PyResult<[[f64; 2]; 2]> {
-        weighted_position_covariance(&self.inner.particles, &self.inner.weights()).py_err()
-    }
-}
-
-/// The map update a candidate's virtual scan would make (opaque; pass it to `commit`).
-#[pyclass(module = "crlam._native", frozen)]
-pub struct InfoUpdate {
-    inner: UpdateKind,
-}
-
-#[derive(Clone)]
-enum UpdateKind {
-    Scan(VirtualScan),
-    Nodes(Vec<(usize, f64)>),
-}
-
-#[pymethods]
-impl InfoUpdate {
-    /// "virtual_scan" (CRM functions) or "nodes" (lattice / GP functions).
-    #[getter]
-    fn kind(&self) -> &'static str {
-        match self.inner {
-            UpdateKind::Scan(_) => "virtual_scan",
-            UpdateKind::Nodes(_) => "nodes",
-        }
-    }
-
-    /// Ranges (m) of a virtual scan, or the number of changed nodes.
-    fn summary(&self) -> (usize, Vec<f64>) {
-        match &self.inner {
-            UpdateKind::Scan(s) => (s.ranges.len(), s.ranges.clone()),
-            UpdateKind::Nodes(v) => (v.len(), Vec::new()),
-        }
-    }
-}
 
 enum Func {
     Crmi(Crmi),

@@ -7,6 +7,7 @@
 mod convert;
 mod filters;
 mod info;
+mod info_state;
 mod maps;
 
 use pyo3::prelude::*;
@@ -19,10 +20,10 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::LogOddsMap>()?;
     m.add_class::<filters::ClamFilter>()?;
     m.add_class::<filters::OgmFilter>()?;
-    m.add_class::<info::OccupancyLattice>()?;
-    m.add_class::<info::GpVarianceMap>()?;
-    m.add_class::<info::ParticleBelief>()?;
-    m.add_class::<info::InfoUpdate>()?;
+    m.add_class::<info_state::OccupancyLattice>()?;
+    m.add_class::<info_state::GpVarianceMap>()?;
+    m.add_class::<info_state::ParticleBelief>()?;
+    m.add_class::<info_state::InfoUpdate>()?;
     m.add_class::<info::InfoFunction>()?;
     m.add_function(wrap_pyfunction!(info::candidate_seed, m)?)?;
     m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;

@@ -11,6 +11,7 @@
 pub mod bench;
 pub mod crmi;
 pub mod crmi_authors;
+pub mod crmi_channel;
 pub mod entropy;
 pub mod fastmath;
 pub mod fsmi;
