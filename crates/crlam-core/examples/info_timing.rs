@@ -8,11 +8,17 @@ fn main() {
     let which = std::env::args().nth(1).unwrap_or_else(|| "crmi".into());
     let c = CrmiConfig::new(5.0, 0.2);
     match which.as_str() {
-        "crmi" => println!("crmi ijrr {:.1} us/pose", crmi_us_per_pose(c, 3000).unwrap()),
+        "crmi" => println!(
+            "crmi ijrr {:.1} us/pose",
+            crmi_us_per_pose(c, 3000).unwrap()
+        ),
         "mixture" => {
             let mut m = c;
             m.model = SensorModel::with_defaults(SensorModelKind::Mixture, 5.0, 0.2);
-            println!("crmi mixture {:.1} us/pose", crmi_us_per_pose(m, 500).unwrap());
+            println!(
+                "crmi mixture {:.1} us/pose",
+                crmi_us_per_pose(m, 500).unwrap()
+            );
         }
         "ucrmi" => println!("ucrmi {:.1} us/pose", ucrmi_us_per_pose(500).unwrap()),
         other => eprintln!("unknown workload {other:?}: crmi, mixture or ucrmi"),

@@ -478,8 +478,13 @@ impl InformationFunction for Crmi {
         candidate: &Candidate,
         _seed: u64,
     ) -> Result<Evaluation<(), VirtualScan>> {
-        let mut sc = CrmiScratch::default();
-        let gain = self.gain_with(map, candidate.pose, &mut sc)?;
+        // One scratch per thread, reused across candidates (buffers and cached channels).
+        thread_local! {
+            static SCRATCH: std::cell::RefCell<CrmiScratch> =
+                std::cell::RefCell::new(CrmiScratch::default());
+        }
+        let gain =
+            SCRATCH.with(|cell| self.gain_with(map, candidate.pose, &mut cell.borrow_mut()))?;
         Ok(Evaluation {
             gain,
             belief: (),
