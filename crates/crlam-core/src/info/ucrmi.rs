@@ -15,6 +15,8 @@
 //! The map update on commit is the same virtual scan, applied at the particle mean with the
 //! CRMI mapping model (crm-spec 6.4 step 9).
 
+use rayon::prelude::*;
+
 use crate::crm::{CrmMap, CrmScratch, ScanOptions};
 use crate::error::{config_err, Result};
 use crate::info::crmi::{
@@ -165,7 +167,6 @@ impl Ucrmi {
         candidates: &[Candidate],
         seed: u64,
     ) -> Result<Vec<f64>> {
-        use rayon::prelude::*;
         candidates
             .par_iter()
             .enumerate()
@@ -193,19 +194,13 @@ impl Ucrmi {
             .map(|a| a + scan.pose[2] - mean_heading)
             .collect();
         let opts = ScanOptions::default();
-        let mut sc = CrmScratch::default();
+        // Particles are independent (no random draws here), so the parallel map equals the
+        // serial one whatever the thread count.
         children
-            .iter()
-            .map(|&p| {
-                map.scan_log_likelihood(
-                    p,
-                    &rel,
-                    &scan.ranges,
-                    &self.cfg.weight_model,
-                    &opts,
-                    &mut sc,
-                )
-                .map(|(ll, _)| ll)
+            .par_iter()
+            .map_init(CrmScratch::default, |sc, &p| {
+                map.scan_log_likelihood(p, &rel, &scan.ranges, &self.cfg.weight_model, &opts, sc)
+                    .map(|(ll, _)| ll)
             })
             .collect()
     }
