@@ -20,6 +20,7 @@ __all__ = [
     "ParticleBelief",
     "SensorModel",
     "candidate_seed",
+    "run_iig",
     "cast_ranges",
     "crm_update_ray",
     "run_benchmark",
@@ -443,3 +444,14 @@ class InfoFunction:
     ) -> NDArray[np.float64]: ...
 
 def candidate_seed(seed: int, index: int) -> int: ...
+def run_iig(
+    function: InfoFunction,
+    state: _State,
+    lattice: OccupancyLattice,
+    obstacle_points: NDArray[np.float64],
+    *,
+    mode: str = "reference",
+    options: dict[str, Any] | None = None,
+    seed: int = 0,
+    belief: Any = None,
+) -> dict[str, Any]: ...

@@ -60,6 +60,14 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
 )
 
 SURFACE_BENCH = "crmi_surface_s_cave"
+IIG_BENCHES = (
+    "iig_gpvr_run_s_cave",
+    "iig_ucrmi_run_s_cave",
+    "iig_crmi_run_s_cave",
+    "iig_ogmi_run_s_cave",
+    "iig_ugpvr_run_s_cave",
+)
+"""One full IIG run on the Cave map (seed 0, reference settings, one thread per run)."""
 """The whole Cave CRMI surface (every free cell, all cores); needs the Cave map (``crlam data``)."""
 
 
@@ -85,7 +93,7 @@ def machine_info() -> dict[str, Any]:
 def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repeats: int = 3) -> dict[str, Any]:
     """Runs the benchmarks (best of ``repeats``) and returns ``{"figures": {...}, ...}``."""
     specs = [b for b in BENCHMARKS if names is None or b.name in names]
-    unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH}
+    unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, *IIG_BENCHES}
     if unknown:
         raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS]}")
     figures: dict[str, Any] = {}
@@ -108,6 +116,12 @@ def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repea
         if surface is not None:
             figures[SURFACE_BENCH] = round(surface["seconds"], 3)
             details[SURFACE_BENCH] = {**surface, "target_s": 1.0}
+    for name in IIG_BENCHES:
+        if names is None or name in names:
+            run = iig_run_seconds(name.split("_")[1], quick=quick)
+            if run is not None:
+                figures[name] = round(run["seconds"], 3)
+                details[name] = run
     if "crm_beam_updates_per_s" in figures and "raycast_cells_per_s" in figures:
         cells = details["crm_beam_updates_per_s"]["cells_per_ray"]
         # Cost of a CRM beam update relative to just walking its cells.
@@ -149,6 +163,36 @@ def cave_surface_seconds(*, quick: bool = False) -> dict[str, Any] | None:
         best = s if best is None or s.seconds < best.seconds else best
     assert best is not None
     return {"seconds": best.seconds, "n_poses": best.n_poses, "threads": os.cpu_count(), "map": str(path)}
+
+
+def iig_run_seconds(function: str, *, quick: bool = False) -> dict[str, Any] | None:
+    """Wall time of one IIG run on the Cave map (reference settings, seed 0, one thread), or None
+    (with a printed reason) when the map is not available. Targets (issue 5): under 1 s for OGMI,
+    CRMI and GPVR, under 5 s for UCRMI and UGPVR."""
+    from crlam.errors import CrlamError
+    from crlam.experiments.iig import function_for
+    from crlam.info import load_map_prior
+    from crlam.io.fetch import find_dataset
+    from crlam.planner import IigSettings, plan_iig
+
+    try:
+        path = find_dataset("cave-map")
+    except (CrlamError, FileNotFoundError) as e:
+        print(f"iig_{function}_run_s_cave: skipped ({e})")
+        return None
+    prior = load_map_prior(path)
+    f = function_for(function, mode="reference", particles=20 if quick else 100)
+    tree = plan_iig(f, prior, IigSettings(mode="reference", max_iterations=2_000 if quick else 200_000), seed=0)
+    target = 5.0 if function in ("ucrmi", "ugpvr") else 1.0
+    return {
+        "seconds": tree.seconds,
+        "nodes": tree.n_nodes,
+        "samples": tree.iterations,
+        "evaluations": tree.evaluations,
+        "stop": tree.stop,
+        "target_s": target,
+        "implementation": f.name,
+    }
 
 
 def write_json(result: dict[str, Any], path: str | os.PathLike[str]) -> None:

@@ -13,6 +13,7 @@ pub mod grid;
 pub mod info;
 pub mod motion;
 pub mod ogm;
+pub mod planner;
 pub mod pose;
 pub mod raycast;
 pub mod rbpf;

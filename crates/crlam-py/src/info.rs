@@ -19,7 +19,7 @@ use crate::convert::{pose3, poses_n3, shape_err, IntoPy};
 use crate::info_state::{GpVarianceMap, InfoUpdate, OccupancyLattice, ParticleBelief, UpdateKind};
 use crate::maps::{CrmMap, SensorModel};
 
-enum Func {
+pub(crate) enum Func {
     Crmi(Crmi),
     CrmiMl(MlScanBinary),
     CrmiR1(R1Map),
@@ -33,7 +33,7 @@ enum Func {
 /// One of the information functions (crm-spec 5–6, planner-spec 4–5).
 #[pyclass(module = "crlam._native", frozen)]
 pub struct InfoFunction {
-    f: Func,
+    pub(crate) f: Func,
 }
 
 fn units_name(u: InfoUnits) -> &'static str {
@@ -83,6 +83,18 @@ fn cov_array<'py>(py: Python<'py>, c: &Cov3) -> Bound<'py, PyArray2<f64>> {
     Array2::from_shape_vec((3, 3), flat)
         .expect("3x3")
         .into_pyarray(py)
+}
+
+impl InfoFunction {
+    /// The function's name (for result dicts).
+    pub(crate) fn f_name(&self) -> &'static str {
+        self.name()
+    }
+
+    /// The function's units (for result dicts).
+    pub(crate) fn f_units(&self) -> &'static str {
+        self.units()
+    }
 }
 
 #[pymethods]

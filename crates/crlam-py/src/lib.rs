@@ -9,6 +9,7 @@ mod filters;
 mod info;
 mod info_state;
 mod maps;
+mod planner;
 
 use pyo3::prelude::*;
 
@@ -26,6 +27,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<info_state::InfoUpdate>()?;
     m.add_class::<info::InfoFunction>()?;
     m.add_function(wrap_pyfunction!(info::candidate_seed, m)?)?;
+    m.add_function(wrap_pyfunction!(planner::run_iig, m)?)?;
     m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
     m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;
