@@ -119,15 +119,17 @@ def save_ric_and_gain(
         axes[0].plot(np.arange(len(t.cum_ric)), t.cum_ric, label=labels.get(n, n), linewidth=1.2)
         g = t.iteration_gain
         if len(g):
-            w = max(1, len(g) // 200)
+            # A 50-sample moving average: single samples are 0 whenever no extension was evaluated.
+            w = min(50, len(g))
             smooth = np.convolve(g, np.ones(w) / w, mode="valid")
             axes[1].plot(np.arange(len(smooth)) + w, smooth, label=f"{labels.get(n, n)} [{t.units}]", linewidth=1.0)
     axes[0].set_xlabel("nodes")
     axes[0].set_ylabel("cumulative penalized I_RIC")
     axes[0].set_title("(a) cumulative penalized I_RIC")
     axes[1].set_xlabel("samples")
-    axes[1].set_ylabel("information gain per sample")
-    axes[1].set_yscale("symlog", linthresh=1e-3)
+    axes[1].set_ylabel("information gain per sample (50-sample mean)")
+    axes[1].set_yscale("symlog", linthresh=1e-2)
+    axes[1].set_xscale("log")
     axes[1].set_title("(b) evolution of the information gain")
     for ax in axes:
         ax.grid(alpha=0.3)
