@@ -335,9 +335,11 @@ def build_parser() -> argparse.ArgumentParser:
     add_eval_parser(sub)
     add_data_parser(sub)
 
+    from crlam.cli_explore import add_explore_parser
     from crlam.cli_info import add_info_parser
 
     add_info_parser(sub, _positive_float, _positive_int)
+    add_explore_parser(sub, _positive_float, _positive_int)
 
     p = sub.add_parser(
         "experiment",

@@ -1,0 +1,415 @@
+"""Greedy information-driven exploration with known poses (the paper's Fig. 1).
+
+A simulated robot in a world it does not know scans with a 360 deg range sensor, builds a CRM
+(and a log-odds map beside it for OGMI), and repeats: generate candidates (reachable known-free
+cells within a radius, plus every reachable frontier cell), evaluate them with the information
+function in one batch, pick the best by gain (optionally per cost), plan the shortest path on the
+known-free cells, and drive it while scanning. It stops when the best gain is below the threshold,
+the travel budget is spent, no reachable candidate is left, or after ``max_decisions``; the reason
+is recorded. The nearest-frontier baseline drives to the closest reachable frontier.
+
+Paths only cross cells observed free (mean occupancy below ``free_threshold``) with at least
+``robot_radius`` of clearance from cells believed occupied, so the robot never enters unknown
+space.
+"""
+
+from __future__ import annotations
+
+import csv
+import heapq
+import json
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from crlam import _native
+from crlam.errors import ConfigError
+from crlam.experiments.pool import write_atomic
+from crlam.info import make_function
+from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
+from crlam.sim.grid_ops import distance_map
+from crlam.sim.sensor import RangeSensor
+from crlam.sim.world import World
+
+__all__ = ["ExploreConfig", "ExploreRun", "FUNCTIONS", "explore", "write_explore_folder"]
+
+FUNCTIONS = ("crmi", "ucrmi", "fsmi", "frontier")
+_SQRT2 = math.sqrt(2.0)
+
+
+@dataclass(frozen=True)
+class ExploreConfig:
+    """Settings of an exploration run (units: m, rad; gains in the function's units)."""
+
+    function: str = "crmi"
+    alpha: float = 0.5
+    budget_m: float = 150.0
+    threshold: float = 0.1
+    n_candidates: int = 200
+    radius_m: float = 5.0
+    cost_weight: float = 0.0
+    resolution: float = 0.2
+    sensor_range: float = 5.0
+    n_beams: int = 360
+    sigma_range: float = 0.01
+    step_m: float = 0.25
+    robot_radius: float = 0.3
+    free_threshold: float = 0.35
+    max_decisions: int = 400
+    particles: int = 30
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.function not in FUNCTIONS:
+            raise ConfigError(f"function must be one of {', '.join(FUNCTIONS)}, got {self.function!r}")
+        for name in ("budget_m", "radius_m", "resolution", "sensor_range", "step_m"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0):
+                raise ConfigError(f"{name} must be finite and > 0, got {v}")
+        if not (0.0 <= self.alpha <= 1.0):
+            raise ConfigError(f"alpha must be in [0, 1], got {self.alpha}")
+        if self.n_candidates < 1 or self.n_beams < 1 or self.max_decisions < 1:
+            raise ConfigError("n_candidates, n_beams and max_decisions must be >= 1")
+        if not (0.0 < self.free_threshold < 0.5) or self.robot_radius < 0 or self.cost_weight < 0:
+            raise ConfigError("need 0 < free_threshold < 0.5, robot_radius >= 0, cost_weight >= 0")
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+@dataclass
+class ExploreRun:
+    """What an exploration produced.
+
+    Attributes
+    ----------
+    poses : ndarray, shape (n, 3)
+        Robot pose at every scan (true = estimated with known poses).
+    decisions : list of dict
+        One row per decision (``progress.csv``).
+    stop : str
+        ``threshold`` | ``budget`` | ``no_candidates`` | ``max_decisions``.
+    crm : ConfidenceRichMap
+        The final map.
+    """
+
+    config: ExploreConfig
+    world_name: str
+    poses: NDArray[np.float64]
+    decisions: list[dict[str, Any]]
+    stop: str
+    crm: ConfidenceRichMap
+    truth: NDArray[np.bool_]
+    goals: list[tuple[float, float]] = field(default_factory=list)
+    frames: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def distance(self) -> float:
+        return float(np.hypot(*np.diff(self.poses[:, :2], axis=0).T).sum()) if len(self.poses) > 1 else 0.0
+
+
+def truth_grid(world: World, resolution: float) -> NDArray[np.bool_]:
+    """The world's occupancy on the map grid: a map cell is occupied if any world cell in it is."""
+    k = resolution / world.resolution
+    if abs(k - round(k)) > 1e-6 or round(k) < 1:
+        raise ConfigError(f"the map resolution {resolution} must be a multiple of the world's {world.resolution}")
+    k = int(round(k))
+    occ = world.occupied
+    ny, nx = occ.shape[0] // k, occ.shape[1] // k
+    return np.asarray(occ[: ny * k, : nx * k].reshape(ny, k, nx, k).any(axis=(1, 3)), dtype=bool)
+
+
+def geodesic(traversable: NDArray[np.bool_], start: tuple[int, int], res: float) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """8-connected shortest-path distances (m) over traversable cells from ``start`` (iy, ix) and
+    the predecessor of every reached cell (flat index, -1 for none). Diagonal moves need both
+    side cells traversable (no corner cutting)."""
+    ny, nx = traversable.shape
+    dist = np.full(ny * nx, np.inf)
+    pred = np.full(ny * nx, -1, dtype=np.int64)
+    s = start[0] * nx + start[1]
+    dist[s] = 0.0
+    heap = [(0.0, s)]
+    steps = [
+        (-1, 0, 1.0),
+        (1, 0, 1.0),
+        (0, -1, 1.0),
+        (0, 1, 1.0),
+        (-1, -1, _SQRT2),
+        (-1, 1, _SQRT2),
+        (1, -1, _SQRT2),
+        (1, 1, _SQRT2),
+    ]
+    trav = traversable.ravel()
+    while heap:
+        d, u = heapq.heappop(heap)
+        if d > dist[u]:
+            continue
+        y, x = divmod(u, nx)
+        for dy, dx, c in steps:
+            yy, xx = y + dy, x + dx
+            if not (0 <= yy < ny and 0 <= xx < nx):
+                continue
+            v = yy * nx + xx
+            if not trav[v] or (dy and dx and not (trav[y * nx + xx] and trav[yy * nx + x])):
+                continue
+            nd = d + c * res
+            if nd < dist[v]:
+                dist[v] = nd
+                pred[v] = u
+                heapq.heappush(heap, (nd, v))
+    return dist.reshape(ny, nx), pred
+
+
+def _path(pred: NDArray[np.int64], goal: int, nx: int) -> list[tuple[int, int]]:
+    cells = []
+    u = goal
+    while u >= 0:
+        cells.append(divmod(int(u), nx))
+        u = int(pred[u])
+    return cells[::-1]
+
+
+def _resample(points: NDArray[np.float64], step: float) -> NDArray[np.float64]:
+    """Points every ``step`` metres along a polyline (the last point included)."""
+    if len(points) < 2:
+        return points
+    seg = np.hypot(*np.diff(points, axis=0).T)
+    s = np.concatenate([[0.0], np.cumsum(seg)])
+    n = max(1, int(math.ceil(s[-1] / step)))
+    t = np.linspace(0.0, s[-1], n + 1)[1:]
+    return np.column_stack([np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])])
+
+
+def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig, *, progress: bool = False) -> ExploreRun:
+    """Runs an exploration of ``world`` from ``start`` (x, y, theta) with known poses. Raises
+    ``RuntimeError`` if the robot ever stands in an occupied cell of the world (a bug guard)."""
+    res = cfg.resolution
+    truth = truth_grid(world, res)
+    ny, nx = truth.shape
+    origin = (float(world.origin[0]), float(world.origin[1]))
+    extent = (origin[0], origin[1], origin[0] + nx * res, origin[1] + ny * res)
+    crm = ConfidenceRichMap(MappingConfig(resolution=res, max_range=cfg.sensor_range, extent=extent, origin=origin))
+    ogm = LogOddsOccupancyMap(LogOddsConfig(resolution=res, max_range=cfg.sensor_range, origin=origin))
+    sensor = RangeSensor(
+        n_beams=cfg.n_beams, fov=2 * math.pi, max_range=cfg.sensor_range, sigma_hit=cfg.sigma_range, endpoint=False
+    )
+    angles = sensor.angles
+    rng = np.random.default_rng(cfg.seed)
+    fn = (
+        None
+        if cfg.function == "frontier"
+        else make_function(cfg.function, z_max=cfg.sensor_range, resolution=res, alpha=cfg.alpha, n_particles=cfg.particles)
+    )
+    poses: list[NDArray[np.float64]] = []
+    bounds = extent
+
+    fine = world.occupied
+    fres = world.resolution
+
+    def scan_at(p: NDArray[np.float64]) -> None:
+        fy = min(int((p[1] - origin[1]) / fres), fine.shape[0] - 1)
+        fx = min(int((p[0] - origin[0]) / fres), fine.shape[1] - 1)
+        if fine[fy, fx]:
+            raise RuntimeError(f"the robot entered an occupied cell of the world at {p[:2]}")
+        z = sensor.simulate_ranges(world, p[None, :], rng)[0]
+        crm.update(p, angles, z)
+        ogm.update(p, angles, z)
+        poses.append(p.copy())
+
+    pose = np.array(start, dtype=np.float64)
+    scan_at(pose)
+    decisions: list[dict[str, Any]] = []
+    goals: list[tuple[float, float]] = []
+    frames: list[dict[str, Any]] = []
+    stop = "max_decisions"
+    travelled = 0.0
+    for k in range(cfg.max_decisions):
+        t0 = time.perf_counter()
+        mean, _, ent = (layer.values for layer in crm.layers(bounds))
+        observed = ent < math.log2(10.0) - 1e-3
+        free = observed & (mean < cfg.free_threshold)
+        # Clearance from unknown cells and from every observed cell that is not clearly free (a
+        # wall may cover part of a cell whose mean is in between): paths keep robot_radius from
+        # anything not known to be free, so they never cross an obstacle the map has not resolved.
+        blocked = ~observed | (mean >= cfg.free_threshold)
+        reach_m = max(cfg.robot_radius, res) + 2 * res
+        # Outside the map counts as blocked too (distance_map treats it as free).
+        clear = distance_map(np.pad(blocked, 1, constant_values=True), res, reach_m)[1:-1, 1:-1]
+        to_unknown = distance_map(~observed, res, reach_m)
+        traversable = free & (clear >= cfg.robot_radius)
+        here = (min(int((pose[1] - origin[1]) / res), ny - 1), min(int((pose[0] - origin[0]) / res), nx - 1))
+        traversable[here] = True
+        dist, pred = geodesic(traversable, here, res)
+        reach = np.isfinite(dist) & (dist >= 2 * res)
+        # Frontier: reachable cells as close to unknown space as the clearance allows.
+        frontier = reach & (to_unknown < cfg.robot_radius + 1.5 * res)
+        cy, cx = np.nonzero(reach)
+        centres = np.column_stack([origin[0] + (cx + 0.5) * res, origin[1] + (cy + 0.5) * res])
+        within = np.hypot(*(centres - pose[:2]).T) <= cfg.radius_m
+        pick = np.flatnonzero(within)
+        if len(pick) > cfg.n_candidates:
+            pick = rng.choice(pick, cfg.n_candidates, replace=False)
+        fr = np.flatnonzero(frontier[cy, cx])
+        if len(fr) > cfg.n_candidates:
+            fr = rng.choice(fr, cfg.n_candidates, replace=False)
+        idx = np.unique(np.concatenate([pick, fr])).astype(np.int64)
+        frame = {"poses": np.array(poses), "mean": mean.copy()}
+        if idx.size == 0:
+            stop = "no_candidates"
+            frames.append(frame)
+            break
+        cand = centres[idx]
+        cost = dist[cy[idx], cx[idx]]
+        if fn is None:
+            is_fr = frontier[cy[idx], cx[idx]]
+            if not is_fr.any():
+                stop = "no_candidates"
+                frames.append(frame)
+                break
+            score = np.where(is_fr, -cost, -np.inf)
+            gains = score
+        else:
+            poses3 = np.column_stack([cand, np.zeros(len(cand))])
+            if fn.name == "fsmi":
+                prob = ogm.probability(bounds).values
+                state: Any = _native.OccupancyLattice(np.ascontiguousarray(prob), res, origin)
+                gains = fn.gains(state, poses3, seed=cfg.seed + k)
+            elif fn.name == "ucrmi":
+                root = fn.root_belief(pose, seed=cfg.seed + k)
+                parents = np.tile(pose[:2], (len(cand), 1))
+                gains = fn.gains(crm.native, poses3, parents=parents, belief=root, seed=cfg.seed + k)
+            else:
+                gains = fn.gains(crm.native, poses3, seed=cfg.seed + k)
+            score = gains / np.power(cost, cfg.cost_weight) if cfg.cost_weight > 0 else gains
+        best = int(np.argmax(score))
+        decision_ms = 1e3 * (time.perf_counter() - t0)
+        row = {
+            "decision": k,
+            "distance_m": round(travelled, 4),
+            "explored_m2": round(float(observed.sum()) * res * res, 4),
+            "map_entropy_bits": round(float(ent.sum()), 3),
+            "map_error": round(float(((mean > 0.5) != truth)[observed].mean()) if observed.any() else 0.0, 5),
+            "candidates": int(len(idx)),
+            "best_gain": round(float(gains[best]), 6),
+            "best_cost_m": round(float(cost[best]), 4),
+            "decision_ms": round(decision_ms, 3),
+        }
+        decisions.append(row)
+        frames.append(frame)
+        if fn is not None and gains[best] < cfg.threshold:
+            stop = "threshold"
+            break
+        if travelled >= cfg.budget_m:
+            stop = "budget"
+            break
+        goal_flat = int(cy[idx[best]] * nx + cx[idx[best]])
+        cells = _path(pred, goal_flat, nx)
+        pts = np.array([[origin[0] + (x + 0.5) * res, origin[1] + (y + 0.5) * res] for y, x in cells])
+        pts = np.vstack([pose[:2], pts[1:]]) if len(pts) > 1 else np.vstack([pose[:2], pts])
+        goals.append((float(pts[-1, 0]), float(pts[-1, 1])))
+        for q in _resample(pts, cfg.step_m):
+            step = float(np.hypot(*(q - pose[:2])))
+            heading = math.atan2(q[1] - pose[1], q[0] - pose[0]) if step > 0 else pose[2]
+            pose = np.array([q[0], q[1], heading])
+            travelled += step
+            scan_at(pose)
+            if travelled >= cfg.budget_m:
+                break
+        if progress:
+            print(
+                f"decision {k}: gain {row['best_gain']:.3g}, {travelled:.1f} m, explored {row['explored_m2']:.0f} m^2", flush=True
+            )
+    return ExploreRun(
+        config=cfg,
+        world_name=world.name,
+        poses=np.array(poses),
+        decisions=decisions,
+        stop=stop,
+        crm=crm,
+        truth=truth,
+        goals=goals,
+        frames=frames,
+    )
+
+
+def write_explore_folder(run: ExploreRun, out: str | os.PathLike[str], *, gif: bool = True) -> dict[str, Path]:
+    """Writes an exploration run folder: ``trajectory.tum`` / ``groundtruth.tum`` (one pose per
+    scan; identical with known poses), ``map.pgm`` + ``map.yaml``, ``belief.npz``,
+    ``metrics.json``, ``progress.csv`` and the figures (``exploration.png``: the paper's Fig. 1
+    pair; ``progress.png``: coverage and entropy against distance; ``exploration.gif``)."""
+    from crlam.io.belief import save_belief
+    from crlam.io.nav2 import write_nav2_map
+    from crlam.io.tum import write_tum
+    from crlam.viz.explore import save_animation, save_exploration_figure, save_progress_figure
+
+    d = Path(out)
+    d.mkdir(parents=True, exist_ok=True)
+    cfg = run.config
+    stamps = np.arange(len(run.poses), dtype=np.float64) * (cfg.step_m / 0.5)
+    files = {
+        "trajectory": d / "trajectory.tum",
+        "groundtruth": d / "groundtruth.tum",
+        "map": d / "map.pgm",
+        "belief": d / "belief.npz",
+        "progress": d / "progress.csv",
+        "metrics": d / "metrics.json",
+    }
+    write_tum(files["trajectory"], stamps, run.poses, header="crlam explore: estimated poses (known-pose mode)")
+    write_tum(files["groundtruth"], stamps, run.poses, header="crlam explore: true poses")
+    mean = run.crm.expected_occupancy(_bounds(run))
+    ent = run.crm.entropy(_bounds(run)).values
+    occ = np.where(ent < math.log2(10.0) - 1e-3, mean.values, np.nan)
+    write_nav2_map(files["map"], occ, resolution=mean.resolution, origin=(mean.origin[0], mean.origin[1], 0.0))
+    save_belief(files["belief"], run.crm.to_archive(_bounds(run)))
+    keys = list(run.decisions[0]) if run.decisions else ["decision"]
+    with files["progress"].open("w", newline="") as fh:
+        w = csv.DictWriter(fh, fieldnames=keys)
+        w.writeheader()
+        w.writerows(run.decisions)
+    last = run.decisions[-1] if run.decisions else {}
+    free_truth = float((~run.truth).sum()) * cfg.resolution**2
+    metrics = {
+        "world": run.world_name,
+        "config": cfg.to_dict(),
+        "stop_reason": run.stop,
+        "distance_m": run.distance,
+        "n_scans": int(len(run.poses)),
+        "n_decisions": len(run.decisions),
+        "explored_m2": last.get("explored_m2", 0.0),
+        "world_free_m2": free_truth,
+        "map_entropy_bits": last.get("map_entropy_bits"),
+        "map_error": last.get("map_error"),
+        "decision_ms_mean": float(np.mean([r["decision_ms"] for r in run.decisions])) if run.decisions else None,
+        "pose_error_m": 0.0,
+        "mode": "known poses",
+    }
+    write_atomic(files["metrics"], json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    files["figure"] = save_exploration_figure(d / "exploration.png", run)
+    files["progress_figure"] = save_progress_figure(d / "progress.png", run)
+    if gif:
+        files["animation"] = save_animation(d / "exploration.gif", run)
+    return files
+
+
+def _bounds(run: ExploreRun) -> tuple[float, float, float, float]:
+    ny, nx = run.truth.shape
+    ext = run.crm.config.extent
+    assert ext is not None
+    return (ext[0], ext[1], ext[0] + nx * run.config.resolution, ext[1] + ny * run.config.resolution)
+
+
+def default_start(world: World, resolution: float = 0.2, clearance: float = 1.0) -> tuple[float, float, float]:
+    """The free map cell nearest the world's lower-left corner with ``clearance`` metres around it."""
+    truth = truth_grid(world, resolution)
+    clear = distance_map(truth, resolution, clearance + resolution)
+    iy, ix = np.nonzero(clear >= clearance)
+    if iy.size == 0:
+        raise ConfigError(f"world {world.name!r} has no cell with {clearance} m of clearance to start from")
+    k = int(np.argmin(ix + iy))
+    return (float(world.origin[0]) + (ix[k] + 0.5) * resolution, float(world.origin[1]) + (iy[k] + 0.5) * resolution, 0.0)

@@ -1,0 +1,111 @@
+"""Figures of an exploration run: the paper's Fig. 1 pair, progress curves and an animation."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.animation import FuncAnimation, PillowWriter
+
+from crlam.viz.maps import metric_axes, save_figure
+
+if TYPE_CHECKING:
+    from crlam.experiments.explore import ExploreRun
+
+__all__ = ["save_animation", "save_exploration_figure", "save_progress_figure"]
+
+
+def _extent(run: ExploreRun) -> tuple[float, float, float, float]:
+    ny, nx = run.truth.shape
+    ext = run.crm.config.extent
+    assert ext is not None
+    r = run.config.resolution
+    return (ext[0], ext[0] + nx * r, ext[1], ext[1] + ny * r)
+
+
+def _draw_map(ax: plt.Axes, mean: np.ndarray, extent: tuple[float, float, float, float]) -> None:
+    ax.imshow(mean, origin="lower", extent=extent, cmap="gray_r", vmin=0.0, vmax=1.0, interpolation="nearest")
+
+
+def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRun, *, dpi: int = 150) -> Path:
+    """Left: the trajectory (start square, end star) over the final CRM's expected occupancy.
+    Right: CRMI (bits) at every known-free cell of the final map."""
+    from crlam.info import make_function, prior_from_crm_mean
+
+    ext = _extent(run)
+    b = (ext[0], ext[2], ext[1], ext[3])
+    mean = run.crm.expected_occupancy(b).values
+    ent = run.crm.entropy(b).values
+    fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.2 * mean.shape[0] / max(mean.shape[1], 1) + 1.0), constrained_layout=True)
+    _draw_map(axes[0], mean, ext)
+    p = run.poses
+    axes[0].plot(p[:, 0], p[:, 1], color="tab:blue", linewidth=1.0)
+    axes[0].plot(p[0, 0], p[0, 1], marker="s", color="tab:green", markersize=8, label="start")
+    axes[0].plot(p[-1, 0], p[-1, 1], marker="*", color="tab:red", markersize=12, label="end")
+    axes[0].legend(loc="upper right", fontsize=8)
+    axes[0].set_title(f"{run.config.function.upper()} exploration: {run.distance:.0f} m, stop: {run.stop}")
+    metric_axes(axes[0], ext)
+    crmi = make_function("crmi", z_max=run.config.sensor_range, resolution=run.config.resolution)
+    prior = prior_from_crm_mean(mean, (ext[0], ext[2]), run.config.resolution)
+    free = (ent < np.log2(10.0) - 1e-3) & (mean < run.config.free_threshold)
+    xy = prior.node_positions(free)
+    values = np.full(mean.shape, np.nan)
+    if len(xy):
+        values[free] = crmi.gains(run.crm.native, np.column_stack([xy, np.zeros(len(xy))]))
+    _draw_map(axes[1], mean, ext)
+    im = axes[1].imshow(np.ma.masked_invalid(values), origin="lower", extent=ext, cmap="viridis", interpolation="nearest")
+    cb = fig.colorbar(im, ax=axes[1], fraction=0.046, pad=0.02)
+    cb.set_label("CRMI [bits]")
+    axes[1].set_title("CRMI on the final map (known-free cells)")
+    metric_axes(axes[1], ext)
+    return save_figure(fig, path, dpi)
+
+
+def save_progress_figure(path: str | os.PathLike[str], run: ExploreRun, *, dpi: int = 150) -> Path:
+    """Explored area and map entropy against the distance travelled."""
+    d = np.array([r["distance_m"] for r in run.decisions])
+    fig, axes = plt.subplots(1, 2, figsize=(11.0, 3.8), constrained_layout=True)
+    axes[0].plot(d, [r["explored_m2"] for r in run.decisions], marker=".")
+    axes[0].axhline(
+        float((~run.truth).sum()) * run.config.resolution**2, color="0.5", linestyle="--", label="free area of the world"
+    )
+    axes[0].set_xlabel("distance travelled [m]")
+    axes[0].set_ylabel("explored area [m²]")
+    axes[0].legend(fontsize=8)
+    axes[1].plot(d, [r["map_entropy_bits"] for r in run.decisions], marker=".", color="tab:orange")
+    axes[1].set_xlabel("distance travelled [m]")
+    axes[1].set_ylabel("map entropy [bits]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    return save_figure(fig, path, dpi)
+
+
+def save_animation(path: str | os.PathLike[str], run: ExploreRun, *, max_frames: int = 60, fps: int = 4) -> Path:
+    """A GIF: the map and the trajectory at every decision (at most ``max_frames`` frames)."""
+    ext = _extent(run)
+    frames = run.frames[:: max(1, len(run.frames) // max_frames)]
+    fig, ax = plt.subplots(figsize=(6.0, 6.0 * run.truth.shape[0] / max(run.truth.shape[1], 1) + 0.4))
+    metric_axes(ax, ext)
+
+    def draw(i: int) -> None:
+        ax.clear()
+        f = frames[i]
+        _draw_map(ax, f["mean"], ext)
+        p = f["poses"]
+        ax.plot(p[:, 0], p[:, 1], color="tab:blue", linewidth=1.0)
+        ax.plot(p[-1, 0], p[-1, 1], marker="o", color="tab:red")
+        ax.set_title(f"decision {i * max(1, len(run.frames) // max_frames)}")
+        ax.set_xlim(ext[0], ext[1])
+        ax.set_ylim(ext[2], ext[3])
+
+    anim = FuncAnimation(fig, draw, frames=len(frames))
+    out = Path(path)
+    anim.save(out, writer=PillowWriter(fps=fps))
+    plt.close(fig)
+    return out
