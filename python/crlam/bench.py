@@ -60,6 +60,8 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
 )
 
 SURFACE_BENCH = "crmi_surface_s_cave"
+EXPLORE_BENCH = "explore_decision_ms"
+"""Mean time of one exploration decision (candidates, batch CRMI of 200, path) on the museum world."""
 IIG_BENCHES = (
     "iig_gpvr_run_s_cave",
     "iig_ucrmi_run_s_cave",
@@ -93,7 +95,7 @@ def machine_info() -> dict[str, Any]:
 def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repeats: int = 3) -> dict[str, Any]:
     """Runs the benchmarks (best of ``repeats``) and returns ``{"figures": {...}, ...}``."""
     specs = [b for b in BENCHMARKS if names is None or b.name in names]
-    unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, *IIG_BENCHES}
+    unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES}
     if unknown:
         raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS]}")
     figures: dict[str, Any] = {}
@@ -116,6 +118,10 @@ def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repea
         if surface is not None:
             figures[SURFACE_BENCH] = round(surface["seconds"], 3)
             details[SURFACE_BENCH] = {**surface, "target_s": 1.0}
+    if names is None or EXPLORE_BENCH in names:
+        dec = explore_decision_ms(quick=quick)
+        figures[EXPLORE_BENCH] = round(dec["ms"], 1)
+        details[EXPLORE_BENCH] = dec
     for name in IIG_BENCHES:
         if names is None or name in names:
             run = iig_run_seconds(name.split("_")[1], quick=quick)
@@ -163,6 +169,25 @@ def cave_surface_seconds(*, quick: bool = False) -> dict[str, Any] | None:
         best = s if best is None or s.seconds < best.seconds else best
     assert best is not None
     return {"seconds": best.seconds, "n_poses": best.n_poses, "threads": os.cpu_count(), "map": str(path)}
+
+
+def explore_decision_ms(*, quick: bool = False) -> dict[str, Any]:
+    """Mean wall time (ms, all cores) of an exploration decision on the museum world: candidate
+    generation, the batch CRMI of up to 200 candidates plus frontier cells, and the path search.
+    Target (issue 6): under 50 ms."""
+    from crlam.experiments.explore import ExploreConfig, default_start, explore
+    from crlam.sim.worlds import get_world
+
+    world = get_world("museum", seed=0)
+    n = 3 if quick else 10
+    run = explore(world, default_start(world), ExploreConfig(function="crmi", threshold=0.0, budget_m=1e6, max_decisions=n))
+    ms = [r["decision_ms"] for r in run.decisions]
+    return {
+        "ms": float(sum(ms) / len(ms)),
+        "decisions": len(ms),
+        "candidates_mean": sum(r["candidates"] for r in run.decisions) / len(ms),
+        "target_ms": 50.0,
+    }
 
 
 def iig_run_seconds(function: str, *, quick: bool = False) -> dict[str, Any] | None:

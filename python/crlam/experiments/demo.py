@@ -64,7 +64,7 @@ def run_demo(
     t_start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     say = print if progress else (lambda *a, **k: None)
-    say(f"[1/6] simulating {n_scans} scans of the museum world (seed {seed}) ...", flush=True)
+    say(f"[1/7] simulating {n_scans} scans of the museum world (seed {seed}) ...", flush=True)
     t0 = time.perf_counter()
     log = simulate(SimulationConfig(world="museum", n_scans=n_scans, seed=seed, sensor="paper_lidar"))
     write_simulation(log, out / "simulation")
@@ -81,27 +81,36 @@ def run_demo(
     t_sim = time.perf_counter() - t0
 
     cfg = MappingConfig(resolution=0.2, max_range=log.sensor.max_range)
-    say("[2/6] mapping with the ground-truth poses ...", flush=True)
+    say("[2/7] mapping with the ground-truth poses ...", flush=True)
     truth = map_scans(_scans(log, log.poses), cfg, progress=progress, desc="CRM, true poses")
     write_map_folder(truth, out / "map_groundtruth_poses", title="Museum: CRM with ground-truth poses (ijrr, 0.2 m)")
-    say("[3/6] mapping with raw odometry (what SLAM must fix) ...", flush=True)
+    say("[3/7] mapping with raw odometry (what SLAM must fix) ...", flush=True)
     odo = map_scans(_scans(log, log.odometry), cfg, progress=progress, desc="CRM, odometry")
     write_map_folder(odo, out / "map_odometry_poses", title="Museum: CRM with raw odometry poses (ijrr, 0.2 m)")
 
-    say("[4/6] scoring the maps against the world ...", flush=True)
+    say("[4/7] scoring the maps against the world ...", flush=True)
     crm_t, ogm_t = _scores(truth, log)
     crm_o, ogm_o = _scores(odo, log)
     drift = np.hypot(*(log.odometry[:, :2] - log.poses[:, :2]).T)
-    say(f"[5/6] localization: particle filters on the first {loc_scans} scans ...", flush=True)
+    say(f"[5/7] localization: particle filters on the first {loc_scans} scans ...", flush=True)
     from crlam.experiments.localization import compare_localization, save_localization_figures
 
     loc = compare_localization(log, n_scans=loc_scans, particles=loc_particles, seed=seed, progress=progress)
     save_localization_figures(loc, log.poses, out)
     loc_rows = loc.table()
-    say("[6/6] planning: IIG with five information functions on the office world ...", flush=True)
+    say("[6/7] planning: IIG with five information functions on the office world ...", flush=True)
     from crlam.experiments.iig_demo import run_iig_demo
 
     iig = run_iig_demo(out, seed=seed)
+    say("[7/7] exploring the museum world greedily by CRMI (known poses) ...", flush=True)
+    from crlam.experiments.explore import ExploreConfig, default_start, explore, write_explore_folder
+    from crlam.sim.worlds import get_world
+
+    museum = get_world("museum", seed=seed)
+    exp_cfg = ExploreConfig(function="crmi", budget_m=80.0, threshold=0.1, seed=seed)
+    exp_run = explore(museum, default_start(museum), exp_cfg)
+    write_explore_folder(exp_run, out / "exploration")
+    exp_last = exp_run.decisions[-1] if exp_run.decisions else {}
     speed = truth.n_scans / truth.wall_time_s
     total = time.perf_counter() - t_start
     results = {
@@ -126,6 +135,7 @@ def run_demo(
         "config": cfg.to_dict(),
         "localization": {"n_scans": loc.n_scans, "particles": loc.particles, "rows": loc_rows},
         "iig": iig.rows,
+        "exploration": {"stop": exp_run.stop, "distance_m": exp_run.distance, **exp_last},
     }
     (out / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
     header = (
@@ -225,6 +235,16 @@ The paper's claims, on this single run (see `crlam experiment iig` for the stati
 {iig_claims}
 
 ![IIG trees](iig_trees.png)
+
+## Exploration
+
+Greedy CRMI exploration of the museum world with known poses (360 deg, 5 m sensor; up to 200
+candidates per decision; `crlam explore` for other worlds, functions and budgets): it stopped
+({exp_run.stop}) after {len(exp_run.decisions)} decisions and {exp_run.distance:.0f} m, having observed
+{exp_last.get("explored_m2", 0):.0f} m² with a map error of {100 * exp_last.get("map_error", 0):.1f} % on the
+observed cells. Run folder: `exploration/` (trajectory, map, belief, progress.csv, animation).
+
+![exploration](exploration/exploration.png)
 
 Each map folder also holds `map.pgm`/`map.yaml` (Nav2), `belief.npz` (lossless beliefs),
 `ogm.pgm`/`ogm.yaml` and `mapping.json`.

@@ -252,12 +252,16 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         cy, cx = np.nonzero(reach)
         centres = np.column_stack([origin[0] + (cx + 0.5) * res, origin[1] + (cy + 0.5) * res])
         within = np.hypot(*(centres - pose[:2]).T) <= cfg.radius_m
+        # Up to n_candidates in all: half reachable cells within the radius, half frontier cells
+        # (anywhere reachable), each half topped up from the other when it runs short.
         pick = np.flatnonzero(within)
-        if len(pick) > cfg.n_candidates:
-            pick = rng.choice(pick, cfg.n_candidates, replace=False)
         fr = np.flatnonzero(frontier[cy, cx])
-        if len(fr) > cfg.n_candidates:
-            fr = rng.choice(fr, cfg.n_candidates, replace=False)
+        n_fr = min(len(fr), max(cfg.n_candidates // 2, cfg.n_candidates - len(pick)))
+        n_near = min(len(pick), cfg.n_candidates - n_fr)
+        if len(pick) > n_near:
+            pick = rng.choice(pick, n_near, replace=False)
+        if len(fr) > n_fr:
+            fr = rng.choice(fr, n_fr, replace=False)
         idx = np.unique(np.concatenate([pick, fr])).astype(np.int64)
         frame = {"poses": np.array(poses), "mean": mean.copy()}
         if idx.size == 0:

@@ -64,6 +64,18 @@ def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRun, *, dp
     cb.set_label("CRMI [bits]")
     axes[1].set_title("CRMI on the final map (known-free cells)")
     metric_axes(axes[1], ext)
+    # Zoom to the observed part of the world (plus a margin): a short run in a large world.
+    obs_y, obs_x = np.nonzero(ent < np.log2(10.0) - 1e-3)
+    if obs_x.size:
+        r = run.config.resolution
+        margin = 3.0
+        x0 = max(ext[0], ext[0] + obs_x.min() * r - margin)
+        x1 = min(ext[1], ext[0] + (obs_x.max() + 1) * r + margin)
+        y0 = max(ext[2], ext[2] + obs_y.min() * r - margin)
+        y1 = min(ext[3], ext[2] + (obs_y.max() + 1) * r + margin)
+        for ax in axes:
+            ax.set_xlim(x0, x1)
+            ax.set_ylim(y0, y1)
     return save_figure(fig, path, dpi)
 
 
