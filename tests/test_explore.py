@@ -88,3 +88,24 @@ def test_cli_explore_writes_the_run_folder(tmp_path: Path) -> None:
     m = json.loads((out / "metrics.json").read_text())
     assert m["stop_reason"] == "budget" and m["explored_m2"] > 10 and m["n_scans"] > 10
     assert main(["explore", "--world", "nowhere.pgm", "--out", str(tmp_path / "x")]) == 2
+
+
+@pytest.mark.parametrize("function", ["crmi", "ucrmi"])
+def test_slam_mode_tracks_the_pose(function: str) -> None:
+    w = small_room()
+    cfg = ExploreConfig(function=function, slam=True, slam_particles=20, budget_m=12.0, threshold=0.0, seed=2)
+    r = explore(w, START, cfg)
+    assert r.stop in ("budget", "threshold") and len(r.poses) == len(r.estimates) > 10
+    err = np.hypot(*(r.poses[:, :2] - r.estimates[:, :2]).T)
+    assert err.max() < 0.3, err.max()
+    # The estimate is not simply the truth: odometry noise is really there.
+    assert err.max() > 0.0
+    again = explore(w, START, cfg)
+    np.testing.assert_array_equal(r.estimates, again.estimates)
+
+
+def test_cli_explore_slam(tmp_path: Path) -> None:
+    out = tmp_path / "slam"
+    assert main(["explore", "--world", "office", "--budget", "8", "--slam", "--no-gif", "--out", str(out), "--quiet"]) == 0
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["mode"] == "RBPF-CLAM" and 0.0 < m["pose_error_max_m"] < 0.5

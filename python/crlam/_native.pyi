@@ -330,6 +330,10 @@ class GpVarianceMap:
 
 @final
 class ParticleBelief:
+    @staticmethod
+    def from_particles(
+        particles: NDArray[np.float64], log_weights: NDArray[np.float64], entropy_nats: float
+    ) -> ParticleBelief: ...
     @property
     def particles(self) -> NDArray[np.float64]: ...
     @property

@@ -25,6 +25,8 @@ def cmd_explore(args: argparse.Namespace) -> int:
         sensor_range=args.max_range,
         particles=args.particles,
         seed=args.seed,
+        slam=args.slam,
+        slam_particles=args.slam_particles,
     )
     start = tuple(args.start) + (0.0,) if args.start else default_start(world, cfg.resolution)
     print(f"exploring {world.name} from ({start[0]:.1f}, {start[1]:.1f}) with {cfg.function} ...", flush=True)
@@ -35,6 +37,9 @@ def cmd_explore(args: argparse.Namespace) -> int:
         f"stopped ({run.stop}) after {len(run.decisions)} decisions, {run.distance:.1f} m; "
         f"explored {last.get('explored_m2', 0):.0f} m^2, map error {last.get('map_error', 0):.3f}"
     )
+    if args.slam:
+        err = ((run.estimates[:, :2] - run.poses[:, :2]) ** 2).sum(axis=1) ** 0.5
+        print(f"pose error: mean {err.mean():.3f} m, max {err.max():.3f} m; bumps {run.bumps}")
     for key, p in files.items():
         print(f"  {key:<16s} {p}")
     return 0
@@ -46,7 +51,8 @@ def add_explore_parser(subparsers: Any, positive_float: Any, positive_int: Any) 
         "explore",
         help="greedy information-driven exploration of a simulated world (the paper's Fig. 1)",
         description="A simulated robot with a 360 deg range sensor explores a world it does not know, with known "
-        "poses: each step it evaluates reachable known-free candidates and frontier cells with the information "
+        "poses or (--slam) RBPF-CLAM: each step it evaluates reachable known-free candidates and frontier cells "
+        "with the information "
         "function in one batch, drives the shortest known-free path to the best one while scanning, and stops "
         "when the best gain is below --threshold, the --budget is spent or nothing reachable is left. Writes "
         "trajectory.tum, groundtruth.tum, map.pgm/yaml, belief.npz, metrics.json, progress.csv, exploration.png "
@@ -64,6 +70,13 @@ def add_explore_parser(subparsers: Any, positive_float: Any, positive_int: Any) 
     p.add_argument("--cost-weight", type=float, default=0.0, help="score = gain / cost^w (default 0: pure gain)")
     p.add_argument("--max-range", type=positive_float, default=5.0, help="sensor range in metres (default: 5)")
     p.add_argument("--particles", type=positive_int, default=30, help="UCRMI particles (default: 30)")
+    p.add_argument(
+        "--slam",
+        action="store_true",
+        help="estimate the pose with RBPF-CLAM from noisy odometry and the scans (decisions use its best map and "
+        "its estimate; UCRMI sees its particle set) instead of knowing it",
+    )
+    p.add_argument("--slam-particles", type=positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
     p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"), help="start position (default: a free corner)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and candidate sampling")
     p.add_argument("--out", required=True, help="output folder")

@@ -133,6 +133,43 @@ pub struct ParticleBelief {
 
 #[pymethods]
 impl ParticleBelief {
+    /// A belief from a particle set: poses (n, 3), log-weights (n,) (normalised here) and the
+    /// set's entropy in nats (e.g. of a filter's particles, which carry no entropy estimate).
+    #[staticmethod]
+    fn from_particles(
+        particles: PyReadonlyArray2<'_, f64>,
+        log_weights: numpy::PyReadonlyArray1<'_, f64>,
+        entropy_nats: f64,
+    ) -> PyResult<Self> {
+        let shape = particles.shape();
+        if shape[1] != 3 {
+            return Err(shape_err(format!("particles must have shape (n, 3), got {shape:?}")));
+        }
+        let p = particles
+            .as_slice()
+            .map_err(|_| shape_err("particles must be a contiguous float64 array"))?;
+        let lw = log_weights
+            .as_slice()
+            .map_err(|_| shape_err("log_weights must be a contiguous float64 array"))?;
+        if lw.len() != shape[0] || shape[0] == 0 {
+            return Err(shape_err(format!("{} particles and {} log-weights", shape[0], lw.len())));
+        }
+        if !entropy_nats.is_finite() || p.iter().chain(lw).any(|v| v.is_nan()) {
+            return Err(shape_err("particles, log-weights and entropy must not be NaN"));
+        }
+        let w = crlam_core::resample::normalize_log_weights(lw);
+        Ok(Self {
+            inner: ucrmi::ParticleBelief {
+                particles: p.chunks(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                log_weights: w.iter().map(|x| x.ln()).collect(),
+                entropy_nats,
+                map_gain_bits: 0.0,
+                pose_gain_bits: 0.0,
+                resampled: false,
+            },
+        })
+    }
+
     /// (n, 3) particle poses.
     #[getter]
     fn particles<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {

@@ -33,6 +33,7 @@ from crlam.errors import ConfigError
 from crlam.experiments.pool import write_atomic
 from crlam.info import make_function
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
+from crlam.pose import between, compose
 from crlam.sim.grid_ops import distance_map
 from crlam.sim.sensor import RangeSensor
 from crlam.sim.world import World
@@ -64,6 +65,9 @@ class ExploreConfig:
     max_decisions: int = 400
     particles: int = 30
     seed: int = 0
+    slam: bool = False
+    slam_particles: int = 30
+    odometry_sigma: tuple[float, float, float] = (0.02, 0.02, 0.01)
 
     def __post_init__(self) -> None:
         if self.function not in FUNCTIONS:
@@ -76,6 +80,8 @@ class ExploreConfig:
             raise ConfigError(f"alpha must be in [0, 1], got {self.alpha}")
         if self.n_candidates < 1 or self.n_beams < 1 or self.max_decisions < 1:
             raise ConfigError("n_candidates, n_beams and max_decisions must be >= 1")
+        if self.slam_particles < 1 or any(not (math.isfinite(v) and v >= 0) for v in self.odometry_sigma):
+            raise ConfigError("slam_particles must be >= 1 and odometry_sigma finite and >= 0")
         if not (0.0 < self.free_threshold < 0.5) or self.robot_radius < 0 or self.cost_weight < 0:
             raise ConfigError("need 0 < free_threshold < 0.5, robot_radius >= 0, cost_weight >= 0")
 
@@ -90,11 +96,15 @@ class ExploreRun:
     Attributes
     ----------
     poses : ndarray, shape (n, 3)
-        Robot pose at every scan (true = estimated with known poses).
+        True robot pose at every scan.
+    estimates : ndarray, shape (n, 3)
+        The robot's estimate at every scan (equal to ``poses`` with known poses; the RBPF-CLAM
+        weighted mean with ``slam``).
     decisions : list of dict
         One row per decision (``progress.csv``).
     stop : str
-        ``threshold`` | ``budget`` | ``no_candidates`` | ``max_decisions``.
+        ``threshold`` | ``budget`` | ``no_candidates`` | ``max_decisions`` | ``blocked`` (with
+        ``slam``: the path planned on the estimate kept bumping into obstacles).
     crm : ConfidenceRichMap
         The final map.
     """
@@ -106,12 +116,29 @@ class ExploreRun:
     stop: str
     crm: ConfidenceRichMap
     truth: NDArray[np.bool_]
+    estimates: NDArray[np.float64] = field(default_factory=lambda: np.zeros((0, 3)))
+    bumps: int = 0
     goals: list[tuple[float, float]] = field(default_factory=list)
     frames: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def distance(self) -> float:
         return float(np.hypot(*np.diff(self.poses[:, :2], axis=0).T).sum()) if len(self.poses) > 1 else 0.0
+
+
+def _filter_belief(slam_filter: Any) -> Any:
+    """The filter's particle set as a UCRMI belief, with the Gaussian entropy of the weighted
+    particle covariance as a first entropy (the filter carries no entropy estimate)."""
+    parts = np.asarray(slam_filter.particle_poses())
+    lw = np.asarray(slam_filter.log_weights())
+    w = np.exp(lw - lw.max())
+    w /= w.sum()
+    mu = w @ parts
+    d = parts - mu
+    d[:, 2] = (d[:, 2] + math.pi) % (2 * math.pi) - math.pi
+    cov = (d * w[:, None]).T @ d + np.diag([1e-6, 1e-6, 1e-8])
+    h = 0.5 * math.log((2 * math.pi * math.e) ** 3 * max(float(np.linalg.det(cov)), 1e-300))
+    return _native.ParticleBelief.from_particles(np.ascontiguousarray(parts), np.ascontiguousarray(lw), h)
 
 
 def truth_grid(world: World, resolution: float) -> NDArray[np.bool_]:
@@ -206,24 +233,54 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         if cfg.function == "frontier"
         else make_function(cfg.function, z_max=cfg.sensor_range, resolution=res, alpha=cfg.alpha, n_particles=cfg.particles)
     )
+    map_fn = make_function("crmi", z_max=cfg.sensor_range, resolution=res) if cfg.function == "ucrmi" else None
     poses: list[NDArray[np.float64]] = []
+    estimates: list[NDArray[np.float64]] = []
     bounds = extent
-
     fine = world.occupied
     fres = world.resolution
 
-    def scan_at(p: NDArray[np.float64]) -> None:
-        fy = min(int((p[1] - origin[1]) / fres), fine.shape[0] - 1)
-        fx = min(int((p[0] - origin[0]) / fres), fine.shape[1] - 1)
-        if fine[fy, fx]:
+    def occupied_at(p: NDArray[np.float64]) -> bool:
+        fy = int((p[1] - origin[1]) / fres)
+        fx = int((p[0] - origin[0]) / fres)
+        return not (0 <= fy < fine.shape[0] and 0 <= fx < fine.shape[1]) or bool(fine[fy, fx])
+
+    slam_filter: Any = None
+    odom = np.array(start, dtype=np.float64)
+    if cfg.slam:
+        from crlam.slam import SlamConfig, make_filter
+
+        slam_cfg = SlamConfig(
+            method="clam",
+            particles=cfg.slam_particles,
+            seed=cfg.seed,
+            resolution=res,
+            max_range=cfg.sensor_range,
+            motion="gaussian",
+            motion_params=tuple(cfg.odometry_sigma),
+        )
+        slam_filter = make_filter(slam_cfg, odom)
+
+    def scan_at(p: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Scans at the true pose ``p``, updates the estimator and returns the estimate."""
+        if occupied_at(p):
             raise RuntimeError(f"the robot entered an occupied cell of the world at {p[:2]}")
         z = sensor.simulate_ranges(world, p[None, :], rng)[0]
-        crm.update(p, angles, z)
-        ogm.update(p, angles, z)
         poses.append(p.copy())
+        if slam_filter is None:
+            crm.update(p, angles, z)
+            ogm.update(p, angles, z)
+            est = p.copy()
+        else:
+            _, e, _, _ = slam_filter.process(odom, angles, np.ascontiguousarray(z), np.zeros(3))
+            est = np.array(e)
+        estimates.append(est)
+        return est
 
     pose = np.array(start, dtype=np.float64)
-    scan_at(pose)
+    est = scan_at(pose)
+    bumps = 0
+    consecutive_bumps = 0
     decisions: list[dict[str, Any]] = []
     goals: list[tuple[float, float]] = []
     frames: list[dict[str, Any]] = []
@@ -231,6 +288,9 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
     travelled = 0.0
     for k in range(cfg.max_decisions):
         t0 = time.perf_counter()
+        if slam_filter is not None:
+            # Decisions use the best particle's map and the estimated pose.
+            crm.native = slam_filter.best_map()
         mean, _, ent = (layer.values for layer in crm.layers(bounds))
         observed = ent < math.log2(10.0) - 1e-3
         free = observed & (mean < cfg.free_threshold)
@@ -243,7 +303,10 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         clear = distance_map(np.pad(blocked, 1, constant_values=True), res, reach_m)[1:-1, 1:-1]
         to_unknown = distance_map(~observed, res, reach_m)
         traversable = free & (clear >= cfg.robot_radius)
-        here = (min(int((pose[1] - origin[1]) / res), ny - 1), min(int((pose[0] - origin[0]) / res), nx - 1))
+        here = (
+            min(max(int((est[1] - origin[1]) / res), 0), ny - 1),
+            min(max(int((est[0] - origin[0]) / res), 0), nx - 1),
+        )
         traversable[here] = True
         dist, pred = geodesic(traversable, here, res)
         reach = np.isfinite(dist) & (dist >= 2 * res)
@@ -251,7 +314,7 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         frontier = reach & (to_unknown < cfg.robot_radius + 1.5 * res)
         cy, cx = np.nonzero(reach)
         centres = np.column_stack([origin[0] + (cx + 0.5) * res, origin[1] + (cy + 0.5) * res])
-        within = np.hypot(*(centres - pose[:2]).T) <= cfg.radius_m
+        within = np.hypot(*(centres - est[:2]).T) <= cfg.radius_m
         # Up to n_candidates in all: half reachable cells within the radius, half frontier cells
         # (anywhere reachable), each half topped up from the other when it runs short.
         pick = np.flatnonzero(within)
@@ -263,7 +326,7 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         if len(fr) > n_fr:
             fr = rng.choice(fr, n_fr, replace=False)
         idx = np.unique(np.concatenate([pick, fr])).astype(np.int64)
-        frame = {"poses": np.array(poses), "mean": mean.copy()}
+        frame = {"poses": np.array(estimates), "mean": mean.copy()}
         if idx.size == 0:
             stop = "no_candidates"
             frames.append(frame)
@@ -281,19 +344,28 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         else:
             poses3 = np.column_stack([cand, np.zeros(len(cand))])
             if fn.name == "fsmi":
-                prob = ogm.probability(bounds).values
+                prob = ogm.probability(bounds).values if slam_filter is None else mean
                 state: Any = _native.OccupancyLattice(np.ascontiguousarray(prob), res, origin)
                 gains = fn.gains(state, poses3, seed=cfg.seed + k)
             elif fn.name == "ucrmi":
-                root = fn.root_belief(pose, seed=cfg.seed + k)
-                parents = np.tile(pose[:2], (len(cand), 1))
+                if slam_filter is None:
+                    root = fn.root_belief(est, seed=cfg.seed + k)
+                else:
+                    # The filter's particles, with the entropy the same estimator gives them after
+                    # one edge that stays in place: I_p then compares candidates with staying.
+                    placeholder = _filter_belief(slam_filter)
+                    here_eval = fn.evaluate(crm.native, est, parent=est[:2], belief=placeholder, seed=cfg.seed + k)
+                    root = _native.ParticleBelief.from_particles(
+                        placeholder.particles, np.log(placeholder.weights), here_eval.belief.entropy_nats
+                    )
+                parents = np.tile(est[:2], (len(cand), 1))
                 gains = fn.gains(crm.native, poses3, parents=parents, belief=root, seed=cfg.seed + k)
             else:
                 gains = fn.gains(crm.native, poses3, seed=cfg.seed + k)
             score = gains / np.power(cost, cfg.cost_weight) if cfg.cost_weight > 0 else gains
         best = int(np.argmax(score))
         decision_ms = 1e3 * (time.perf_counter() - t0)
-        row = {
+        row: dict[str, Any] = {
             "decision": k,
             "distance_m": round(travelled, 4),
             "explored_m2": round(float(observed.sum()) * res * res, 4),
@@ -306,7 +378,13 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         }
         decisions.append(row)
         frames.append(frame)
-        if fn is not None and gains[best] < cfg.threshold:
+        stop_value = float(gains[best]) if fn is not None else math.inf
+        if fn is not None and fn.name == "ucrmi":
+            # UCRMI's pose term can make every candidate look poor while there is still map to
+            # gain: the stop rule looks at the largest map term (CRMI, bits) among the candidates.
+            stop_value = float(np.max(map_fn.gains(crm.native, poses3))) if map_fn is not None else math.inf
+        row["stop_value"] = round(stop_value, 6) if math.isfinite(stop_value) else None
+        if stop_value < cfg.threshold:
             stop = "threshold"
             break
         if travelled >= cfg.budget_m:
@@ -315,16 +393,31 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         goal_flat = int(cy[idx[best]] * nx + cx[idx[best]])
         cells = _path(pred, goal_flat, nx)
         pts = np.array([[origin[0] + (x + 0.5) * res, origin[1] + (y + 0.5) * res] for y, x in cells])
-        pts = np.vstack([pose[:2], pts[1:]]) if len(pts) > 1 else np.vstack([pose[:2], pts])
+        pts = np.vstack([est[:2], pts[1:]]) if len(pts) > 1 else np.vstack([est[:2], pts])
         goals.append((float(pts[-1, 0]), float(pts[-1, 1])))
+        bumped = False
         for q in _resample(pts, cfg.step_m):
-            step = float(np.hypot(*(q - pose[:2])))
-            heading = math.atan2(q[1] - pose[1], q[0] - pose[0]) if step > 0 else pose[2]
-            pose = np.array([q[0], q[1], heading])
-            travelled += step
-            scan_at(pose)
+            # The robot drives toward the waypoint from where it believes it is; the motion it
+            # makes is that command applied to its true pose (odometry measures it with noise).
+            heading = math.atan2(q[1] - est[1], q[0] - est[0]) if np.hypot(*(q - est[:2])) > 0 else est[2]
+            u = between(est, np.array([q[0], q[1], heading]))
+            new_pose = compose(pose, u)
+            n_check = max(2, int(np.hypot(*(new_pose[:2] - pose[:2])) / (0.5 * fres)) + 2)
+            if any(occupied_at(x) for x in np.linspace(pose[:2], new_pose[:2], n_check)):
+                bumps += 1
+                bumped = True
+                break
+            if slam_filter is not None:
+                odom = compose(odom, u + rng.normal(0.0, 1.0, 3) * np.asarray(cfg.odometry_sigma))
+            travelled += float(np.hypot(*(new_pose[:2] - pose[:2])))
+            pose = new_pose
+            est = scan_at(pose)
             if travelled >= cfg.budget_m:
                 break
+        consecutive_bumps = consecutive_bumps + 1 if bumped else 0
+        if consecutive_bumps >= 3:
+            stop = "blocked"
+            break
         if progress:
             print(
                 f"decision {k}: gain {row['best_gain']:.3g}, {travelled:.1f} m, explored {row['explored_m2']:.0f} m^2", flush=True
@@ -333,6 +426,8 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         config=cfg,
         world_name=world.name,
         poses=np.array(poses),
+        estimates=np.array(estimates),
+        bumps=bumps,
         decisions=decisions,
         stop=stop,
         crm=crm,
@@ -364,8 +459,10 @@ def write_explore_folder(run: ExploreRun, out: str | os.PathLike[str], *, gif: b
         "progress": d / "progress.csv",
         "metrics": d / "metrics.json",
     }
-    write_tum(files["trajectory"], stamps, run.poses, header="crlam explore: estimated poses (known-pose mode)")
+    mode = "RBPF-CLAM" if cfg.slam else "known poses"
+    write_tum(files["trajectory"], stamps, run.estimates, header=f"crlam explore: estimated poses ({mode})")
     write_tum(files["groundtruth"], stamps, run.poses, header="crlam explore: true poses")
+    pose_err = np.hypot(*(run.estimates[:, :2] - run.poses[:, :2]).T)
     mean = run.crm.expected_occupancy(_bounds(run))
     ent = run.crm.entropy(_bounds(run)).values
     occ = np.where(ent < math.log2(10.0) - 1e-3, mean.values, np.nan)
@@ -390,8 +487,11 @@ def write_explore_folder(run: ExploreRun, out: str | os.PathLike[str], *, gif: b
         "map_entropy_bits": last.get("map_entropy_bits"),
         "map_error": last.get("map_error"),
         "decision_ms_mean": float(np.mean([r["decision_ms"] for r in run.decisions])) if run.decisions else None,
-        "pose_error_m": 0.0,
-        "mode": "known poses",
+        "pose_error_mean_m": float(pose_err.mean()),
+        "pose_error_max_m": float(pose_err.max()),
+        "pose_error_final_m": float(pose_err[-1]),
+        "bumps": run.bumps,
+        "mode": mode,
     }
     write_atomic(files["metrics"], json.dumps(metrics, indent=2, sort_keys=True) + "\n")
     files["figure"] = save_exploration_figure(d / "exploration.png", run)
