@@ -109,3 +109,32 @@ def test_cli_explore_slam(tmp_path: Path) -> None:
     assert main(["explore", "--world", "office", "--budget", "8", "--slam", "--no-gif", "--out", str(out), "--quiet"]) == 0
     m = json.loads((out / "metrics.json").read_text())
     assert m["mode"] == "RBPF-CLAM" and 0.0 < m["pose_error_max_m"] < 0.5
+
+
+def test_explore_experiment_resumes(tmp_path: Path) -> None:
+    from crlam.experiments.explore_sweep import run_explore_experiment
+    from crlam.io.nav2 import write_nav2_map
+
+    room = small_room()
+    world_yaml = tmp_path / "room.pgm"
+    write_nav2_map(world_yaml, room.occupied.astype(float), resolution=room.resolution, origin=(0.0, 0.0, 0.0))
+    out = tmp_path / "sweep"
+    kw = {
+        "worlds": [str(tmp_path / "room.yaml")],
+        "functions": ["crmi", "ucrmi", "frontier"],
+        "alphas": [0.0, 1.0],
+        "runs": 1,
+        "budget": 6.0,
+        "workers": 1,
+        "progress": False,
+    }
+    res = run_explore_experiment(out, **kw)
+    assert len(res.rows) == 4 and not res.errors
+    assert {r["variant"] for r in res.rows} == {"crmi", "frontier", "ucrmi a=0", "ucrmi a=1"}
+    assert (out / "coverage.png").stat().st_size > 20_000 and "Exploration comparison" in (out / "report.md").read_text()
+    stamp = (out / "runs" / "room-crmi-s00" / "metrics.json").stat().st_mtime_ns
+    again = run_explore_experiment(out, **kw)
+    assert len(again.rows) == 4
+    assert (out / "runs" / "room-crmi-s00" / "metrics.json").stat().st_mtime_ns == stamp
+    with pytest.raises(ConfigError):
+        run_explore_experiment(out, **{**kw, "alphas": [2.0]})

@@ -180,6 +180,23 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         )
         print(f"{len(res.rows)} runs finished, {len(res.errors)} failed; report: {res.files['report']}")
         return 0 if not res.errors else 1
+    if args.experiment == "explore":
+        from crlam.experiments.explore_sweep import run_explore_experiment
+
+        sweep = run_explore_experiment(
+            out,
+            worlds=args.worlds,
+            functions=[f.strip() for f in args.functions.split(",") if f.strip()],
+            alphas=[float(a) for a in args.alphas.split(",") if a.strip()],
+            runs=args.runs,
+            budget=args.budget,
+            slam=not args.known_poses,
+            particles=args.particles,
+            workers=args.workers,
+            progress=not args.quiet,
+        )
+        print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
+        return 0 if not sweep.errors else 1
     if args.experiment == "table1":
         from crlam.experiments.table1 import run_table1
 
@@ -393,6 +410,24 @@ def build_parser() -> argparse.ArgumentParser:
     ig.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
     ig.add_argument("--quiet", action="store_true", help="no progress output")
     ig.set_defaults(func=cmd_experiment)
+    ex = exp.add_parser(
+        "explore",
+        help="exploration runs over worlds, functions, UCRMI alphas and seeds",
+        description="Runs crlam explore for every world x function (x alpha for UCRMI) x seed in spawn workers "
+        "(resumable); writes runs.csv, coverage.png (explored area, map error and pose error against distance), "
+        "pose_error.png and report.md. Poses come from RBPF-CLAM unless --known-poses.",
+    )
+    ex.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    ex.add_argument("--worlds", nargs="+", default=["office"], help="museum | office | map files (default: office)")
+    ex.add_argument("--functions", default="crmi,ucrmi,fsmi,frontier", help="comma-separated (default: all four)")
+    ex.add_argument("--alphas", default="0,0.25,0.5,0.75,1", help="UCRMI weights of the map term (default: 0,...,1)")
+    ex.add_argument("--runs", type=_positive_int, default=3, help="seeds per setting (default: 3)")
+    ex.add_argument("--budget", type=_positive_float, default=60.0, help="travel budget per run in metres (default: 60)")
+    ex.add_argument("--particles", type=_positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
+    ex.add_argument("--known-poses", action="store_true", help="no SLAM: the robot knows its pose")
+    ex.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
+    ex.add_argument("--quiet", action="store_true", help="no progress output")
+    ex.set_defaults(func=cmd_experiment)
     for q in (t1, rl):
         q.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
         q.add_argument("--weight-stride", type=_positive_int, default=1, help="beam stride of the weights (default: 1)")

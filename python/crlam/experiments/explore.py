@@ -335,6 +335,12 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         cost = dist[cy[idx], cx[idx]]
         if fn is None:
             is_fr = frontier[cy[idx], cx[idx]]
+            if goals:
+                # A frontier next to a goal already reached borders space the sensor cannot see
+                # from there (the inside of furniture): do not go back to it.
+                g = np.asarray(goals)
+                seen = np.min(np.hypot(cand[:, None, 0] - g[None, :, 0], cand[:, None, 1] - g[None, :, 1]), axis=1) < 1.0
+                is_fr &= ~seen
             if not is_fr.any():
                 stop = "no_candidates"
                 frames.append(frame)
@@ -375,6 +381,7 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
             "best_gain": round(float(gains[best]), 6),
             "best_cost_m": round(float(cost[best]), 4),
             "decision_ms": round(decision_ms, 3),
+            "pose_error_m": round(float(np.hypot(*(est[:2] - pose[:2]))), 5),
         }
         decisions.append(row)
         frames.append(frame)

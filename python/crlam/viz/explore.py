@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import matplotlib
 
@@ -18,7 +18,7 @@ from crlam.viz.maps import metric_axes, save_figure
 if TYPE_CHECKING:
     from crlam.experiments.explore import ExploreRun
 
-__all__ = ["save_animation", "save_exploration_figure", "save_progress_figure"]
+__all__ = ["save_animation", "save_exploration_figure", "save_progress_figure", "save_sweep_figures"]
 
 
 def _extent(run: ExploreRun) -> tuple[float, float, float, float]:
@@ -121,3 +121,42 @@ def save_animation(path: str | os.PathLike[str], run: ExploreRun, *, max_frames:
     anim.save(out, writer=PillowWriter(fps=fps))
     plt.close(fig)
     return out
+
+
+def save_sweep_figures(out: Path, rows: list[dict[str, Any]], *, dpi: int = 150) -> dict[str, Path]:
+    """``coverage.png``: explored area, map error and pose error against distance (mean over the
+    seeds of each world and variant, read from the runs' ``progress.csv``); ``pose_error.png``:
+    the mean pose error of every run per variant."""
+    import csv
+
+    curves: dict[tuple[str, str], list[dict[str, np.ndarray]]] = {}
+    for r in rows:
+        path = Path(out) / "runs" / str(r["name"]) / "progress.csv"
+        if not path.is_file():
+            continue
+        with path.open() as fh:
+            prog = list(csv.DictReader(fh))
+        if not prog:
+            continue
+        curves.setdefault((str(r["world"]), str(r["variant"])), []).append(
+            {k: np.array([float(p[k]) for p in prog]) for k in ("distance_m", "explored_m2", "map_error", "pose_error_m")}
+        )
+    fig, axes = plt.subplots(1, 3, figsize=(16.0, 4.4), constrained_layout=True)
+    for (world, variant), runs in sorted(curves.items()):
+        grid = np.linspace(0.0, max(float(c["distance_m"][-1]) for c in runs), 60)
+        for ax, key in zip(axes, ("explored_m2", "map_error", "pose_error_m"), strict=True):
+            ys = np.array([np.interp(grid, c["distance_m"], c[key]) for c in runs])
+            ax.plot(grid, ys.mean(axis=0), label=f"{world}: {variant}", linewidth=1.2)
+    for ax, label in zip(axes, ("explored area [m²]", "map error (observed cells)", "pose error [m]"), strict=True):
+        ax.set_xlabel("distance travelled [m]")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    files = {"coverage": save_figure(fig, Path(out) / "coverage.png", dpi)}
+    variants = sorted({str(r["variant"]) for r in rows})
+    fig, ax = plt.subplots(figsize=(max(6.0, 1.1 * len(variants)), 4.0), constrained_layout=True)
+    ax.boxplot([[float(r["pose_error_mean_m"]) for r in rows if r["variant"] == v] for v in variants], tick_labels=variants)
+    ax.set_ylabel("mean pose error of a run [m]")
+    ax.grid(axis="y", alpha=0.3)
+    files["pose_error"] = save_figure(fig, Path(out) / "pose_error.png", dpi)
+    return files
