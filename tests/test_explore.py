@@ -138,3 +138,9 @@ def test_explore_experiment_resumes(tmp_path: Path) -> None:
     assert (out / "runs" / "room-crmi-s00" / "metrics.json").stat().st_mtime_ns == stamp
     with pytest.raises(ConfigError):
         run_explore_experiment(out, **{**kw, "alphas": [2.0]})
+
+
+def test_default_start_keeps_room_from_the_map_edge() -> None:
+    open_world = World(np.zeros((80, 80), dtype=bool), 0.05, name="open")  # 4 m x 4 m, no walls
+    x, y, _ = default_start(open_world)
+    assert min(x, y, 4.0 - x, 4.0 - y) >= 1.0 - 1e-9

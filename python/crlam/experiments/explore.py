@@ -518,7 +518,8 @@ def _bounds(run: ExploreRun) -> tuple[float, float, float, float]:
 def default_start(world: World, resolution: float = 0.2, clearance: float = 1.0) -> tuple[float, float, float]:
     """The free map cell nearest the world's lower-left corner with ``clearance`` metres around it."""
     truth = truth_grid(world, resolution)
-    clear = distance_map(truth, resolution, clearance + resolution)
+    # Outside the map counts as occupied: a start needs room inside it.
+    clear = distance_map(np.pad(truth, 1, constant_values=True), resolution, clearance + resolution)[1:-1, 1:-1]
     iy, ix = np.nonzero(clear >= clearance)
     if iy.size == 0:
         raise ConfigError(f"world {world.name!r} has no cell with {clearance} m of clearance to start from")
