@@ -9,17 +9,12 @@ context, because a forked child of a process whose rayon pool has started hangs.
 from __future__ import annotations
 
 import json
-import multiprocessing as mp
-import os
-import traceback
 from collections.abc import Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
-from tqdm import tqdm
-
+from crlam.experiments.pool import run_jobs
 from crlam.slam import SlamConfig
 
 __all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics"]
@@ -50,27 +45,23 @@ def load_metrics(folder: Path) -> dict[str, Any]:
     return json.loads((folder / "metrics.json").read_text())
 
 
-def _worker(spec_dict: dict[str, Any], root: str) -> tuple[str, dict[str, Any] | None, str | None]:
-    # Each worker limits its own rayon pool so that workers x threads matches the machine.
-    threads = int(spec_dict.pop("threads"))
-    os.environ["RAYON_NUM_THREADS"] = str(threads)
+def _run_spec(spec_dict: dict[str, Any], root: str) -> dict[str, Any]:
+    """One SLAM run in a worker (module level, so that ``spawn`` can pickle it)."""
     from crlam.experiments.slam_run import run_slam_log
 
-    cfg = SlamConfig(**spec_dict.pop("config"))
-    spec = RunSpec(config=cfg, threads=threads, **spec_dict)
-    try:
-        res = run_slam_log(
-            spec.log,
-            spec.folder(Path(root)),
-            cfg,
-            reference=spec.reference,
-            relations=spec.relations,
-            max_scans=spec.max_scans,
-            progress=False,
-        )
-        return spec.name, res.metrics, None
-    except Exception as e:  # noqa: BLE001 - reported per run, the sweep goes on
-        return spec.name, None, f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
+    d = dict(spec_dict)
+    cfg = SlamConfig(**d.pop("config"))
+    spec = RunSpec(config=cfg, **d)
+    res = run_slam_log(
+        spec.log,
+        spec.folder(Path(root)),
+        cfg,
+        reference=spec.reference,
+        relations=spec.relations,
+        max_scans=spec.max_scans,
+        progress=False,
+    )
+    return dict(res.metrics)
 
 
 def _spec_dict(spec: RunSpec) -> dict[str, Any]:
@@ -91,42 +82,16 @@ def run_sweep(
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """Runs every unfinished spec; returns ({name: metrics} of all finished runs, {name: error})."""
     root.mkdir(parents=True, exist_ok=True)
-    names = [s.name for s in specs]
-    if len(set(names)) != len(names):
-        raise ValueError("run names must be unique within a sweep")
-    done = {s.name: load_metrics(s.folder(root)) for s in specs if run_is_finished(s.folder(root))}
-    todo = [s for s in specs if s.name not in done]
-    errors: dict[str, str] = {}
-    if progress:
-        print(f"{len(done)} of {len(specs)} runs already finished; {len(todo)} to run with {workers} worker(s)", flush=True)
-    if not todo:
-        return done, errors
-    bar = tqdm(total=len(todo), desc="runs", unit="run", disable=not progress)
-    if workers <= 1:
-        for s in todo:
-            name, metrics, err = _worker(_spec_dict(s), str(root))
-            _collect(name, metrics, err, done, errors, bar)
-    else:
-        ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            futures = [pool.submit(_worker, _spec_dict(s), str(root)) for s in todo]
-            for f in as_completed(futures):
-                _collect(*f.result(), done, errors, bar)
-    bar.close()
-    return done, errors
-
-
-def _collect(
-    name: str,
-    metrics: dict[str, Any] | None,
-    err: str | None,
-    done: dict[str, dict[str, Any]],
-    errors: dict[str, str],
-    bar: Any,
-) -> None:
-    if metrics is not None:
-        done[name] = metrics
-    else:
-        errors[name] = err or "unknown error"
-        tqdm.write(f"run {name} failed: {errors[name].splitlines()[0]}")
-    bar.update(1)
+    by_name = {s.name: s for s in specs}
+    threads = max((s.threads for s in specs), default=1)
+    jobs = [(s.name, {"spec_dict": _spec_dict(s), "root": str(root)}) for s in specs]
+    return run_jobs(
+        jobs,
+        _run_spec,
+        lambda n: run_is_finished(by_name[n].folder(root)),
+        lambda n: load_metrics(by_name[n].folder(root)),
+        workers=workers,
+        threads=threads,
+        progress=progress,
+        desc="runs",
+    )
