@@ -143,7 +143,9 @@ impl ParticleBelief {
     ) -> PyResult<Self> {
         let shape = particles.shape();
         if shape[1] != 3 {
-            return Err(shape_err(format!("particles must have shape (n, 3), got {shape:?}")));
+            return Err(shape_err(format!(
+                "particles must have shape (n, 3), got {shape:?}"
+            )));
         }
         let p = particles
             .as_slice()
@@ -152,10 +154,16 @@ impl ParticleBelief {
             .as_slice()
             .map_err(|_| shape_err("log_weights must be a contiguous float64 array"))?;
         if lw.len() != shape[0] || shape[0] == 0 {
-            return Err(shape_err(format!("{} particles and {} log-weights", shape[0], lw.len())));
+            return Err(shape_err(format!(
+                "{} particles and {} log-weights",
+                shape[0],
+                lw.len()
+            )));
         }
         if !entropy_nats.is_finite() || p.iter().chain(lw).any(|v| v.is_nan()) {
-            return Err(shape_err("particles, log-weights and entropy must not be NaN"));
+            return Err(shape_err(
+                "particles, log-weights and entropy must not be NaN",
+            ));
         }
         let w = crlam_core::resample::normalize_log_weights(lw);
         Ok(Self {
