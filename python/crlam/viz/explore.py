@@ -108,11 +108,11 @@ def save_animation(path: str | os.PathLike[str], run: ExploreRun, *, max_frames:
     def draw(i: int) -> None:
         ax.clear()
         f = frames[i]
-        _draw_map(ax, f["mean"], ext)
+        _draw_map(ax, f["mean"] / 255.0, ext)
         p = f["poses"]
         ax.plot(p[:, 0], p[:, 1], color="tab:blue", linewidth=1.0)
         ax.plot(p[-1, 0], p[-1, 1], marker="o", color="tab:red")
-        ax.set_title(f"decision {i * max(1, len(run.frames) // max_frames)}")
+        ax.set_title(f"decision {f['decision']}")
         ax.set_xlim(ext[0], ext[1])
         ax.set_ylim(ext[2], ext[3])
 
