@@ -8,16 +8,15 @@ use crlam_core::info::fsmi::{Fsmi, FsmiVariant, OgmiParams};
 use crlam_core::info::gp::{Gpvr, Ugpvr};
 use crlam_core::info::iig_mi::IigMi;
 use crlam_core::info::lattice::BeamAngles;
-use crlam_core::info::posecov::{root_covariance, Cov3};
-use crlam_core::info::ucrmi::{self, Ucrmi, UcrmiConfig};
+use crlam_core::info::ucrmi::{Ucrmi, UcrmiConfig};
 use crlam_core::info::{self as core_info, Candidate, InfoUnits, InformationFunction};
-use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 use crate::convert::{pose3, poses_n3, shape_err, IntoPy};
-use crate::info_state::{GpVarianceMap, InfoUpdate, OccupancyLattice, ParticleBelief, UpdateKind};
-use crate::maps::{CrmMap, SensorModel};
+use crate::dispatch::{dispatch, GlueFunction, StateClass};
+use crate::info_state::InfoUpdate;
+use crate::maps::SensorModel;
 
 pub(crate) enum Func {
     Crmi(Crmi),
@@ -58,31 +57,6 @@ fn candidate(pose: [f64; 3], parent: Option<(f64, f64)>) -> Candidate {
         },
         None => Candidate::at(pose),
     }
-}
-
-fn cov3(c: Option<PyReadonlyArray2<'_, f64>>) -> PyResult<Option<Cov3>> {
-    let Some(c) = c else { return Ok(None) };
-    if c.shape() != [3, 3] {
-        return Err(shape_err(format!(
-            "covariance must be 3x3, got {:?}",
-            c.shape()
-        )));
-    }
-    let s = c
-        .as_slice()
-        .map_err(|_| shape_err("covariance must be a contiguous float64 array"))?;
-    Ok(Some([
-        [s[0], s[1], s[2]],
-        [s[3], s[4], s[5]],
-        [s[6], s[7], s[8]],
-    ]))
-}
-
-fn cov_array<'py>(py: Python<'py>, c: &Cov3) -> Bound<'py, PyArray2<f64>> {
-    let flat: Vec<f64> = c.iter().flatten().copied().collect();
-    Array2::from_shape_vec((3, 3), flat)
-        .expect("3x3")
-        .into_pyarray(py)
 }
 
 impl InfoFunction {
@@ -347,16 +321,7 @@ impl InfoFunction {
         seed: u64,
     ) -> PyResult<PyObject> {
         let p = pose3(&pose)?;
-        match &self.f {
-            Func::Ucrmi(f) => Ok(ParticleBelief {
-                inner: f.root_belief(p, seed).py_err()?,
-            }
-            .into_pyobject(py)?
-            .into_any()
-            .unbind()),
-            Func::Ugpvr(_) => Ok(cov_array(py, &root_covariance()).into_any().unbind()),
-            _ => Ok(py.None()),
-        }
+        dispatch!(&self.f, |f, S| root_with(py, f, p, seed))
     }
 
     /// Gain of one candidate (pure: `state` is not changed). `parent` is the (x, y) of the edge
@@ -373,164 +338,14 @@ impl InfoFunction {
         seed: u64,
     ) -> PyResult<(f64, PyObject, InfoUpdate)> {
         let c = candidate(pose3(&pose)?, parent);
-        match &self.f {
-            Func::Crmi(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                let e = py
-                    .allow_threads(|| f.evaluate(mc, &(), &c, seed))
-                    .py_err()?;
-                Ok((
-                    e.gain,
-                    py.None(),
-                    InfoUpdate {
-                        inner: UpdateKind::Scan(e.update),
-                    },
-                ))
-            }
-            Func::CrmiMl(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                let e = py
-                    .allow_threads(|| f.evaluate(mc, &(), &c, seed))
-                    .py_err()?;
-                Ok((
-                    e.gain,
-                    py.None(),
-                    InfoUpdate {
-                        inner: UpdateKind::Scan(e.update),
-                    },
-                ))
-            }
-            Func::CrmiR1(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                let e = py
-                    .allow_threads(|| f.evaluate(mc, &(), &c, seed))
-                    .py_err()?;
-                Ok((
-                    e.gain,
-                    py.None(),
-                    InfoUpdate {
-                        inner: UpdateKind::Scan(e.update),
-                    },
-                ))
-            }
-            Func::Ucrmi(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                let b = particle_belief(f, belief, c.pose)?;
-                let e = py.allow_threads(|| f.evaluate(mc, &b, &c, seed)).py_err()?;
-                let obj = ParticleBelief { inner: e.belief }
-                    .into_pyobject(py)?
-                    .into_any()
-                    .unbind();
-                Ok((
-                    e.gain,
-                    obj,
-                    InfoUpdate {
-                        inner: UpdateKind::Scan(e.update),
-                    },
-                ))
-            }
-            Func::Fsmi(f) => {
-                let m = state.downcast::<OccupancyLattice>()?.borrow();
-                let mi = &m.inner;
-                let e = py
-                    .allow_threads(|| f.evaluate(mi, &(), &c, seed))
-                    .py_err()?;
-                Ok((
-                    e.gain,
-                    py.None(),
-                    InfoUpdate {
-                        inner: UpdateKind::Nodes(e.update),
-                    },
-                ))
-            }
-            Func::IigMi(f) => {
-                let m = state.downcast::<OccupancyLattice>()?.borrow();
-                let mi = &m.inner;
-                let e = py
-                    .allow_threads(|| f.evaluate(mi, &(), &c, seed))
-                    .py_err()?;
-                Ok((
-                    e.gain,
-                    py.None(),
-                    InfoUpdate {
-                        inner: UpdateKind::Nodes(e.update),
-                    },
-                ))
-            }
-            Func::Gpvr(f) => {
-                let m = state.downcast::<GpVarianceMap>()?.borrow();
-                let mi = &m.inner;
-                let e = py
-                    .allow_threads(|| f.evaluate(mi, &(), &c, seed))
-                    .py_err()?;
-                Ok((
-                    e.gain,
-                    py.None(),
-                    InfoUpdate {
-                        inner: UpdateKind::Nodes(e.update),
-                    },
-                ))
-            }
-            Func::Ugpvr(f) => {
-                let m = state.downcast::<GpVarianceMap>()?.borrow();
-                let mi = &m.inner;
-                let b = covariance_belief(belief)?;
-                let e = py.allow_threads(|| f.evaluate(mi, &b, &c, seed)).py_err()?;
-                let obj = cov_array(py, &e.belief).into_any().unbind();
-                Ok((
-                    e.gain,
-                    obj,
-                    InfoUpdate {
-                        inner: UpdateKind::Nodes(e.update),
-                    },
-                ))
-            }
-        }
+        dispatch!(&self.f, |f, S| evaluate_with::<_, S>(
+            py, f, state, &c, belief, seed
+        ))
     }
 
     /// Applies an update from `evaluate` to `state` (the planner's map mutation).
     fn commit(&self, state: &Bound<'_, PyAny>, update: &InfoUpdate) -> PyResult<()> {
-        match (&self.f, &update.inner) {
-            (Func::Crmi(f), UpdateKind::Scan(s)) => {
-                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-                f.commit(m.core_mut(), s).py_err()
-            }
-            (Func::CrmiMl(f), UpdateKind::Scan(s)) => {
-                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-                f.commit(m.core_mut(), s).py_err()
-            }
-            (Func::CrmiR1(f), UpdateKind::Scan(s)) => {
-                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-                f.commit(m.core_mut(), s).py_err()
-            }
-            (Func::Ucrmi(f), UpdateKind::Scan(s)) => {
-                let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-                f.commit(m.core_mut(), s).py_err()
-            }
-            (Func::Fsmi(f), UpdateKind::Nodes(v)) => {
-                let mut m = state.downcast::<OccupancyLattice>()?.borrow_mut();
-                f.commit(&mut m.inner, v).py_err()
-            }
-            (Func::IigMi(f), UpdateKind::Nodes(v)) => {
-                let mut m = state.downcast::<OccupancyLattice>()?.borrow_mut();
-                f.commit(&mut m.inner, v).py_err()
-            }
-            (Func::Gpvr(f), UpdateKind::Nodes(v)) => {
-                let mut m = state.downcast::<GpVarianceMap>()?.borrow_mut();
-                f.commit(&mut m.inner, v).py_err()
-            }
-            (Func::Ugpvr(f), UpdateKind::Nodes(v)) => {
-                let mut m = state.downcast::<GpVarianceMap>()?.borrow_mut();
-                f.commit(&mut m.inner, v).py_err()
-            }
-            _ => Err(shape_err(
-                "this update was not made by this kind of function",
-            )),
-        }
+        dispatch!(&self.f, |f, S| commit_with::<_, S>(f, state, update))
     }
 
     /// Gains of many candidates (n, 3) on one state, in parallel (rayon, GIL released);
@@ -569,82 +384,71 @@ impl InfoFunction {
                     .collect()
             }
         };
-        let g = match &self.f {
-            Func::Crmi(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                py.allow_threads(|| core_info::gain_batch(f, mc, &(), &cands, seed))
-            }
-            Func::CrmiMl(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                py.allow_threads(|| core_info::gain_batch(f, mc, &(), &cands, seed))
-            }
-            Func::CrmiR1(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                py.allow_threads(|| core_info::gain_batch(f, mc, &(), &cands, seed))
-            }
-            Func::Ucrmi(f) => {
-                let m = state.downcast::<CrmMap>()?.borrow();
-                let mc = m.core();
-                match belief {
-                    Some(b) if !b.is_none() => {
-                        let b = b.downcast::<ParticleBelief>()?.get().inner.clone();
-                        py.allow_threads(|| core_info::gain_batch(f, mc, &b, &cands, seed))
-                    }
-                    // No parent: every candidate starts from its own root belief (a surface).
-                    _ => py.allow_threads(|| f.gains_from_roots(mc, &cands, seed)),
-                }
-            }
-            Func::Fsmi(f) => {
-                let m = state.downcast::<OccupancyLattice>()?.borrow();
-                let mi = &m.inner;
-                py.allow_threads(|| core_info::gain_batch(f, mi, &(), &cands, seed))
-            }
-            Func::IigMi(f) => {
-                let m = state.downcast::<OccupancyLattice>()?.borrow();
-                let mi = &m.inner;
-                py.allow_threads(|| core_info::gain_batch(f, mi, &(), &cands, seed))
-            }
-            Func::Gpvr(f) => {
-                let m = state.downcast::<GpVarianceMap>()?.borrow();
-                let mi = &m.inner;
-                py.allow_threads(|| core_info::gain_batch(f, mi, &(), &cands, seed))
-            }
-            Func::Ugpvr(f) => {
-                let m = state.downcast::<GpVarianceMap>()?.borrow();
-                let mi = &m.inner;
-                let b = covariance_belief(belief)?;
-                py.allow_threads(|| core_info::gain_batch(f, mi, &b, &cands, seed))
-            }
-        }
-        .py_err()?;
+        let g = dispatch!(&self.f, |f, S| gains_with::<_, S>(
+            py, f, state, &cands, belief, seed
+        ))?;
         Ok(g.into_pyarray(py))
     }
 }
 
-/// The parent particle set: the given belief, or (for surfaces) a root set at the pose.
-fn particle_belief(
-    f: &Ucrmi,
-    belief: Option<&Bound<'_, PyAny>>,
+/// The root belief of a function (None for map-only ones).
+fn root_with<F: GlueFunction>(
+    py: Python<'_>,
+    f: &F,
     pose: [f64; 3],
-) -> PyResult<ucrmi::ParticleBelief> {
-    match belief {
-        Some(b) if !b.is_none() => Ok(b.downcast::<ParticleBelief>()?.get().inner.clone()),
-        _ => f.root_belief(pose, 0).py_err(),
-    }
+    seed: u64,
+) -> PyResult<PyObject> {
+    let b = f.parent_belief(None, pose, seed)?;
+    F::belief_to_py(py, b)
 }
 
-/// The parent covariance: the given 3×3 array, or the root covariance.
-fn covariance_belief(belief: Option<&Bound<'_, PyAny>>) -> PyResult<Cov3> {
-    match belief {
-        Some(b) if !b.is_none() => {
-            let a: PyReadonlyArray2<'_, f64> = b.extract()?;
-            Ok(cov3(Some(a))?.expect("given"))
-        }
-        _ => Ok(root_covariance()),
-    }
+/// One evaluation through the function's glue (beliefs and updates converted).
+fn evaluate_with<F: GlueFunction, S: StateClass<Core = F::Map>>(
+    py: Python<'_>,
+    f: &F,
+    state: &Bound<'_, PyAny>,
+    c: &Candidate,
+    belief: Option<&Bound<'_, PyAny>>,
+    seed: u64,
+) -> PyResult<(f64, PyObject, InfoUpdate)> {
+    let parent = f.parent_belief(belief, c.pose, 0)?;
+    let guard = state.downcast::<S>()?.borrow();
+    let map = guard.state();
+    let e = py
+        .allow_threads(|| f.evaluate(map, &parent, c, seed))
+        .py_err()?;
+    Ok((
+        e.gain,
+        F::belief_to_py(py, e.belief)?,
+        InfoUpdate {
+            inner: F::wrap_update(e.update),
+        },
+    ))
+}
+
+/// Applies an update made by the same kind of function.
+fn commit_with<F: GlueFunction, S: StateClass<Core = F::Map>>(
+    f: &F,
+    state: &Bound<'_, PyAny>,
+    update: &InfoUpdate,
+) -> PyResult<()> {
+    let u = F::unwrap_update(&update.inner)
+        .ok_or_else(|| shape_err("this update was not made by this kind of function"))?;
+    let mut guard = state.downcast::<S>()?.borrow_mut();
+    f.commit(guard.state_mut(), u).py_err()
+}
+
+/// Batch gains on one state.
+fn gains_with<F: GlueFunction, S: StateClass<Core = F::Map>>(
+    py: Python<'_>,
+    f: &F,
+    state: &Bound<'_, PyAny>,
+    cands: &[Candidate],
+    belief: Option<&Bound<'_, PyAny>>,
+    seed: u64,
+) -> PyResult<Vec<f64>> {
+    let guard = state.downcast::<S>()?.borrow();
+    f.batch_gains(guard.state(), belief, cands, seed, py)
 }
 
 #[allow(clippy::too_many_arguments)]

@@ -5,6 +5,7 @@
 #![allow(clippy::too_many_arguments, clippy::type_complexity)]
 
 mod convert;
+mod dispatch;
 mod filters;
 mod info;
 mod info_state;

@@ -1,6 +1,5 @@
 //! `run_iig`: the IIG planner over any information function (GIL released for the run).
 
-use crlam_core::info::entropy::weighted_position_covariance;
 use crlam_core::info::posecov::PoseJacobian;
 use crlam_core::planner::{
     run_iig as core_run_iig, CollisionMode, IigResult, IigSettings, InfoAccumulation, MapMutation,
@@ -12,9 +11,9 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use crate::convert::{shape_err, IntoPy};
-use crate::info::{Func, InfoFunction};
-use crate::info_state::{GpVarianceMap, OccupancyLattice};
-use crate::maps::CrmMap;
+use crate::dispatch::{dispatch, GlueFunction, StateClass};
+use crate::info::InfoFunction;
+use crate::info_state::OccupancyLattice;
 
 /// Settings from a `mode` preset ("reference" | "clean") and overrides in `options`.
 fn settings_from(mode: &str, options: Option<&Bound<'_, PyDict>>) -> PyResult<IigSettings> {
@@ -154,6 +153,32 @@ fn result_dict<'py, B>(
     Ok(d)
 }
 
+/// One planner run through the function's glue: the root belief is the given one, else the
+/// function's root at the start (the root covariance of the settings for UGPVR).
+#[allow(clippy::too_many_arguments)]
+fn plan_with<'py, F: GlueFunction, S: StateClass<Core = F::Map>>(
+    py: Python<'py>,
+    f: &F,
+    state: &Bound<'py, PyAny>,
+    world: &PlannerWorld,
+    settings: &IigSettings,
+    start: [f64; 3],
+    seed: u64,
+    belief: Option<&Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>>
+where
+    F::Belief: Send,
+    F::Map: Send,
+{
+    let root = f.parent_belief(belief, start, seed)?;
+    let mut guard = state.downcast::<S>()?.borrow_mut();
+    let map = guard.state_mut();
+    let r = py
+        .allow_threads(|| core_run_iig(f, map, root, world, settings, seed))
+        .py_err()?;
+    result_dict(py, &r, F::belief_covariance)
+}
+
 /// Runs IIG with `function` on `state` (mutated, as the planner's map mutation), over the prior
 /// `lattice` (SampleFree) and `obstacle_points` (n, 2) (NoCollision). `mode` picks the preset,
 /// `options` overrides single settings. Returns a dict with the tree, the logs and the settings.
@@ -185,84 +210,9 @@ pub fn run_iig<'py>(
         .collect();
     let world = PlannerWorld::new(lattice.inner.clone(), pts).py_err()?;
     let start = [settings.start[0], settings.start[1], 0.0];
-    let none = |_: &()| None;
-    let d = match &function.f {
-        Func::Crmi(f) => {
-            let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-            let mc = m.core_mut();
-            let r = py
-                .allow_threads(|| core_run_iig(f, mc, (), &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, none)?
-        }
-        Func::CrmiMl(f) => {
-            let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-            let mc = m.core_mut();
-            let r = py
-                .allow_threads(|| core_run_iig(f, mc, (), &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, none)?
-        }
-        Func::CrmiR1(f) => {
-            let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-            let mc = m.core_mut();
-            let r = py
-                .allow_threads(|| core_run_iig(f, mc, (), &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, none)?
-        }
-        Func::Ucrmi(f) => {
-            let root = match belief {
-                Some(b) if !b.is_none() => b
-                    .downcast::<crate::info_state::ParticleBelief>()?
-                    .get()
-                    .inner
-                    .clone(),
-                _ => f.root_belief(start, seed).py_err()?,
-            };
-            let mut m = state.downcast::<CrmMap>()?.borrow_mut();
-            let mc = m.core_mut();
-            let r = py
-                .allow_threads(|| core_run_iig(f, mc, root, &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, |b| {
-                weighted_position_covariance(&b.particles, &b.weights()).ok()
-            })?
-        }
-        Func::Fsmi(f) => {
-            let mut m = state.downcast::<OccupancyLattice>()?.borrow_mut();
-            let mi = &mut m.inner;
-            let r = py
-                .allow_threads(|| core_run_iig(f, mi, (), &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, none)?
-        }
-        Func::IigMi(f) => {
-            let mut m = state.downcast::<OccupancyLattice>()?.borrow_mut();
-            let mi = &mut m.inner;
-            let r = py
-                .allow_threads(|| core_run_iig(f, mi, (), &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, none)?
-        }
-        Func::Gpvr(f) => {
-            let mut m = state.downcast::<GpVarianceMap>()?.borrow_mut();
-            let mi = &mut m.inner;
-            let r = py
-                .allow_threads(|| core_run_iig(f, mi, (), &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, none)?
-        }
-        Func::Ugpvr(f) => {
-            let root = settings.root_covariance;
-            let mut m = state.downcast::<GpVarianceMap>()?.borrow_mut();
-            let mi = &mut m.inner;
-            let r = py
-                .allow_threads(|| core_run_iig(f, mi, root, &world, &settings, seed))
-                .py_err()?;
-            result_dict(py, &r, |c| Some([[c[0][0], c[0][1]], [c[1][0], c[1][1]]]))?
-        }
-    };
+    let d = dispatch!(&function.f, |f, S| plan_with::<_, S>(
+        py, f, state, &world, &settings, start, seed, belief
+    ))?;
     d.set_item("settings", settings_dict(py, &settings)?)?;
     d.set_item("mode", mode)?;
     d.set_item("function", function.f_name())?;
