@@ -5,7 +5,7 @@ use crlam_core::info::crmi::{CellDedupe, Crmi, CrmiConfig, CrmiQuadrature};
 use crlam_core::info::crmi_authors::{AuthorsCrmiConfig, MlScanBinary, R1Map};
 use crlam_core::info::entropy::EdgeMotionNoise;
 use crlam_core::info::fsmi::{Fsmi, FsmiVariant, OgmiParams};
-use crlam_core::info::gp::{Gpvr, Ugpvr};
+use crlam_core::info::gp::{Gpvr, GpvrOptions, Mode, Ugpvr, UgpvrOptions};
 use crlam_core::info::iig_mi::IigMi;
 use crlam_core::info::lattice::BeamAngles;
 use crlam_core::info::ucrmi::{Ucrmi, UcrmiConfig};
@@ -33,10 +33,6 @@ pub(crate) enum Func {
 #[pyclass(module = "crlam._native", frozen)]
 pub struct InfoFunction {
     pub(crate) f: Func,
-}
-
-fn units_name(u: InfoUnits) -> &'static str {
-    u.name()
 }
 
 fn units_parse(name: &str) -> PyResult<InfoUnits> {
@@ -235,15 +231,7 @@ impl InfoFunction {
     #[staticmethod]
     #[pyo3(signature = (*, mode="reference"))]
     fn gpvr(mode: &str) -> PyResult<Self> {
-        let f = match mode {
-            "reference" => Gpvr::reference(),
-            "clean" => Gpvr::clean(),
-            other => {
-                return Err(shape_err(format!(
-                    "mode must be reference or clean, got {other:?}"
-                )))
-            }
-        };
+        let f = Gpvr::new(GpvrOptions::preset(Mode::parse(mode).py_err()?)).py_err()?;
         Ok(Self { f: Func::Gpvr(f) })
     }
 
@@ -251,44 +239,18 @@ impl InfoFunction {
     #[staticmethod]
     #[pyo3(signature = (*, mode="reference"))]
     fn ugpvr(mode: &str) -> PyResult<Self> {
-        let f = match mode {
-            "reference" => Ugpvr::reference(),
-            "clean" => Ugpvr::clean(),
-            other => {
-                return Err(shape_err(format!(
-                    "mode must be reference or clean, got {other:?}"
-                )))
-            }
-        };
+        let f = Ugpvr::new(UgpvrOptions::preset(Mode::parse(mode).py_err()?)).py_err()?;
         Ok(Self { f: Func::Ugpvr(f) })
     }
 
     #[getter]
     fn name(&self) -> &'static str {
-        match &self.f {
-            Func::Crmi(f) => f.name(),
-            Func::CrmiMl(f) => f.name(),
-            Func::CrmiR1(f) => f.name(),
-            Func::Ucrmi(f) => f.name(),
-            Func::Fsmi(f) => f.name(),
-            Func::IigMi(f) => f.name(),
-            Func::Gpvr(f) => f.name(),
-            Func::Ugpvr(f) => f.name(),
-        }
+        dispatch!(&self.f, |f, S| f.name())
     }
 
     #[getter]
     fn units(&self) -> &'static str {
-        units_name(match &self.f {
-            Func::Crmi(f) => f.units(),
-            Func::CrmiMl(f) => f.units(),
-            Func::CrmiR1(f) => f.units(),
-            Func::Ucrmi(f) => f.units(),
-            Func::Fsmi(f) => f.units(),
-            Func::IigMi(f) => f.units(),
-            Func::Gpvr(f) => f.units(),
-            Func::Ugpvr(f) => f.units(),
-        })
+        dispatch!(&self.f, |f, S| f.units()).name()
     }
 
     /// "crm", "lattice" or "gp": the map state the function reads.
