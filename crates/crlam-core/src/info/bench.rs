@@ -327,9 +327,18 @@ pub fn ucrmi_us_per_pose(n_poses: usize) -> Result<f64> {
 /// A benchmark result: µs per candidate pose and named details.
 pub type InfoFigure = (f64, Vec<(&'static str, f64)>);
 
-/// One named figure of the information benchmarks: µs per candidate pose (one thread) and
-/// details. `None` for an unknown name.
+/// One named figure of the information benchmarks: µs per candidate pose and details, measured
+/// inside a one-thread rayon pool (the functions' inner parallel loops, such as UCRMI's particle
+/// likelihoods, run on that one thread too). `None` for an unknown name.
 pub fn info_figure(name: &str, size: usize) -> Result<Option<InfoFigure>> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .map_err(|e| crate::error::config_err("threads", e.to_string()))?;
+    pool.install(|| info_figure_on_this_pool(name, size))
+}
+
+fn info_figure_on_this_pool(name: &str, size: usize) -> Result<Option<InfoFigure>> {
     let n = size.max(1);
     Ok(Some(match name {
         "crmi_us_per_pose" => (crmi_us_per_pose(CrmiConfig::new(5.0, 0.2), n)?, vec![]),

@@ -18,6 +18,7 @@
 use std::f64::consts::LN_2;
 
 use crate::error::{config_err, CrlamError, Result};
+use crate::info::fastmath::exp_fast;
 use crate::pose::wrap;
 use crate::rng::Rng;
 
@@ -42,6 +43,15 @@ pub fn log_sum_exp(x: &[f64]) -> f64 {
         return m;
     }
     m + x.iter().map(|&v| (v - m).exp()).sum::<f64>().ln()
+}
+
+/// [`log_sum_exp`] with [`exp_fast`] (a few ulp), for the O(n²) sums of the entropy estimator.
+fn log_sum_exp_fast(x: &[f64]) -> f64 {
+    let m = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if m == f64::NEG_INFINITY {
+        return m;
+    }
+    m + x.iter().map(|&v| exp_fast(v - m)).sum::<f64>().ln()
 }
 
 /// Checks non-negative finite weights with a positive sum and returns them normalised.
@@ -155,7 +165,7 @@ pub fn particle_entropy(
             }
             terms.push(lwi + t);
         }
-        let log_pred = log_sum_exp(&terms);
+        let log_pred = log_sum_exp_fast(&terms);
         if log_pred == f64::NEG_INFINITY {
             return Err(config_err(
                 "log_transition",
@@ -459,8 +469,30 @@ pub fn edge_particle_entropy(
     }
     check_poses(parents, "parents")?;
     check_poses(children, "children")?;
+    let Some((h, _, _)) = edge.heading else {
+        return particle_entropy(parent_log_w, log_lik, |j, i| {
+            edge.log_density(children[j], parents[i])
+        });
+    };
+    // With one frame for every parent, |Rot(h)ᵀ r|² = |r|² and the heading residual depends on
+    // the child only: log p(j | i) = c_j − |x_j − x_i − Δ|² / (2 q_xy), equal to
+    // `log_density` to rounding and free of per-pair trigonometry.
+    let q = edge.noise;
+    let c: Vec<f64> = children
+        .iter()
+        .map(|ch| {
+            let at = wrap(ch[2] - h);
+            edge.log_norm - 0.5 * at * at / q.q_theta
+        })
+        .collect();
+    let base: Vec<[f64; 2]> = parents
+        .iter()
+        .map(|p| [p[0] + edge.delta[0], p[1] + edge.delta[1]])
+        .collect();
+    let half_inv_q = 0.5 / q.q_xy;
     particle_entropy(parent_log_w, log_lik, |j, i| {
-        edge.log_density(children[j], parents[i])
+        let (rx, ry) = (children[j][0] - base[i][0], children[j][1] - base[i][1]);
+        c[j] - half_inv_q * (rx * rx + ry * ry)
     })
 }
 

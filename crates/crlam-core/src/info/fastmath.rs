@@ -120,6 +120,46 @@ pub fn ln_normal(x: f64) -> f64 {
     e * std::f64::consts::LN_2 + 2.0 * s * poly
 }
 
+/// e^x to within a few ulp for x ≤ 709.7, branch-light and libm-free: x = n ln 2 + r with
+/// |r| ≤ ½ ln 2 (Cody–Waite split of ln 2), e^r by its Taylor series to r¹³ (truncation below
+/// 1e-17 relative) in Estrin's scheme, scaled by 2ⁿ through the exponent bits. Results that
+/// would be subnormal (x < −708.3) go to libm; NaN propagates.
+#[inline(always)]
+pub fn exp_fast(x: f64) -> f64 {
+    const LOG2E: f64 = std::f64::consts::LOG2_E;
+    // fdlibm's split: LN2_HI has 32 trailing zero bits, so n · LN2_HI is exact for |n| < 2²⁰.
+    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
+    const SHIFTER: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²: adding it rounds to an integer
+    if !(-708.3..=709.7).contains(&x) {
+        return x.exp();
+    }
+    let k = x * LOG2E + SHIFTER;
+    let n = k - SHIFTER;
+    let r = (x - n * LN2_HI) - n * LN2_LO;
+    let r2 = r * r;
+    let r4 = r2 * r2;
+    let r8 = r4 * r4;
+    let c01 = 1.0 + r;
+    let c23 = 1.0 / 2.0 + r * (1.0 / 6.0);
+    let c45 = 1.0 / 24.0 + r * (1.0 / 120.0);
+    let c67 = 1.0 / 720.0 + r * (1.0 / 5_040.0);
+    let c89 = 1.0 / 40_320.0 + r * (1.0 / 362_880.0);
+    let c1011 = 1.0 / 3_628_800.0 + r * (1.0 / 39_916_800.0);
+    let c1213 = 1.0 / 479_001_600.0 + r * (1.0 / 6_227_020_800.0);
+    let q0 = c01 + r2 * c23;
+    let q1 = c45 + r2 * c67;
+    let q2 = c89 + r2 * c1011;
+    let poly = q0 + r4 * q1 + r8 * (q2 + r4 * c1213);
+    // n sits in the low bits of k's mantissa (two's complement around the shifter).
+    let ni = (k.to_bits() as i64).wrapping_sub(SHIFTER.to_bits() as i64);
+    // Split 2ⁿ in two factors so that n = 1024 (x near 709.7) does not overflow the exponent.
+    let half = ni >> 1;
+    let s1 = f64::from_bits(((half + 1023) as u64) << 52);
+    let s2 = f64::from_bits(((ni - half + 1023) as u64) << 52);
+    poly * s1 * s2
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,6 +179,33 @@ mod tests {
         for u in [-3.3, -0.2, 0.0, 0.7, 5.1] {
             assert!((normal_cdf_fast(u) - normal_cdf(u)).abs() < 1e-13);
         }
+    }
+
+    #[test]
+    fn fast_exp_is_accurate_over_the_normal_range() {
+        let mut rng = crate::rng::Rng::new(2);
+        let mut worst: f64 = 0.0;
+        for _ in 0..400_000 {
+            let x = rng.uniform() * 1417.0 - 708.0;
+            let (a, b) = (exp_fast(x), x.exp());
+            worst = worst.max((a - b).abs() / b);
+        }
+        for x in [
+            0.0,
+            1.0,
+            -1.0,
+            0.5 * std::f64::consts::LN_2,
+            709.7,
+            -708.3,
+            1e-300,
+        ] {
+            worst = worst.max((exp_fast(x) - x.exp()).abs() / x.exp());
+        }
+        assert!(worst < 1e-15, "{worst}");
+        assert_eq!(exp_fast(-800.0), 0.0);
+        assert_eq!(exp_fast(f64::NEG_INFINITY), 0.0);
+        assert!(exp_fast(f64::NAN).is_nan());
+        assert_eq!(exp_fast(800.0), f64::INFINITY);
     }
 
     #[test]

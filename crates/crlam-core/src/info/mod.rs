@@ -21,6 +21,7 @@ pub mod iig_mi;
 pub mod lattice;
 pub mod posecov;
 pub mod prior;
+pub mod shared_likelihood;
 pub mod ucrmi;
 
 use rayon::prelude::*;
@@ -79,7 +80,7 @@ pub struct Evaluation<B, U> {
 /// `Info(x_new, M, belief_parent, edge) → (ΔI, M′, belief_new)`).
 pub trait InformationFunction: Sync {
     /// The map state the function reads and mutates.
-    type Map: Sync;
+    type Map: Sync + Send;
     /// Pose belief carried per node: `()` for map-only functions.
     type Belief: Clone + Send + Sync;
     /// A recorded virtual-scan update.

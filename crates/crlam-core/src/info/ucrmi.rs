@@ -17,7 +17,7 @@
 
 use rayon::prelude::*;
 
-use crate::crm::{CrmMap, CrmScratch, ScanOptions};
+use crate::crm::CrmMap;
 use crate::error::{config_err, Result};
 use crate::info::crmi::{
     commit_virtual_scan, virtual_scan, Crmi, CrmiConfig, CrmiScratch, VirtualScan,
@@ -26,6 +26,7 @@ use crate::info::entropy::{
     edge_particle_entropy, pose_information_gain, root_entropy, sample_root_particles, ucrmi_mix,
     EdgeMotionNoise, EdgeTransition, ROOT_COV_DIAG, UCRMI_ALPHA,
 };
+use crate::info::shared_likelihood::SharedMapLikelihood;
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
 use crate::rbpf::common::weighted_mean_pose;
 use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
@@ -193,16 +194,13 @@ impl Ucrmi {
             .iter()
             .map(|a| a + scan.pose[2] - mean_heading)
             .collect();
-        let opts = ScanOptions::default();
+        // One window of cell means serves every particle's beams.
+        let res = map.geometry().resolution;
+        let visits = (children.len() * rel.len()) as f64 * (self.cfg.weight_model.z_max / res);
+        let shared = SharedMapLikelihood::new(map, &self.cfg.weight_model, children, visits)?;
         // Particles are independent (no random draws here), so the parallel map equals the
         // serial one whatever the thread count.
-        children
-            .par_iter()
-            .map_init(CrmScratch::default, |sc, &p| {
-                map.scan_log_likelihood(p, &rel, &scan.ranges, &self.cfg.weight_model, &opts, sc)
-                    .map(|(ll, _)| ll)
-            })
-            .collect()
+        shared.scan_log_likelihoods(children, &rel, &scan.ranges)
     }
 }
 
