@@ -1,8 +1,57 @@
 //! Timing of the information functions outside `crlam bench`, for profiling
-//! (`cargo run --release -p crlam-core --example info_timing -- crmi|mixture|ucrmi`).
+//! (`cargo run --release -p crlam-core --example info_timing -- crmi|mixture|ucrmi|likelihood|window|traverse`).
 use crlam_core::info::bench::{crmi_us_per_pose, info_figure};
 use crlam_core::info::crmi::CrmiConfig;
 use crlam_core::sensor::{SensorModel, SensorModelKind};
+
+/// µs per UCRMI-style batch: 100 root particles, one 10-beam virtual scan, one thread.
+fn shared_likelihood_us(n_batches: usize, window_only: bool) -> f64 {
+    use crlam_core::info::bench::{room_poses, synthetic_cave_lattice};
+    use crlam_core::info::crmi::virtual_scan;
+    use crlam_core::info::prior::crm_from_lattice;
+    use crlam_core::info::shared_likelihood::SharedMapLikelihood;
+    use crlam_core::info::ucrmi::{Ucrmi, UcrmiConfig};
+    let map = crm_from_lattice(&synthetic_cave_lattice().unwrap(), 10).unwrap();
+    let cfg = UcrmiConfig::new(5.0, 0.2);
+    let f = Ucrmi::new(cfg).unwrap();
+    let angles: Vec<f64> = (0..10)
+        .map(|i| i as f64 * std::f64::consts::TAU / 10.0)
+        .collect();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let work: Vec<_> = room_poses(n_batches)
+        .into_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let root = f.root_belief(p, i as u64).unwrap();
+            let scan = virtual_scan(&map, p, &angles, 5.0, cfg.crmi.hit_threshold);
+            (root.particles, scan.ranges)
+        })
+        .collect();
+    pool.install(|| {
+        let t = std::time::Instant::now();
+        let mut sink = 0.0;
+        for (particles, ranges) in &work {
+            let s = SharedMapLikelihood::new(&map, &cfg.weight_model, particles, 1e9).unwrap();
+            if window_only {
+                sink += s.window_cells() as f64;
+                continue;
+            }
+            sink += s
+                .scan_log_likelihoods(particles, &angles, ranges)
+                .unwrap()
+                .iter()
+                .sum::<f64>();
+        }
+        if window_only {
+            eprintln!("mean window cells {:.0}", sink / work.len() as f64);
+        }
+        std::hint::black_box(sink);
+        t.elapsed().as_secs_f64() * 1e6 / work.len() as f64
+    })
+}
 
 fn main() {
     let which = std::env::args().nth(1).unwrap_or_else(|| "crmi".into());
@@ -27,6 +76,46 @@ fn main() {
                 .fold(f64::INFINITY, f64::min);
             println!("ucrmi {best:.1} us/pose (one thread, best of 7)")
         }
-        other => eprintln!("unknown workload {other:?}: crmi, mixture or ucrmi"),
+        "traverse" => {
+            use crlam_core::grid::{CellRect, GridGeometry};
+            let g = GridGeometry::new([0.0, 0.0], 0.2).unwrap();
+            let clip = CellRect {
+                ix0: 0,
+                iy0: 0,
+                nx: 111,
+                ny: 111,
+            };
+            let t = std::time::Instant::now();
+            let (mut cells, mut acc) = (0usize, 0.0f64);
+            for k in 0..100_000 {
+                let a = k as f64 * 0.618;
+                let o = [5.0 + (k % 97) as f64 * 0.11, 5.0 + (k % 89) as f64 * 0.13];
+                crlam_core::raycast::traverse_with(&g, o, a, 5.0, Some(&clip), |c| {
+                    cells += 1;
+                    acc += c.t_out;
+                    true
+                });
+            }
+            let ns = t.elapsed().as_secs_f64() * 1e9;
+            std::hint::black_box(acc);
+            println!(
+                "traverse {:.2} ns/cell, {:.1} cells/ray",
+                ns / cells as f64,
+                cells as f64 / 1e5
+            )
+        }
+        "window" => {
+            let best = (0..7)
+                .map(|_| shared_likelihood_us(100, true))
+                .fold(f64::INFINITY, f64::min);
+            println!("window only {best:.1} us per batch (best of 7)")
+        }
+        "likelihood" => {
+            let best = (0..7)
+                .map(|_| shared_likelihood_us(100, false))
+                .fold(f64::INFINITY, f64::min);
+            println!("particle likelihoods {best:.1} us per 100 particles x 10 beams (best of 7)")
+        }
+        other => eprintln!("unknown workload {other:?}: crmi, mixture, ucrmi, likelihood, window or traverse"),
     }
 }

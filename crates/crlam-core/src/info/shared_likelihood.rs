@@ -94,6 +94,11 @@ impl<'a> SharedMapLikelihood<'a> {
         Ok(out)
     }
 
+    /// Cells in the window of means (0 when none was built).
+    pub fn window_cells(&self) -> usize {
+        self.means.len()
+    }
+
     #[inline]
     fn mean(&self, ix: i64, iy: i64) -> f64 {
         if self.rect.contains(ix, iy) {
