@@ -76,6 +76,22 @@ fn main() {
                 .fold(f64::INFINITY, f64::min);
             println!("ucrmi {best:.1} us/pose (one thread, best of 7)")
         }
+        "lnrate" => {
+            use crlam_core::info::fastmath::ln_normal;
+            let xs: Vec<f64> = (0..20_000)
+                .map(|i| 0.01 + (i as f64 * 0.618).fract() * 10.0)
+                .collect();
+            let mut out = vec![0.0; xs.len()];
+            let t = std::time::Instant::now();
+            for _ in 0..1000 {
+                for (o, &x) in out.iter_mut().zip(&xs) {
+                    *o = ln_normal(x);
+                }
+                std::hint::black_box(&mut out);
+            }
+            let ns = t.elapsed().as_secs_f64() * 1e9 / 2e7;
+            println!("ln_normal {ns:.2} ns per log (contiguous loop)")
+        }
         "traverse" => {
             use crlam_core::grid::{CellRect, GridGeometry};
             let g = GridGeometry::new([0.0, 0.0], 0.2).unwrap();
@@ -116,6 +132,8 @@ fn main() {
                 .fold(f64::INFINITY, f64::min);
             println!("particle likelihoods {best:.1} us per 100 particles x 10 beams (best of 7)")
         }
-        other => eprintln!("unknown workload {other:?}: crmi, mixture, ucrmi, likelihood, window or traverse"),
+        other => eprintln!(
+            "unknown workload {other:?}: crmi, mixture, ucrmi, likelihood, window or traverse"
+        ),
     }
 }

@@ -21,7 +21,8 @@ use crate::grid::check_pose;
 pub use crate::info::crmi_channel::{
     beam_crmi, beam_posteriors, channel_masses, BeamChannel, BeamPosteriors,
 };
-use crate::info::crmi_channel::{posterior_entropy, sweep};
+use crate::info::crmi_channel::{posterior_entropy, sweep, EntropyBatch};
+use crate::info::fastmath::ln_clamped_slice;
 use crate::info::lattice::BeamAngles;
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
 use crate::raycast::traverse_with;
@@ -183,6 +184,7 @@ pub struct CrmiScratch {
     cells: Vec<(i64, i64)>,
     per_cell: Vec<f64>,
     pose_cells: Vec<((i64, i64), f64)>,
+    batch: EntropyBatch,
 }
 
 /// Pooled per-cell MI (nats) of one beam into `sc.per_cell`, from `sc.probs` (N × K), `sc.dist`.
@@ -195,21 +197,20 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
     let ch = &sc.channel;
     sc.mhat.clear();
     sc.h.clear();
-    sc.log_p.clear();
     sc.reach.clear();
+    // Pmf entries are 0 or positive normal numbers (widened from f32). A zero entry gets the
+    // finite ln(MIN_POSITIVE), which only ever multiplies its own zero weight.
+    sc.log_p.resize(sc.probs.len(), 0.0);
+    ln_clamped_slice(&sc.probs, &mut sc.log_p);
     let mut reach = 1.0;
     for l in 0..n {
         let p = &sc.probs[l * k..(l + 1) * k];
+        let lp = &sc.log_p[l * k..(l + 1) * k];
         let m: f64 = (0..k).map(|i| mu[i] * p[i]).sum();
         sc.mhat.push(m);
         sc.reach.push(reach);
         reach *= 1.0 - m;
-        let mut h = 0.0;
-        for &x in p {
-            let lx = if x > 0.0 { x.ln() } else { 0.0 };
-            h -= x * lx;
-            sc.log_p.push(lx);
-        }
+        let h: f64 = -(0..k).map(|i| p[i] * lp[i]).sum::<f64>();
         sc.h.push(h);
     }
     sc.exp_h.clear();
@@ -255,9 +256,7 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
                 sc.p_free[lo] += eta;
                 sc.p_same[hi] += eta;
                 for l in lo..hi {
-                    let p = &sc.probs[l * k..(l + 1) * k];
-                    let lp = &sc.log_p[l * k..(l + 1) * k];
-                    sc.exp_h[l] += eta * posterior_entropy(p, lp, mu, sc.alpha[l], sc.mhat[l]);
+                    sc.batch.push(l, eta, mu, sc.alpha[l], sc.mhat[l]);
                 }
                 continue;
             }
@@ -283,12 +282,15 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
         } else {
             0..n
         };
+        // Queued pairs first, so that every cell's sum keeps the bin order.
+        sc.batch.flush(&sc.probs, &sc.log_p, k, &mut sc.exp_h);
         for l in range {
             let p = &sc.probs[l * k..(l + 1) * k];
             let lp = &sc.log_p[l * k..(l + 1) * k];
             sc.exp_h[l] += eta * posterior_entropy(p, lp, mu, sc.alpha[l], sc.mhat[l]);
         }
     }
+    sc.batch.flush(&sc.probs, &sc.log_p, k, &mut sc.exp_h);
     // Cell l sees "free" from every bin whose window starts after l and is untouched by every
     // bin whose window ends at or before l: suffix and prefix sums of the per-bin masses.
     if pure_hit {
@@ -308,17 +310,21 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
     } else {
         1.0
     };
+    if pure_hit {
+        // The pooled "free" bins: one posterior per cell, α = −1/(1 − m̂).
+        for l in 0..n {
+            let pf = sc.p_free[l + 1];
+            if pf > 0.0 {
+                let a = -1.0 / (1.0 - sc.mhat[l]).max(1e-300);
+                sc.batch.push(l, pf, mu, a, sc.mhat[l]);
+            }
+        }
+        sc.batch.flush(&sc.probs, &sc.log_p, k, &mut sc.exp_h);
+    }
     sc.per_cell.clear();
     for l in 0..n {
         let mut e = sc.exp_h[l];
         if pure_hit {
-            let pf = sc.p_free[l + 1];
-            if pf > 0.0 {
-                let p = &sc.probs[l * k..(l + 1) * k];
-                let lp = &sc.log_p[l * k..(l + 1) * k];
-                let a = -1.0 / (1.0 - sc.mhat[l]).max(1e-300);
-                e += pf * posterior_entropy(p, lp, mu, a, sc.mhat[l]);
-            }
             e += sc.p_same[l] * sc.h[l];
         }
         let mut i = sc.h[l] - renorm * e;
