@@ -20,6 +20,7 @@ __all__ = [
     "ParticleBelief",
     "SensorModel",
     "candidate_seed",
+    "geodesic",
     "run_iig",
     "cast_ranges",
     "crm_update_ray",
@@ -459,3 +460,8 @@ def run_iig(
     seed: int = 0,
     belief: Any = None,
 ) -> dict[str, Any]: ...
+def geodesic(
+    traversable: NDArray[np.bool_] | NDArray[np.uint8],
+    start: tuple[int, int],
+    res: float,
+) -> tuple[NDArray[np.float64], NDArray[np.int64]]: ...

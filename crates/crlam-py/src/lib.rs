@@ -29,6 +29,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<info::InfoFunction>()?;
     m.add_function(wrap_pyfunction!(info::candidate_seed, m)?)?;
     m.add_function(wrap_pyfunction!(planner::run_iig, m)?)?;
+    m.add_function(wrap_pyfunction!(planner::geodesic, m)?)?;
     m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
     m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;

@@ -1,12 +1,13 @@
-//! `run_iig`: the IIG planner over any information function (GIL released for the run).
+//! `run_iig`: the IIG planner over any information function (GIL released for the run), and
+//! `geodesic`: grid shortest-path distances for the exploration loop.
 
 use crlam_core::info::posecov::PoseJacobian;
 use crlam_core::planner::{
-    run_iig as core_run_iig, CollisionMode, IigResult, IigSettings, InfoAccumulation, MapMutation,
-    NearestMode, PlannerWorld, SteerMode,
+    geodesic as core_geodesic, run_iig as core_run_iig, CollisionMode, IigResult, IigSettings,
+    InfoAccumulation, MapMutation, NearestMode, PlannerWorld, SteerMode,
 };
 use numpy::ndarray::{Array1, Array2, Array3};
-use numpy::{IntoPyArray, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -218,4 +219,45 @@ pub fn run_iig<'py>(
     d.set_item("function", function.f_name())?;
     d.set_item("units", function.f_units())?;
     Ok(d)
+}
+
+/// A 2-D traversability mask: bool, or uint8 with nonzero = traversable.
+#[derive(FromPyObject)]
+pub enum Mask<'py> {
+    Bool(PyReadonlyArray2<'py, bool>),
+    U8(PyReadonlyArray2<'py, u8>),
+}
+
+/// 8-connected shortest-path distances (m) over the traversable cells of a 2-D mask (ny, nx)
+/// from `start` = (iy, ix), with cell size `res` (m); diagonal moves need both side cells
+/// traversable. Returns (dist (ny, nx), +inf where unreached; pred (ny·nx,), the flat index of
+/// each cell's predecessor, -1 for none).
+#[pyfunction]
+pub fn geodesic<'py>(
+    py: Python<'py>,
+    traversable: Mask<'py>,
+    start: (i64, i64),
+    res: f64,
+) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<i64>>)> {
+    let not_contiguous = || shape_err("traversable must be a C-contiguous 2-D array");
+    let (shape, mask): (Vec<usize>, Vec<bool>) = match &traversable {
+        Mask::Bool(a) => (
+            a.shape().to_vec(),
+            a.as_slice().map_err(|_| not_contiguous())?.to_vec(),
+        ),
+        Mask::U8(a) => (
+            a.shape().to_vec(),
+            a.as_slice()
+                .map_err(|_| not_contiguous())?
+                .iter()
+                .map(|&v| v != 0)
+                .collect(),
+        ),
+    };
+    let (ny, nx) = (shape[0], shape[1]);
+    let g = py
+        .allow_threads(|| core_geodesic(&mask, ny, nx, start, res))
+        .py_err()?;
+    let dist = Array2::from_shape_vec((ny, nx), g.dist).map_err(|e| shape_err(e.to_string()))?;
+    Ok((dist.into_pyarray(py), Array1::from(g.pred).into_pyarray(py)))
 }

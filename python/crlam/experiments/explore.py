@@ -16,7 +16,6 @@ space.
 from __future__ import annotations
 
 import csv
-import heapq
 import json
 import math
 import os
@@ -30,6 +29,7 @@ from numpy.typing import NDArray
 
 from crlam import _native
 from crlam.errors import ConfigError
+from crlam.experiments.explore_window import decision_maps
 from crlam.experiments.pool import write_atomic
 from crlam.info import make_function
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
@@ -41,7 +41,6 @@ from crlam.sim.world import World
 __all__ = ["ExploreConfig", "ExploreRun", "FUNCTIONS", "explore", "write_explore_folder"]
 
 FUNCTIONS = ("crmi", "ucrmi", "fsmi", "frontier")
-_SQRT2 = math.sqrt(2.0)
 
 
 @dataclass(frozen=True)
@@ -158,41 +157,9 @@ def geodesic(traversable: NDArray[np.bool_], start: tuple[int, int], res: float)
     """8-connected shortest-path distances (m) over traversable cells from ``start`` (iy, ix) and
     the predecessor of every reached cell (flat index, -1 for none). Diagonal moves need both
     side cells traversable (no corner cutting)."""
-    ny, nx = traversable.shape
-    dist = np.full(ny * nx, np.inf)
-    pred = np.full(ny * nx, -1, dtype=np.int64)
-    s = start[0] * nx + start[1]
-    dist[s] = 0.0
-    heap = [(0.0, s)]
-    steps = [
-        (-1, 0, 1.0),
-        (1, 0, 1.0),
-        (0, -1, 1.0),
-        (0, 1, 1.0),
-        (-1, -1, _SQRT2),
-        (-1, 1, _SQRT2),
-        (1, -1, _SQRT2),
-        (1, 1, _SQRT2),
-    ]
-    trav = traversable.ravel()
-    while heap:
-        d, u = heapq.heappop(heap)
-        if d > dist[u]:
-            continue
-        y, x = divmod(u, nx)
-        for dy, dx, c in steps:
-            yy, xx = y + dy, x + dx
-            if not (0 <= yy < ny and 0 <= xx < nx):
-                continue
-            v = yy * nx + xx
-            if not trav[v] or (dy and dx and not (trav[y * nx + xx] and trav[yy * nx + x])):
-                continue
-            nd = d + c * res
-            if nd < dist[v]:
-                dist[v] = nd
-                pred[v] = u
-                heapq.heappush(heap, (nd, v))
-    return dist.reshape(ny, nx), pred
+    # The Dijkstra of crlam-core: same operations and pop order as a heapq of (d, u) tuples.
+    mask = np.ascontiguousarray(traversable, dtype=bool)
+    return _native.geodesic(mask, (int(start[0]), int(start[1])), float(res))
 
 
 def _path(pred: NDArray[np.int64], goal: int, nx: int) -> list[tuple[int, int]]:
@@ -202,6 +169,13 @@ def _path(pred: NDArray[np.int64], goal: int, nx: int) -> list[tuple[int, int]]:
         cells.append(divmod(int(u), nx))
         u = int(pred[u])
     return cells[::-1]
+
+
+def _sorted_unique(a: NDArray[np.int64]) -> NDArray[np.int64]:
+    """``np.unique(a)`` for a 1-D integer array. numpy >= 2.3's ``unique`` imports ``numpy.ma`` on
+    its first call (~50 ms, which would land in the first decision's time)."""
+    s = np.sort(a)
+    return s[np.concatenate([[True], s[1:] != s[:-1]])] if s.size else s
 
 
 def _resample(points: NDArray[np.float64], step: float) -> NDArray[np.float64]:
@@ -239,6 +213,7 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
     poses: list[NDArray[np.float64]] = []
     estimates: list[NDArray[np.float64]] = []
     bounds = extent
+    rect = crm.region(bounds)
     fine = world.occupied
     fres = world.resolution
 
@@ -293,51 +268,46 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         if slam_filter is not None:
             # Decisions use the best particle's map and the estimated pose.
             crm.native = slam_filter.best_map()
-        mean, _, ent = (layer.values for layer in crm.layers(bounds))
-        observed = ent < math.log2(10.0) - 1e-3
-        free = observed & (mean < cfg.free_threshold)
-        # Clearance from unknown cells and from every observed cell that is not clearly free (a
-        # wall may cover part of a cell whose mean is in between): paths keep robot_radius from
-        # anything not known to be free, so they never cross an obstacle the map has not resolved.
-        blocked = ~observed | (mean >= cfg.free_threshold)
-        reach_m = max(cfg.robot_radius, res) + 2 * res
-        # Outside the map counts as blocked too (distance_map treats it as free).
-        clear = distance_map(np.pad(blocked, 1, constant_values=True), res, reach_m)[1:-1, 1:-1]
-        to_unknown = distance_map(~observed, res, reach_m)
-        traversable = free & (clear >= cfg.robot_radius)
         here = (
             min(max(int((est[1] - origin[1]) / res), 0), ny - 1),
             min(max(int((est[0] - origin[0]) / res), 0), nx - 1),
         )
-        traversable[here] = True
-        dist, pred = geodesic(traversable, here, res)
+        # The layers on a window around the written area (cells outside it are unknown, so never
+        # free or frontier); identical to computing them on the whole map.
+        dm = decision_maps(
+            crm.native, rect, here, resolution=res, free_threshold=cfg.free_threshold, robot_radius=cfg.robot_radius
+        )
+        observed = dm.observed
+        dist, pred = geodesic(dm.traversable, (here[0] - dm.iy0, here[1] - dm.ix0), res)
         reach = np.isfinite(dist) & (dist >= 2 * res)
         # Frontier: reachable cells as close to unknown space as the clearance allows.
-        frontier = reach & (to_unknown < cfg.robot_radius + 1.5 * res)
-        cy, cx = np.nonzero(reach)
+        frontier = reach & (dm.to_unknown < cfg.robot_radius + 1.5 * res)
+        # Window cells (wy, wx) in row-major order, the order of the whole map's cells.
+        wy, wx = np.nonzero(reach)
+        cy, cx = wy + dm.iy0, wx + dm.ix0
         centres = np.column_stack([origin[0] + (cx + 0.5) * res, origin[1] + (cy + 0.5) * res])
         within = np.hypot(*(centres - est[:2]).T) <= cfg.radius_m
         # Up to n_candidates in all: half reachable cells within the radius, half frontier cells
         # (anywhere reachable), each half topped up from the other when it runs short.
         pick = np.flatnonzero(within)
-        fr = np.flatnonzero(frontier[cy, cx])
+        fr = np.flatnonzero(frontier[wy, wx])
         n_fr = min(len(fr), max(cfg.n_candidates // 2, cfg.n_candidates - len(pick)))
         n_near = min(len(pick), cfg.n_candidates - n_fr)
         if len(pick) > n_near:
             pick = rng.choice(pick, n_near, replace=False)
         if len(fr) > n_fr:
             fr = rng.choice(fr, n_fr, replace=False)
-        idx = np.unique(np.concatenate([pick, fr])).astype(np.int64)
+        idx = _sorted_unique(np.concatenate([pick, fr]).astype(np.int64))
         # Animation frames keep the map as 8-bit levels (a 90 m map is 200 kB a frame).
-        frame = {"decision": k, "poses": np.array(estimates), "mean": np.round(255 * mean).astype(np.uint8)}
+        frame = {"decision": k, "poses": np.array(estimates), "mean": dm.mean_uint8()}
         if idx.size == 0:
             stop = "no_candidates"
             frames.append(frame)
             break
         cand = centres[idx]
-        cost = dist[cy[idx], cx[idx]]
+        cost = dist[wy[idx], wx[idx]]
         if fn is None:
-            is_fr = frontier[cy[idx], cx[idx]]
+            is_fr = frontier[wy[idx], wx[idx]]
             if goals:
                 # A frontier next to a goal already reached borders space the sensor cannot see
                 # from there (the inside of furniture): do not go back to it.
@@ -353,7 +323,7 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         else:
             poses3 = np.column_stack([cand, np.zeros(len(cand))])
             if fn.name == "fsmi":
-                prob = ogm.probability(bounds).values if slam_filter is None else mean
+                prob = ogm.probability(bounds).values if slam_filter is None else dm.whole(dm.mean, dm.prior_mean)
                 state: Any = _native.OccupancyLattice(np.ascontiguousarray(prob), res, origin)
                 gains = fn.gains(state, poses3, seed=cfg.seed + k)
             elif fn.name == "ucrmi":
@@ -378,8 +348,8 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
             "decision": k,
             "distance_m": round(travelled, 4),
             "explored_m2": round(float(observed.sum()) * res * res, 4),
-            "map_entropy_bits": round(float(ent.sum()), 3),
-            "map_error": round(float(((mean > 0.5) != truth)[observed].mean()) if observed.any() else 0.0, 5),
+            "map_entropy_bits": round(dm.entropy_sum(), 3),
+            "map_error": round(float(((dm.mean > 0.5) != truth[dm.window])[observed].mean()) if observed.any() else 0.0, 5),
             "candidates": int(len(idx)),
             "best_gain": round(float(gains[best]), 6),
             "best_cost_m": round(float(cost[best]), 4),
@@ -400,8 +370,8 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         if travelled >= cfg.budget_m:
             stop = "budget"
             break
-        goal_flat = int(cy[idx[best]] * nx + cx[idx[best]])
-        cells = _path(pred, goal_flat, nx)
+        wnx = dm.mean.shape[1]
+        cells = [(y + dm.iy0, x + dm.ix0) for y, x in _path(pred, int(wy[idx[best]] * wnx + wx[idx[best]]), wnx)]
         pts = np.array([[origin[0] + (x + 0.5) * res, origin[1] + (y + 0.5) * res] for y, x in cells])
         pts = np.vstack([est[:2], pts[1:]]) if len(pts) > 1 else np.vstack([est[:2], pts])
         goals.append((float(pts[-1, 0]), float(pts[-1, 1])))

@@ -11,7 +11,10 @@
 //! - [`spatial`]: the incremental bucket-grid index behind Nearest, Near and NoCollision.
 //! - [`iig`]: [`run_iig`], the main loop, and its result types.
 //! - [`paths`]: main-path voting and the most informative path, usable on hand-made trees.
+//! - [`geodesic`]: 8-connected Dijkstra distances on a traversable grid (the exploration loop's
+//!   path search).
 
+pub mod geodesic;
 pub mod iig;
 pub mod paths;
 pub mod primitives;
@@ -19,6 +22,7 @@ pub mod settings;
 pub mod spatial;
 pub mod world;
 
+pub use geodesic::{geodesic, Geodesic};
 pub use iig::{run_iig, IigNode, IigResult, StopReason};
 pub use paths::{
     candidate_paths, children_lists, dfs_leaves, main_paths, max_info_path, path_gain, root_path,
