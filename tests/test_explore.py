@@ -41,6 +41,16 @@ def test_stop_rules() -> None:
     assert f.stop == "no_candidates"
 
 
+def test_blocked_stop_rule_with_a_lost_filter() -> None:
+    # One particle and 0.2 rad of heading noise per step: the estimate is soon wrong, the paths
+    # planned on it run into walls, and three decisions in a row that bump end the run. The
+    # robot never enters a wall (explore raises if it does).
+    cfg = ExploreConfig(slam=True, slam_particles=1, odometry_sigma=(0.02, 0.02, 0.2), budget_m=60.0, threshold=0.0, seed=1)
+    r = explore(small_room(), START, cfg)
+    assert r.stop == "blocked"
+    assert r.bumps >= 3 and r.distance < cfg.budget_m
+
+
 @pytest.mark.parametrize("function", ["crmi", "frontier", "fsmi"])
 def test_paths_stay_in_free_space_and_cover_a_closed_world(function: str) -> None:
     w = small_room()
