@@ -395,8 +395,8 @@ impl Crmi {
             sc.probs.clear();
             for &(ix, iy) in sc.cells.iter() {
                 let p = map.cell(ix, iy);
-                let s: f64 = p.iter().map(|&x| x as f64).sum();
-                sc.probs.extend(p.iter().map(|&x| x as f64 / s));
+                let inv = 1.0 / p.iter().map(|&x| x as f64).sum::<f64>();
+                sc.probs.extend(p.iter().map(|&x| x as f64 * inv));
             }
             debug_assert_eq!(sc.probs.len(), sc.cells.len() * k);
             beam_crmi_pooled(&self.cfg, mu, sc);
@@ -480,22 +480,24 @@ impl InformationFunction for Crmi {
     fn evaluate(
         &self,
         map: &CrmMap,
-        _parent: &(),
+        parent: &(),
         candidate: &Candidate,
-        _seed: u64,
+        seed: u64,
     ) -> Result<Evaluation<(), VirtualScan>> {
+        Ok(Evaluation {
+            gain: self.gain(map, parent, candidate, seed)?,
+            belief: (),
+            update: self.virtual_scan(map, candidate.pose),
+        })
+    }
+
+    fn gain(&self, map: &CrmMap, _parent: &(), candidate: &Candidate, _seed: u64) -> Result<f64> {
         // One scratch per thread, reused across candidates (buffers and cached channels).
         thread_local! {
             static SCRATCH: std::cell::RefCell<CrmiScratch> =
                 std::cell::RefCell::new(CrmiScratch::default());
         }
-        let gain =
-            SCRATCH.with(|cell| self.gain_with(map, candidate.pose, &mut cell.borrow_mut()))?;
-        Ok(Evaluation {
-            gain,
-            belief: (),
-            update: self.virtual_scan(map, candidate.pose),
-        })
+        SCRATCH.with(|cell| self.gain_with(map, candidate.pose, &mut cell.borrow_mut()))
     }
 
     fn commit(&self, map: &mut CrmMap, update: &VirtualScan) -> Result<()> {

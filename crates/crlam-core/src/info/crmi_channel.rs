@@ -341,6 +341,8 @@ impl EntropyBatch {
         // logarithms of the sums are taken in one more contiguous pass.
         self.sums.clear();
         self.accs.clear();
+        self.sums.clear();
+        self.accs.clear();
         for (j, &(l, _)) in self.jobs.iter().enumerate() {
             let (f, lf) = (&self.f[j * k..(j + 1) * k], &self.lf[j * k..(j + 1) * k]);
             let (p, lp) = (&probs[l * k..(l + 1) * k], &log_p[l * k..(l + 1) * k]);

@@ -102,6 +102,18 @@ pub trait InformationFunction: Sync {
 
     /// Applies an update returned by `evaluate` (the planner's map mutation).
     fn commit(&self, map: &mut Self::Map, update: &Self::Update) -> Result<()>;
+
+    /// The gain of `evaluate` alone (surfaces, exploration decisions). Functions whose update
+    /// costs extra work skip it here; the value equals `evaluate(..).gain`.
+    fn gain(
+        &self,
+        map: &Self::Map,
+        parent: &Self::Belief,
+        candidate: &Candidate,
+        seed: u64,
+    ) -> Result<f64> {
+        self.evaluate(map, parent, candidate, seed).map(|e| e.gain)
+    }
 }
 
 /// Evaluates many candidates on one map state in parallel. Candidate `i` uses the random stream
@@ -134,10 +146,7 @@ pub fn gain_batch<F: InformationFunction>(
     candidates
         .par_iter()
         .enumerate()
-        .map(|(i, c)| {
-            f.evaluate(map, parent, c, candidate_seed(seed, i as u64))
-                .map(|e| e.gain)
-        })
+        .map(|(i, c)| f.gain(map, parent, c, candidate_seed(seed, i as u64)))
         .collect()
 }
 
