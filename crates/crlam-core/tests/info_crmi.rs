@@ -260,33 +260,80 @@ fn pooled_pose_evaluation_equals_the_unpooled_reference() {
             ];
             let mut sc = CrmiScratch::default();
             let got = crmi.gain_with(&m, pose, &mut sc).unwrap();
-            let mut want = 0.0;
-            for a in crmi.beam_angles(pose) {
-                let mut cells = Vec::new();
-                crlam_core::raycast::traverse(
-                    m.geometry(),
-                    [pose[0], pose[1]],
-                    a,
-                    5.0,
-                    m.grid().fixed_extent().as_ref(),
-                    &mut cells,
-                );
-                let d: Vec<f64> = cells.iter().map(|c| c.mid()).collect();
-                let mut b = Vec::new();
-                for c in &cells {
-                    let p = m.cell(c.ix, c.iy);
-                    let s: f64 = p.iter().map(|&x| x as f64).sum();
-                    b.extend(p.iter().map(|&x| x as f64 / s));
-                }
-                want += beam_crmi(&c, &mu, &b, &d).unwrap().iter().sum::<f64>();
-            }
-            want /= LN2;
+            let want = unpooled_gain_bits(&m, &crmi, &c, pose);
             assert!(
                 (got - want).abs() < 1e-12 * want.max(1.0),
                 "{kind:?}: {got} vs {want}"
             );
         }
     }
+}
+
+/// CRMI (bits) at `pose` from the unpooled per-beam reference `beam_crmi`.
+fn unpooled_gain_bits(m: &CrmMap, crmi: &Crmi, c: &CrmiConfig, pose: [f64; 3]) -> f64 {
+    let mu = m.levels().to_vec();
+    let mut want = 0.0;
+    for a in crmi.beam_angles(pose) {
+        let mut cells = Vec::new();
+        crlam_core::raycast::traverse(
+            m.geometry(),
+            [pose[0], pose[1]],
+            a,
+            c.model.z_max,
+            m.grid().fixed_extent().as_ref(),
+            &mut cells,
+        );
+        let d: Vec<f64> = cells.iter().map(|c| c.mid()).collect();
+        let mut b = Vec::new();
+        for c in &cells {
+            let p = m.cell(c.ix, c.iy);
+            let s: f64 = p.iter().map(|&x| x as f64).sum();
+            b.extend(p.iter().map(|&x| x as f64 / s));
+        }
+        want += beam_crmi(c, &mu, &b, &d).unwrap().iter().sum::<f64>();
+    }
+    want / LN2
+}
+
+#[test]
+fn pooled_evaluation_survives_reach_underflow() {
+    // A 5 m corridor of 1 cm cells that are mostly occupied: the reach to its far end is about
+    // 0.12^500, far below f64, so the far bins take the log-space fallback sweep and their
+    // probabilities underflow. The evaluation stays finite and equal to the reference.
+    let res = 0.01;
+    let g = GridGeometry::new([0.0, 0.0], res).unwrap();
+    let rect = CellRect {
+        ix0: 0,
+        iy0: 0,
+        nx: 600,
+        ny: 3,
+    };
+    let mut cc = CrmConfig::new(g);
+    cc.extent = Some(rect);
+    let mut m = CrmMap::new(&cc).unwrap();
+    let mut rng = Rng::new(11);
+    let mut v = Vec::new();
+    for _ in 0..rect.n_cells() {
+        let row: Vec<f64> = (0..10)
+            .map(|k| ((k + 1) as f64).powi(6) * (0.5 + rng.uniform()))
+            .collect();
+        let s: f64 = row.iter().sum();
+        v.extend(row.iter().map(|x| x / s));
+    }
+    m.set_beliefs(rect, &v).unwrap();
+    let mut c = CrmiConfig::new(5.0, res);
+    c.model = SensorModel::with_defaults(SensorModelKind::Ijrr, 5.0, res);
+    let crmi = Crmi::new(c).unwrap();
+    let pose = [0.005, 0.015, 0.0];
+    let got = crmi
+        .gain_with(&m, pose, &mut CrmiScratch::default())
+        .unwrap();
+    let want = unpooled_gain_bits(&m, &crmi, &c, pose);
+    assert!(got.is_finite() && got > 0.0, "{got}");
+    assert!(
+        (got - want).abs() < 1e-12 * want.max(1.0),
+        "{got} vs {want}"
+    );
 }
 
 /// A deterministic pseudo-random value per call (thread-local counter), for map fills.
