@@ -248,7 +248,6 @@ fn pooled_pose_evaluation_equals_the_unpooled_reference() {
         let s: f64 = row.iter().sum();
         row.iter().map(|x| x / s).collect()
     });
-    let mu = m.levels().to_vec();
     for kind in [SensorModelKind::Ijrr, SensorModelKind::Mixture] {
         let c = cfg(kind);
         let crmi = Crmi::new(c).unwrap();
