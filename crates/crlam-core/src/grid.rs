@@ -289,6 +289,23 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
         &self.fill
     }
 
+    /// A run of cells along a row: the values of (ix, iy), (ix + 1, iy), … up to the end of their
+    /// tile row and at most `max_cells` (≥ 1) cells, as `(values, cells, stored)`. Stored runs
+    /// are contiguous (`cells × stride` values); where no tile is stored (or outside storage) the
+    /// run is the fill value, shared by all its cells (`stored = false`, `stride` values).
+    #[inline]
+    pub fn row_run(&self, ix: i64, iy: i64, max_cells: usize) -> (&[T], usize, bool) {
+        let tile = 1i64 << self.shift;
+        let left = (tile - (ix & (tile - 1))) as usize;
+        let cells = left.min(max_cells.max(1));
+        if let Some((slot, off)) = self.slot_of(ix, iy) {
+            if let Some(t) = &self.tiles[slot] {
+                return (&t[off..off + cells * self.stride], cells, true);
+            }
+        }
+        (&self.fill, cells, false)
+    }
+
     /// True if the cell may be written (inside the fixed extent, or any cell of a growing grid).
     #[inline]
     pub fn writable(&self, ix: i64, iy: i64) -> bool {

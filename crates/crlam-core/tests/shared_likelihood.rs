@@ -170,3 +170,48 @@ fn bad_input_is_an_error_not_a_panic() {
     bad.sigma_hit = -1.0;
     assert!(SharedMapLikelihood::new(&map, &bad, &[[1.0, 1.0, 0.0]], 1e6).is_err());
 }
+
+#[test]
+fn window_means_equal_the_per_cell_means() {
+    use crlam_core::grid::CellRect;
+    // Rectangles across tile borders, partly outside storage, on a fixed and a growing map.
+    for map in [lattice_map(4), growing_map()] {
+        for rect in [
+            CellRect {
+                ix0: -5,
+                iy0: -7,
+                nx: 80,
+                ny: 45,
+            },
+            CellRect {
+                ix0: 31,
+                iy0: 30,
+                nx: 3,
+                ny: 2,
+            },
+            CellRect {
+                ix0: 0,
+                iy0: 0,
+                nx: 1,
+                ny: 1,
+            },
+        ] {
+            let mut out = vec![f64::NAN; rect.n_cells()];
+            map.means_into(rect, &mut out).unwrap();
+            for iy in 0..rect.ny {
+                for ix in 0..rect.nx {
+                    let want = map.mean_at(rect.ix0 + ix, rect.iy0 + iy);
+                    let got = out[(iy * rect.nx + ix) as usize];
+                    assert_eq!(got.to_bits(), want.to_bits(), "{rect:?} ({ix}, {iy})");
+                }
+            }
+        }
+        let r = CellRect {
+            ix0: 0,
+            iy0: 0,
+            nx: 4,
+            ny: 4,
+        };
+        assert!(map.means_into(r, &mut [0.0; 3]).is_err());
+    }
+}

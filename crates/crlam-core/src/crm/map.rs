@@ -150,6 +150,45 @@ impl CrmMap {
         m / s
     }
 
+    /// Expected occupancy m̂ of every cell of `rect` into `out` (row-major [iy][ix], length
+    /// `rect.n_cells()`), equal to [`Self::mean_at`] cell by cell, read a tile row at a time.
+    pub fn means_into(&self, rect: CellRect, out: &mut [f64]) -> Result<()> {
+        if out.len() != rect.n_cells() {
+            return Err(CrlamError::Shape(format!(
+                "means of {} cells need {} outputs, got {}",
+                rect.n_cells(),
+                rect.n_cells(),
+                out.len()
+            )));
+        }
+        let k = self.mu.len();
+        let mean_of = |p: &[f32]| {
+            let (mut s, mut m) = (0.0f64, 0.0f64);
+            for (&x, &q) in self.mu.iter().zip(p) {
+                s += q as f64;
+                m += x * q as f64;
+            }
+            m / s
+        };
+        for (row, out_row) in out.chunks_mut(rect.nx.max(1) as usize).enumerate() {
+            let iy = rect.iy0 + row as i64;
+            let mut i = 0;
+            while i < out_row.len() {
+                let ix = rect.ix0 + i as i64;
+                let (values, cells, stored) = self.grid.row_run(ix, iy, out_row.len() - i);
+                if stored {
+                    for (o, p) in out_row[i..i + cells].iter_mut().zip(values.chunks(k)) {
+                        *o = mean_of(p);
+                    }
+                } else {
+                    out_row[i..i + cells].fill(mean_of(values));
+                }
+                i += cells;
+            }
+        }
+        Ok(())
+    }
+
     /// Replaces the pmfs over `rect` (row-major [iy][ix][k], normalised here).
     pub fn set_beliefs(&mut self, rect: CellRect, values: &[f64]) -> Result<()> {
         let k = self.mu.len();

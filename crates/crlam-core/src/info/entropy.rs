@@ -18,7 +18,7 @@
 use std::f64::consts::LN_2;
 
 use crate::error::{config_err, CrlamError, Result};
-use crate::info::fastmath::exp_fast;
+use crate::info::fastmath::exp_for_sums;
 use crate::pose::wrap;
 use crate::rng::Rng;
 
@@ -45,13 +45,17 @@ pub fn log_sum_exp(x: &[f64]) -> f64 {
     m + x.iter().map(|&v| (v - m).exp()).sum::<f64>().ln()
 }
 
-/// [`log_sum_exp`] with [`exp_fast`] (a few ulp), for the O(n²) sums of the entropy estimator.
-fn log_sum_exp_fast(x: &[f64]) -> f64 {
+/// [`log_sum_exp`] of `x` (overwritten) with the exponentials from [`exp_for_sums`] (a few ulp;
+/// terms below e^−708.3 count as 0, which cannot change a sum that contains the maximum's 1), for
+/// the O(n²) sums of the entropy estimator.
+fn log_sum_exp_terms(x: &mut [f64]) -> f64 {
     let m = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     if m == f64::NEG_INFINITY {
         return m;
     }
-    m + x.iter().map(|&v| exp_fast(v - m)).sum::<f64>().ln()
+    x.iter_mut().for_each(|v| *v -= m);
+    exp_for_sums(x);
+    m + x.iter().sum::<f64>().ln()
 }
 
 /// Checks non-negative finite weights with a positive sum and returns them normalised.
@@ -117,6 +121,26 @@ pub fn particle_entropy(
     log_lik: &[f64],
     log_transition: impl Fn(usize, usize) -> f64,
 ) -> Result<f64> {
+    particle_entropy_rows(prev_log_w, log_lik, |j, row| {
+        for (i, (r, &w)) in row.iter_mut().zip(prev_log_w).enumerate() {
+            // Zero-weight previous particles are never asked about (their row entry is unused).
+            *r = if w == f64::NEG_INFINITY {
+                0.0
+            } else {
+                log_transition(j, i)
+            };
+        }
+    })
+}
+
+/// [`particle_entropy`] with the transitions delivered a row at a time: `fill_row(j, row)` writes
+/// log p(x_k^j | x_{k−1}^i, u) into `row[i]` for every i (rows of skipped pairs are ignored), so
+/// that a caller can compute a row in one vectorisable pass.
+pub fn particle_entropy_rows(
+    prev_log_w: &[f64],
+    log_lik: &[f64],
+    mut fill_row: impl FnMut(usize, &mut [f64]),
+) -> Result<f64> {
     let n = prev_log_w.len();
     if n == 0 || log_lik.len() != n {
         return Err(CrlamError::Shape(format!(
@@ -143,7 +167,8 @@ pub fn particle_entropy(
     // Written as H = −Σ_j w_k^j [log w_k^j − log w_{k−1}^j + L_j], L_j = LSE_i(log w_{k−1}^i +
     // log p(x^j | x^i)). This equals the spec's form (substitute ℓ_j = log w_k^j + LSE(joint)
     // − log w_{k−1}^j) but never subtracts the large scan log-likelihoods from each other.
-    let mut terms = Vec::with_capacity(n);
+    let mut row = vec![0.0; n];
+    let mut terms = vec![0.0; n];
     let mut h = 0.0;
     for j in 0..n {
         let log_wk = joint[j] - log_evidence;
@@ -151,21 +176,24 @@ pub fn particle_entropy(
         if wk == 0.0 {
             continue; // 0 · log 0 = 0, and w_{k−1}^j may be zero here
         }
-        terms.clear();
-        for (i, &lwi) in lw.iter().enumerate() {
-            if lwi == f64::NEG_INFINITY {
-                continue;
-            }
-            let t = log_transition(j, i);
-            if t.is_nan() || t == f64::INFINITY {
+        fill_row(j, &mut row);
+        // Previous particles of zero weight take no part (their transitions are not checked).
+        for (i, (&lwi, &t)) in lw.iter().zip(&row).enumerate() {
+            if lwi != f64::NEG_INFINITY && (t.is_nan() || t == f64::INFINITY) {
                 return Err(CrlamError::NonFinite {
                     field: "log_transition",
-                    value: t,
+                    value: row[i],
                 });
             }
-            terms.push(lwi + t);
         }
-        let log_pred = log_sum_exp_fast(&terms);
+        for ((o, &lwi), &t) in terms.iter_mut().zip(&lw).zip(&row) {
+            *o = if lwi == f64::NEG_INFINITY {
+                f64::NEG_INFINITY
+            } else {
+                lwi + t
+            };
+        }
+        let log_pred = log_sum_exp_terms(&mut terms);
         if log_pred == f64::NEG_INFINITY {
             return Err(config_err(
                 "log_transition",
@@ -490,9 +518,13 @@ pub fn edge_particle_entropy(
         .map(|p| [p[0] + edge.delta[0], p[1] + edge.delta[1]])
         .collect();
     let half_inv_q = 0.5 / q.q_xy;
-    particle_entropy(parent_log_w, log_lik, |j, i| {
-        let (rx, ry) = (children[j][0] - base[i][0], children[j][1] - base[i][1]);
-        c[j] - half_inv_q * (rx * rx + ry * ry)
+    let (bx, by): (Vec<f64>, Vec<f64>) = base.iter().map(|b| (b[0], b[1])).unzip();
+    particle_entropy_rows(parent_log_w, log_lik, |j, row| {
+        let (cx, cy, cj) = (children[j][0], children[j][1], c[j]);
+        for ((r, &x), &y) in row.iter_mut().zip(&bx).zip(&by) {
+            let (rx, ry) = (cx - x, cy - y);
+            *r = cj - half_inv_q * (rx * rx + ry * ry);
+        }
     })
 }
 

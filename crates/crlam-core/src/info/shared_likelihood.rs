@@ -86,7 +86,7 @@ impl<'a> SharedMapLikelihood<'a> {
         if fast && !poses.is_empty() {
             if let Some(rect) = window_rect(map, poses, model.z_max) {
                 if expected_visits >= MIN_VISITS_PER_WINDOW_CELL * rect.n_cells() as f64 {
-                    out.means = window_means(map, rect);
+                    out.means = window_means(map, rect)?;
                     out.rect = rect;
                 }
             }
@@ -298,16 +298,8 @@ fn window_rect(map: &CrmMap, poses: &[[f64; 3]], z_max: f64) -> Option<CellRect>
     (r.nx > 0 && r.ny > 0 && r.n_cells() <= 1 << 24).then_some(r)
 }
 
-fn window_means(map: &CrmMap, r: CellRect) -> Vec<f64> {
+fn window_means(map: &CrmMap, r: CellRect) -> Result<Vec<f64>> {
     let mut means = vec![0.0; r.n_cells()];
-    means
-        .par_chunks_mut(r.nx as usize)
-        .enumerate()
-        .for_each(|(row, out)| {
-            let iy = r.iy0 + row as i64;
-            for (i, v) in out.iter_mut().enumerate() {
-                *v = map.mean_at(r.ix0 + i as i64, iy);
-            }
-        });
-    means
+    map.means_into(r, &mut means)?;
+    Ok(means)
 }
