@@ -50,7 +50,6 @@ def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRun, *, dp
     axes[0].plot(p[-1, 0], p[-1, 1], marker="*", color="tab:red", markersize=12, label="end")
     axes[0].legend(loc="upper right", fontsize=8)
     axes[0].set_title(f"{run.config.function.upper()} exploration: {run.distance:.0f} m, stop: {run.stop}")
-    metric_axes(axes[0], ext)
     crmi = make_function("crmi", z_max=run.config.sensor_range, resolution=run.config.resolution)
     prior = prior_from_crm_mean(mean, (ext[0], ext[2]), run.config.resolution)
     free = (ent < np.log2(10.0) - 1e-3) & (mean < run.config.free_threshold)
@@ -63,19 +62,23 @@ def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRun, *, dp
     cb = fig.colorbar(im, ax=axes[1], fraction=0.046, pad=0.02)
     cb.set_label("CRMI [bits]")
     axes[1].set_title("CRMI on the final map (known-free cells)")
-    metric_axes(axes[1], ext)
-    # Zoom to the observed part of the world (plus a margin): a short run in a large world.
+    # Zoom to the observed part of the world (plus a margin): a short run in a large world. The
+    # scale bar is sized and placed for the zoomed view.
+    view = ext
     obs_y, obs_x = np.nonzero(ent < np.log2(10.0) - 1e-3)
     if obs_x.size:
         r = run.config.resolution
         margin = 3.0
-        x0 = max(ext[0], ext[0] + obs_x.min() * r - margin)
-        x1 = min(ext[1], ext[0] + (obs_x.max() + 1) * r + margin)
-        y0 = max(ext[2], ext[2] + obs_y.min() * r - margin)
-        y1 = min(ext[3], ext[2] + (obs_y.max() + 1) * r + margin)
-        for ax in axes:
-            ax.set_xlim(x0, x1)
-            ax.set_ylim(y0, y1)
+        view = (
+            max(ext[0], ext[0] + obs_x.min() * r - margin),
+            min(ext[1], ext[0] + (obs_x.max() + 1) * r + margin),
+            max(ext[2], ext[2] + obs_y.min() * r - margin),
+            min(ext[3], ext[2] + (obs_y.max() + 1) * r + margin),
+        )
+    for ax in axes:
+        ax.set_xlim(view[0], view[1])
+        ax.set_ylim(view[2], view[3])
+        metric_axes(ax, view)
     return save_figure(fig, path, dpi)
 
 
