@@ -5,8 +5,8 @@ use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
-    ClamConfig, ClamProposal, FilterStep, OgmFilterConfig, RbpfClam, RbpfOgm, ScanInput,
-    UpdateTrigger,
+    ClamConfig, ClamProposal, FilterStep, OgmFilterConfig, ParticleFilter, RbpfClam, RbpfOgm,
+    ScanInput, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -140,8 +140,90 @@ fn step_tuple(s: crlam_core::rbpf::FilterStep) -> (bool, (f64, f64, f64), f64, b
     )
 }
 
-#[pymethods]
-impl ClamFilter {
+/// The `#[pymethods]` of a particle-filter class: `$extra` (its constructor and map accessor)
+/// and the methods every filter shares through [`ParticleFilter`] (one `#[pymethods]` block per
+/// class, so the shared part is spliced in rather than written twice).
+macro_rules! filter_pymethods {
+    ($class:ident { $($extra:tt)* }) => {
+        #[pymethods]
+        impl $class {
+            $($extra)*
+
+            /// Feeds one scan: (processed, estimate (x, y, θ), N_eff, resampled).
+            fn process(
+                &mut self,
+                py: Python<'_>,
+                odom: PyReadonlyArray1<'_, f64>,
+                angles: PyReadonlyArray1<'_, f64>,
+                ranges: PyReadonlyArray1<'_, f64>,
+                laser_offset: PyReadonlyArray1<'_, f64>,
+            ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
+                let scan = scan_of(&odom, &angles, &ranges, &laser_offset)?;
+                let inner = &mut self.inner;
+                let s = py
+                    .allow_threads(|| ParticleFilter::process(inner, &scan))
+                    .py_err()?;
+                Ok(step_tuple(s))
+            }
+
+            /// Feeds n scans with shared beam angles: odoms (n, 3), ranges (n, m). Returns a dict
+            /// of arrays: estimates (n, 3), processed (n,), neff (n,), resampled (n,).
+            fn process_many<'py>(
+                &mut self,
+                py: Python<'py>,
+                odoms: PyReadonlyArray2<'py, f64>,
+                angles: PyReadonlyArray1<'py, f64>,
+                ranges: PyReadonlyArray2<'py, f64>,
+                laser_offset: PyReadonlyArray1<'py, f64>,
+            ) -> PyResult<Bound<'py, PyDict>> {
+                let inner = &mut self.inner;
+                feed_many(py, &odoms, &angles, &ranges, &laser_offset, |scan| {
+                    ParticleFilter::process(inner, scan)
+                })
+            }
+
+            /// Current estimate (weighted mean, circular heading).
+            fn estimate(&self) -> (f64, f64, f64) {
+                let e = ParticleFilter::estimate(&self.inner);
+                (e[0], e[1], e[2])
+            }
+
+            /// Particle poses, shape (n, 3).
+            fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                poses_array(py, ParticleFilter::poses(&self.inner))
+            }
+
+            /// Particle log-weights (unnormalised), shape (n,).
+            fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+                Array1::from_vec(ParticleFilter::log_weights(&self.inner)).into_pyarray(py)
+            }
+
+            #[getter]
+            fn best_index(&self) -> usize {
+                ParticleFilter::best_index(&self.inner)
+            }
+            #[getter]
+            fn n_resamples(&self) -> usize {
+                ParticleFilter::n_resamples(&self.inner)
+            }
+            #[getter]
+            fn n_processed(&self) -> usize {
+                ParticleFilter::n_processed(&self.inner)
+            }
+            #[getter]
+            fn n_particles(&self) -> usize {
+                ParticleFilter::n_particles(&self.inner)
+            }
+
+            /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
+            fn map_memory(&self) -> (usize, usize, usize) {
+                ParticleFilter::map_memory(&self.inner)
+            }
+        }
+    };
+}
+
+filter_pymethods!(ClamFilter {
     #[new]
     #[pyo3(signature = (initial_pose, mapping_model, weight_model, *, n_particles=100, resolution=0.2, origin=(0.0, 0.0),
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
@@ -220,74 +302,6 @@ impl ClamFilter {
         })
     }
 
-    /// Feeds one scan: (processed, estimate (x, y, θ), N_eff, resampled).
-    fn process(
-        &mut self,
-        py: Python<'_>,
-        odom: PyReadonlyArray1<'_, f64>,
-        angles: PyReadonlyArray1<'_, f64>,
-        ranges: PyReadonlyArray1<'_, f64>,
-        laser_offset: PyReadonlyArray1<'_, f64>,
-    ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
-        let scan = scan_of(&odom, &angles, &ranges, &laser_offset)?;
-        let inner = &mut self.inner;
-        let s = py.allow_threads(|| inner.process(&scan)).py_err()?;
-        Ok(step_tuple(s))
-    }
-
-    /// Feeds n scans with shared beam angles: odoms (n, 3), ranges (n, m). Returns a dict of
-    /// arrays: estimates (n, 3), processed (n,), neff (n,), resampled (n,).
-    fn process_many<'py>(
-        &mut self,
-        py: Python<'py>,
-        odoms: PyReadonlyArray2<'py, f64>,
-        angles: PyReadonlyArray1<'py, f64>,
-        ranges: PyReadonlyArray2<'py, f64>,
-        laser_offset: PyReadonlyArray1<'py, f64>,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let inner = &mut self.inner;
-        feed_many(py, &odoms, &angles, &ranges, &laser_offset, |scan| {
-            inner.process(scan)
-        })
-    }
-
-    /// Current estimate (weighted mean, circular heading).
-    fn estimate(&self) -> (f64, f64, f64) {
-        let e = self.inner.estimate();
-        (e[0], e[1], e[2])
-    }
-
-    /// Particle poses, shape (n, 3).
-    fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let v: Vec<f64> = self.inner.particles().iter().flat_map(|p| p.pose).collect();
-        let n = self.inner.particles().len();
-        Ok(Array2::from_shape_vec((n, 3), v)
-            .map_err(|e| shape_err(e.to_string()))?
-            .into_pyarray(py))
-    }
-
-    /// Particle log-weights (unnormalised), shape (n,).
-    fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        Array1::from_iter(self.inner.particles().iter().map(|p| p.log_w)).into_pyarray(py)
-    }
-
-    #[getter]
-    fn best_index(&self) -> usize {
-        self.inner.best_index()
-    }
-    #[getter]
-    fn n_resamples(&self) -> usize {
-        self.inner.n_resamples()
-    }
-    #[getter]
-    fn n_processed(&self) -> usize {
-        self.inner.n_processed()
-    }
-    #[getter]
-    fn n_particles(&self) -> usize {
-        self.inner.particles().len()
-    }
-
     /// The best particle's map (a copy-on-write copy).
     fn best_map(&self) -> CrmMap {
         CrmMap::from_core(
@@ -295,12 +309,7 @@ impl ClamFilter {
             self.inner.config().crm.tile_size,
         )
     }
-
-    /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
-    fn map_memory(&self) -> (usize, usize, usize) {
-        self.inner.map_memory()
-    }
-}
+});
 
 /// RBPF-OGM: the GMapping-style baseline (log-odds maps, scan matching, improved proposal).
 #[pyclass(module = "crlam._native")]
@@ -308,8 +317,7 @@ pub struct OgmFilter {
     inner: RbpfOgm,
 }
 
-#[pymethods]
-impl OgmFilter {
+filter_pymethods!(OgmFilter {
     #[new]
     #[pyo3(signature = (initial_pose, *, n_particles=30, resolution=0.05, usable_range=30.0, motion="thrun", motion_params=None,
         linear_update=0.0, angular_update=0.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0), seed=0))]
@@ -355,73 +363,8 @@ impl OgmFilter {
         })
     }
 
-    /// Feeds one scan: (processed, estimate (x, y, θ), N_eff, resampled).
-    fn process(
-        &mut self,
-        py: Python<'_>,
-        odom: PyReadonlyArray1<'_, f64>,
-        angles: PyReadonlyArray1<'_, f64>,
-        ranges: PyReadonlyArray1<'_, f64>,
-        laser_offset: PyReadonlyArray1<'_, f64>,
-    ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
-        let scan = scan_of(&odom, &angles, &ranges, &laser_offset)?;
-        let inner = &mut self.inner;
-        let s = py.allow_threads(|| inner.process(&scan)).py_err()?;
-        Ok(step_tuple(s))
-    }
-
-    /// Feeds n scans; see ``ClamFilter.process_many``.
-    fn process_many<'py>(
-        &mut self,
-        py: Python<'py>,
-        odoms: PyReadonlyArray2<'py, f64>,
-        angles: PyReadonlyArray1<'py, f64>,
-        ranges: PyReadonlyArray2<'py, f64>,
-        laser_offset: PyReadonlyArray1<'py, f64>,
-    ) -> PyResult<Bound<'py, PyDict>> {
-        let inner = &mut self.inner;
-        feed_many(py, &odoms, &angles, &ranges, &laser_offset, |scan| {
-            inner.process(scan)
-        })
-    }
-
-    fn estimate(&self) -> (f64, f64, f64) {
-        let e = self.inner.estimate();
-        (e[0], e[1], e[2])
-    }
-
-    fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        poses_array(py, self.inner.poses())
-    }
-
-    fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        Array1::from_vec(self.inner.log_weights()).into_pyarray(py)
-    }
-
-    #[getter]
-    fn best_index(&self) -> usize {
-        self.inner.best_index()
-    }
-    #[getter]
-    fn n_resamples(&self) -> usize {
-        self.inner.n_resamples()
-    }
-    #[getter]
-    fn n_processed(&self) -> usize {
-        self.inner.n_processed()
-    }
-    #[getter]
-    fn n_particles(&self) -> usize {
-        self.inner.particles().len()
-    }
-
     /// The best particle's log-odds map (a copy-on-write copy).
     fn best_map(&self) -> LogOddsMap {
         LogOddsMap::from_core(self.inner.best_map().clone())
     }
-
-    /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
-    fn map_memory(&self) -> (usize, usize, usize) {
-        self.inner.map_memory()
-    }
-}
+});

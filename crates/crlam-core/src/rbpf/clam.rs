@@ -569,6 +569,8 @@ fn cholesky3(a: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
     l
 }
 
+crate::rbpf::common::impl_particle_filter!(RbpfClam);
+
 #[cfg(test)]
 mod tests {
     use super::*;

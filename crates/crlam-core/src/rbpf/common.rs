@@ -164,6 +164,69 @@ pub fn weighted_mean_pose(poses: &[Pose], w: &[f64]) -> Pose {
     [x, y, s.atan2(c)]
 }
 
+/// What every particle filter offers its callers (the CLI, the experiments, the Python classes):
+/// feed scans, read the estimate and the particle set.
+pub trait ParticleFilter {
+    /// Feeds one scan; processes it when the update trigger fires.
+    fn process(&mut self, scan: &ScanInput) -> crate::error::Result<FilterStep>;
+    /// Weighted mean pose (circular heading) at the last processed scan.
+    fn estimate(&self) -> crate::pose::Pose;
+    /// Index of the highest-weight particle.
+    fn best_index(&self) -> usize;
+    /// Resampling events so far.
+    fn n_resamples(&self) -> usize;
+    /// Processed scans, the first one included.
+    fn n_processed(&self) -> usize;
+    /// Particles in the set.
+    fn n_particles(&self) -> usize;
+    /// Particle poses.
+    fn poses(&self) -> Vec<crate::pose::Pose>;
+    /// Particle log-weights.
+    fn log_weights(&self) -> Vec<f64>;
+    /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
+    fn map_memory(&self) -> (usize, usize, usize);
+}
+
+/// Implements [`ParticleFilter`] for a filter type with inherent methods of the same names plus
+/// `particles()` whose items have `pose` and `log_w`.
+macro_rules! impl_particle_filter {
+    ($t:ty) => {
+        impl $crate::rbpf::common::ParticleFilter for $t {
+            fn process(
+                &mut self,
+                scan: &$crate::rbpf::common::ScanInput,
+            ) -> $crate::error::Result<$crate::rbpf::common::FilterStep> {
+                <$t>::process(self, scan)
+            }
+            fn estimate(&self) -> $crate::pose::Pose {
+                <$t>::estimate(self)
+            }
+            fn best_index(&self) -> usize {
+                <$t>::best_index(self)
+            }
+            fn n_resamples(&self) -> usize {
+                <$t>::n_resamples(self)
+            }
+            fn n_processed(&self) -> usize {
+                <$t>::n_processed(self)
+            }
+            fn n_particles(&self) -> usize {
+                self.particles().len()
+            }
+            fn poses(&self) -> Vec<$crate::pose::Pose> {
+                self.particles().iter().map(|p| p.pose).collect()
+            }
+            fn log_weights(&self) -> Vec<f64> {
+                self.particles().iter().map(|p| p.log_w).collect()
+            }
+            fn map_memory(&self) -> (usize, usize, usize) {
+                <$t>::map_memory(self)
+            }
+        }
+    };
+}
+pub(crate) use impl_particle_filter;
+
 #[cfg(test)]
 mod tests {
     use super::*;

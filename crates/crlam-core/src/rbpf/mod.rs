@@ -11,6 +11,8 @@ pub mod ogm;
 pub mod scanmatch;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
-pub use common::{weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger};
+pub use common::{
+    weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ScanInput, UpdateTrigger,
+};
 pub use ogm::{OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
 pub use scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};

@@ -583,6 +583,8 @@ impl RbpfOgm {
     }
 }
 
+crate::rbpf::common::impl_particle_filter!(RbpfOgm);
+
 #[cfg(test)]
 mod tests {
     use super::*;
