@@ -1,5 +1,5 @@
 //! Timing of the information functions outside `crlam bench`, for profiling
-//! (`cargo run --release -p crlam-core --example info_timing -- crmi|mixture|ucrmi|likelihood|window|traverse`).
+//! (`cargo run --release -p crlam-core --example info_timing -- crmi|mixture|ucrmi|likelihood|window|traverse|fsmi|tfsmi|julian`).
 use crlam_core::info::bench::{crmi_us_per_pose, info_figure};
 use crlam_core::info::crmi::CrmiConfig;
 use crlam_core::sensor::{SensorModel, SensorModelKind};
@@ -132,8 +132,40 @@ fn main() {
                 .fold(f64::INFINITY, f64::min);
             println!("particle likelihoods {best:.1} us per 100 particles x 10 beams (best of 7)")
         }
+        "fsmi" | "tfsmi" | "julian" => {
+            use crlam_core::info::bench::bench_lattice;
+            use crlam_core::info::fsmi::{Fsmi, FsmiVariant, DEFAULT_TRUNCATION_SIGMAS};
+            let variant = match which.as_str() {
+                "fsmi" => FsmiVariant::Full,
+                "tfsmi" => FsmiVariant::Truncated {
+                    width_sigmas: DEFAULT_TRUNCATION_SIGMAS,
+                },
+                _ => FsmiVariant::Julian {
+                    points_per_cell: 16,
+                },
+            };
+            let map = bench_lattice(7).unwrap();
+            let f = Fsmi::new(variant);
+            let poses: Vec<[f64; 3]> = (0..200)
+                .map(|i| {
+                    let (a, b) = ((i as f64 * 0.618).fract(), (i as f64 * 0.377).fract());
+                    [1.0 + a * 18.0, 1.0 + b * 18.0, 0.0]
+                })
+                .collect();
+            let reps = if which == "julian" { 3 } else { 100 };
+            let t = std::time::Instant::now();
+            let mut sink = 0.0;
+            for _ in 0..reps {
+                for &p in &poses {
+                    sink += f.scan_mi(&map, p).unwrap();
+                }
+            }
+            std::hint::black_box(sink);
+            let us = t.elapsed().as_secs_f64() * 1e6 / (reps * poses.len()) as f64;
+            println!("{which} {us:.2} us/pose (sum {sink:.6})")
+        }
         other => eprintln!(
-            "unknown workload {other:?}: crmi, mixture, ucrmi, likelihood, window or traverse"
+            "unknown workload {other:?}: crmi, mixture, ucrmi, likelihood, window, traverse, fsmi, tfsmi or julian"
         ),
     }
 }

@@ -198,6 +198,31 @@ fn fsmi_equals_julians_integral() {
         // The closed form against the explicit double sum Σ_j P_j Σ_k C_k G_kj.
         terms.compute(&o, &p).unwrap();
         let (pf, c) = (terms.p_first(), terms.gains());
+        // C_k (batched logarithms) against the scalar per-cell KL factors.
+        let odds = |x: f64| {
+            if x == 1.0 {
+                f64::INFINITY
+            } else {
+                x / (1.0 - x)
+            }
+        };
+        let mut loss = 0.0;
+        for k in 0..=n {
+            let want = loss
+                + if k < n {
+                    kl_factor(p.delta_occ, odds(o[k]))
+                } else {
+                    0.0
+                };
+            assert!(
+                (c[k] - want).abs() <= 1e-14 * want.max(1e-3),
+                "C_{k}: {} vs {want}",
+                c[k]
+            );
+            if k < n {
+                loss += kl_factor(p.delta_emp, odds(o[k]));
+            }
+        }
         let mut direct = terms.p_none() * c[n];
         for (j, pj) in pf.iter().enumerate() {
             let g = reading_cell_probabilities(&edges, sigma, j).unwrap();

@@ -8,7 +8,7 @@ name        what                                             state        belief
 ==========  ===============================================  ===========  =========  ==========
 crmi        CRMI, exact discrete channel (crm-spec 5.2)      CRM          none       bits
 ucrmi       alpha CRMI + (1 - alpha) pose information (6.4)  CRM          particles  bits
-fsmi        OGMI by FSMI, exact O(n^2) (planner-spec 4.2)    lattice      none       nats
+fsmi        OGMI by FSMI, exact (planner-spec 4.2)           lattice      none       nats
 ogmi        OGMI by Julian's numerical integration (4.1)     lattice      none       nats
 iig_mi      the IIG reference 'mi' heuristic (4.3, parity)   lattice      none       nats
 gpvr        GP variance reduction (5.2)                      GP variances none       nats

@@ -226,6 +226,17 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
     let (mut lo, mut hi) = (0usize, 0usize);
     for q in 0..=q_n {
         let w = q_n + 1;
+        if pure_hit && q == q_n && cfg.model.w_max == 0.0 {
+            // The no-return atom: only the ∞ cause gives it, so every cell was seen free
+            // (α_l = −R_l S_{l+1}/η = −1/(1 − m̂_l)) with η = Π(1 − m̂) ℓ_∞(Q): pooled with the
+            // free bins of every cell.
+            let eta = reach * ch.like_inf[q];
+            if eta > 0.0 {
+                total += eta;
+                sc.p_free[n] += eta;
+            }
+            continue;
+        }
         let (first, last) = if pure_hit && q < q_n {
             // Cells whose hit support contains bin q: a window that only moves forward with q.
             while lo < n && ch.support[lo].1 < q {

@@ -5,7 +5,7 @@
 use crate::crm::update::{cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::error::Result;
 use crate::info::crmi::{CrmiConfig, CrmiQuadrature, SUPPORT_SIGMAS};
-use crate::info::fastmath::{ln_clamped_slice, ln_normal, normal_tail, tail_difference};
+use crate::info::fastmath::{ln_clamped_slice, ln_normal, lower_tail_abs_slice, tail_difference};
 use crate::sensor::{normal_cdf, SensorModelKind};
 
 /// The discretised channel of one beam: bin edges and each cause's bin masses.
@@ -19,8 +19,10 @@ pub struct BeamChannel {
     pub(crate) like_inf: Vec<f64>,
     /// First and last bin (< Q) with ℓ_l(q) > 0 per cell for the pooled `ijrr` path.
     pub(crate) support: Vec<(usize, usize)>,
-    /// Per-edge CDF of the current cell: (upper tail?, value).
-    pub(crate) tails: Vec<(bool, f64)>,
+    /// Standardised support edges (z_e − d_l)/σ of every cell, back to back, and the value of
+    /// their [`crate::info::fastmath::normal_tail`] (whose flag is u > 0).
+    tail_u: Vec<f64>,
+    tail_v: Vec<f64>,
 }
 
 impl BeamChannel {
@@ -42,40 +44,49 @@ impl BeamChannel {
         let lam = m.lambda_short;
         let sig = m.sigma_hit;
         let z_max = m.z_max;
+        // Bins that can carry hit mass: within SUPPORT_SIGMAS of d_l.
+        let reach = SUPPORT_SIGMAS * sig;
+        let bin_of = |z: f64| ((z / cfg.lambda_z).floor().max(0.0) as usize).min(q_n - 1);
+        // Tail-aware CDFs at every support edge of every cell, in one vectorised pass.
+        self.tail_u.clear();
+        if w_h > 0.0 {
+            for &dl in d {
+                let (q_lo, q_hi) = (bin_of(dl - reach), bin_of(dl + reach));
+                self.tail_u
+                    .extend(self.edges[q_lo..=q_hi + 1].iter().map(|&z| (z - dl) / sig));
+            }
+        }
+        self.tail_v.resize(self.tail_u.len(), 0.0);
+        lower_tail_abs_slice(&self.tail_u, &mut self.tail_v);
+        let mut at = 0;
         for (l, &dl) in d.iter().enumerate() {
             let row = &mut self.like[l * (q_n + 1)..(l + 1) * (q_n + 1)];
-            // Bins that can carry hit mass: within SUPPORT_SIGMAS of d_l.
-            let reach = SUPPORT_SIGMAS * sig;
-            let q_lo = (((dl - reach) / cfg.lambda_z).floor().max(0.0) as usize).min(q_n - 1);
-            let q_hi = (((dl + reach) / cfg.lambda_z).floor().max(0.0) as usize).min(q_n - 1);
+            let (q_lo, q_hi) = (bin_of(dl - reach), bin_of(dl + reach));
             let short_norm = if w_s > 0.0 {
                 -(-lam * dl).exp_m1()
             } else {
                 0.0
             };
             let (lo, hi) = if pure_hit { (q_lo, q_hi) } else { (0, q_n - 1) };
-            // Tail-aware CDF at each edge of the hit support, computed once per edge.
-            self.tails.clear();
-            if w_h > 0.0 {
-                for e in q_lo..=q_hi + 1 {
-                    let u = (self.edges[e] - dl) / sig;
-                    self.tails.push(normal_tail(u));
-                }
-            }
+            let n_edges = if w_h > 0.0 { q_hi + 2 - q_lo } else { 0 };
+            let (tu, tv) = (
+                &self.tail_u[at..at + n_edges],
+                &self.tail_v[at..at + n_edges],
+            );
+            at += n_edges;
+            let tail = |e: usize| (tu[e] > 0.0, tv[e]);
             // Normaliser: the Gaussian mass over the support bins (which lie inside [0, z_max],
             // so this also truncates at the range limits); the midpoint rule uses Z_h(d).
-            let z_norm = match (self.tails.first(), self.tails.last(), cfg.quadrature) {
-                (Some(&a), Some(&b), CrmiQuadrature::Cdf) => tail_difference(a, b),
+            let z_norm = match cfg.quadrature {
+                CrmiQuadrature::Cdf if n_edges > 0 => tail_difference(tail(0), tail(n_edges - 1)),
                 _ => normal_cdf((z_max - dl) / sig) - normal_cdf(-dl / sig),
             };
             for q in lo..=hi {
                 let (a, b) = (self.edges[q], self.edges[q + 1]);
                 let mut v = 0.0;
-                if !self.tails.is_empty() && q >= q_lo && q <= q_hi && z_norm > 0.0 {
+                if n_edges > 0 && q >= q_lo && q <= q_hi && z_norm > 0.0 {
                     let mass = match cfg.quadrature {
-                        CrmiQuadrature::Cdf => {
-                            tail_difference(self.tails[q - q_lo], self.tails[q + 1 - q_lo])
-                        }
+                        CrmiQuadrature::Cdf => tail_difference(tail(q - q_lo), tail(q + 1 - q_lo)),
                         CrmiQuadrature::Midpoint => midpoint_hit_mass(a, b, dl, sig),
                     };
                     v += w_h * mass.max(0.0) / z_norm;

@@ -16,7 +16,7 @@
 //! on the lattice; [`crate::info::iig_mi::IigMi`] is the IIG reference 'mi' heuristic (4.3).
 
 use crate::error::{config_err, CrlamError, Result};
-use crate::info::fastmath::normal_cdf_fast;
+use crate::info::fastmath::{ln_1p_slice, normal_cdf_slice};
 use crate::info::lattice::{traverse_lattice, BeamAngles, LatticeCell, OccupancyLattice};
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
 use crate::raycast::rect_box;
@@ -106,7 +106,8 @@ impl OgmiParams {
 /// How a beam's MI is computed.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum FsmiVariant {
-    /// Exact FSMI, O(n²) per beam (Φ is read as 0 or 1 beyond ±8.5σ, exact in double precision).
+    /// Exact FSMI: the O(n²) double sum, evaluated over the cells within 8.5σ of each Gaussian's
+    /// centre, since beyond that Φ is exactly 0 or 1 in double precision and G_kj exactly 0.
     Full,
     /// FSMI keeping, for the Gaussian of cell j, the cells less than `width_sigmas`·σ away from
     /// cell j's span (G_kj = 0 for the others): Δ_c = ⌈wσ/Δ⌉ neighbours on a beam of equal cells Δ.
@@ -142,6 +143,12 @@ pub struct BeamTerms {
     p_first: Vec<f64>,
     p_none: f64,
     gains: Vec<f64>,
+    /// Standardised edges (l_e − μ_j)/σ of every Gaussian's window, back to back, and their Φ
+    /// (first used for the arguments of ln(1 + x) and their logarithms).
+    xs: Vec<f64>,
+    cdf: Vec<f64>,
+    /// (j, first cell, last cell) of each window, in the order of `xs`.
+    windows: Vec<(usize, usize, usize)>,
 }
 
 impl BeamTerms {
@@ -158,17 +165,37 @@ impl BeamTerms {
     }
 
     fn fill(&mut self, o: &[f64], params: &OgmiParams) {
-        let (d_occ, d_emp) = (params.delta_occ, params.delta_emp);
-        let (ln_occ, ln_emp) = (d_occ.ln(), d_emp.ln());
+        let deltas = [params.delta_occ, params.delta_emp];
+        let ln_deltas = deltas.map(f64::ln);
+        // kl_of_prob's two branches need ln(1 + x) of x = o(δ − 1) (o ≤ ½) or q(1/δ − 1)
+        // (q = 1 − o < ½): all of a beam's arguments first, then one vectorised pass of logs.
+        let (up, down) = (deltas.map(|d| d - 1.0), deltas.map(|d| 1.0 / d - 1.0));
+        self.xs.clear();
+        for &oi in o {
+            let q = 1.0 - oi;
+            for i in 0..2 {
+                self.xs.push(if oi <= q { oi * up[i] } else { q * down[i] });
+            }
+        }
+        self.cdf.resize(self.xs.len(), 0.0);
+        ln_1p_slice(&self.xs, &mut self.cdf);
         self.p_first.clear();
         self.gains.clear();
         let (mut survive, mut loss) = (1.0, 0.0);
-        for &oi in o {
+        for (&oi, ln_1p) in o.iter().zip(self.cdf.chunks_exact(2)) {
             let q = 1.0 - oi;
+            let kl = |i: usize| {
+                let f = if oi <= q {
+                    oi * deltas[i] / (q + oi * deltas[i]) * ln_deltas[i] - ln_1p[i]
+                } else {
+                    -ln_1p[i] - q / (q + oi * deltas[i]) * ln_deltas[i]
+                };
+                f.max(0.0)
+            };
             self.p_first.push(oi * survive);
             survive *= q;
-            self.gains.push(loss + kl_of_prob(d_occ, ln_occ, oi, q));
-            loss += kl_of_prob(d_emp, ln_emp, oi, q);
+            self.gains.push(loss + kl(0));
+            loss += kl(1);
         }
         self.gains.push(loss);
         self.p_none = survive;
@@ -244,7 +271,7 @@ pub fn julian_beam_mi(
     beam_mi(&mut BeamTerms::new(), o, edges, params, variant)
 }
 
-/// Exact FSMI (nats), O(n²) per beam.
+/// Exact FSMI (nats): see [`FsmiVariant::Full`].
 pub fn fsmi_beam(o: &[f64], edges: &[f64], params: &OgmiParams) -> Result<f64> {
     beam_mi(&mut BeamTerms::new(), o, edges, params, FsmiVariant::Full)
 }
@@ -304,30 +331,13 @@ fn beam_mi_unchecked(
     let n = o.len();
     let (p, c) = (&terms.p_first, &terms.gains);
     let max_range = terms.p_none * c[n];
-    let mid = |j: usize| 0.5 * (edges[j] + edges[j + 1]);
-    let inv_sigma = 1.0 / params.sigma;
     let body = match variant {
         FsmiVariant::NoiseFree => p.iter().zip(c).map(|(pj, cj)| pj * cj).sum(),
-        FsmiVariant::Full => (0..n)
-            .filter(|&j| p[j] > 0.0)
-            .map(|j| p[j] * gaussian_expectation(edges, c, mid(j), inv_sigma, 0, n - 1))
-            .sum(),
+        // Beyond CDF_SATURATION σ, Φ is exactly 0 or 1 in double precision, so every G_kj outside
+        // that window is exactly 0: the full sum is the window's.
+        FsmiVariant::Full => terms.windowed_sum(edges, params.sigma, CDF_SATURATION, true),
         FsmiVariant::Truncated { width_sigmas } => {
-            let reach = width_sigmas * params.sigma;
-            let (mut lo, mut hi, mut sum) = (0, 0, 0.0);
-            for j in 0..n {
-                // Window: cells within `reach` of cell j's span; both ends only move forward.
-                while edges[lo + 1] <= edges[j] - reach {
-                    lo += 1;
-                }
-                while hi + 1 < n && edges[hi + 1] < edges[j + 1] + reach {
-                    hi += 1;
-                }
-                if p[j] > 0.0 {
-                    sum += p[j] * gaussian_expectation(edges, c, mid(j), inv_sigma, lo, hi);
-                }
-            }
-            sum
+            terms.windowed_sum(edges, params.sigma, width_sigmas, false)
         }
         FsmiVariant::Julian { points_per_cell } => {
             julian_integral(p, c, edges, params.sigma, points_per_cell)
@@ -340,30 +350,59 @@ fn beam_mi_unchecked(
 /// to 1): skipping erfc there changes nothing.
 const CDF_SATURATION: f64 = 8.5;
 
-/// Σ_{k=lo}^{hi} C_k G_kj for a Gaussian at `mu`, by summation by parts over the edges so that
-/// each edge's Φ is evaluated once (hi − lo + 2 evaluations).
-#[inline]
-fn gaussian_expectation(
-    edges: &[f64],
-    c: &[f64],
-    mu: f64,
-    inv_sigma: f64,
-    lo: usize,
-    hi: usize,
-) -> f64 {
-    let cdf = |e: usize| {
-        let x = (edges[e] - mu) * inv_sigma;
-        if x.abs() > CDF_SATURATION {
-            f64::from(u8::from(x > 0.0))
-        } else {
-            normal_cdf_fast(x)
+impl BeamTerms {
+    /// Σ_j P_j Σ_{k ∈ W_j} C_k G_kj (nats) over the filled terms, W_j being the cells less than
+    /// `width_sigmas`·σ away from cell j's span, or from its centre μ_j when `from_centre`
+    /// (the cells that can hold reading mass when Φ saturates there). Each inner sum is taken by parts over the edges
+    /// (each edge's Φ once: |W_j| + 1 evaluations), and all the Φ of the beam in one vectorised
+    /// pass ([`normal_cdf_slice`]).
+    fn windowed_sum(
+        &mut self,
+        edges: &[f64],
+        sigma: f64,
+        width_sigmas: f64,
+        from_centre: bool,
+    ) -> f64 {
+        let (p, c) = (&self.p_first, &self.gains);
+        let n = p.len();
+        let (reach, inv_sigma) = (width_sigmas * sigma, 1.0 / sigma);
+        self.xs.clear();
+        self.windows.clear();
+        let (mut lo, mut hi) = (0, 0);
+        for j in 0..n {
+            let mu = 0.5 * (edges[j] + edges[j + 1]);
+            let (from, to) = if from_centre {
+                (mu, mu)
+            } else {
+                (edges[j], edges[j + 1])
+            };
+            // Both ends of the window only move forward with j.
+            while edges[lo + 1] <= from - reach {
+                lo += 1;
+            }
+            while hi + 1 < n && edges[hi + 1] < to + reach {
+                hi += 1;
+            }
+            if p[j] > 0.0 {
+                self.windows.push((j, lo, hi));
+                self.xs
+                    .extend(edges[lo..=hi + 1].iter().map(|&e| (e - mu) * inv_sigma));
+            }
         }
-    };
-    let mut acc = c[hi] * cdf(hi + 1) - c[lo] * cdf(lo);
-    for e in lo + 1..=hi {
-        acc += (c[e - 1] - c[e]) * cdf(e);
+        self.cdf.resize(self.xs.len(), 0.0);
+        normal_cdf_slice(&self.xs, &mut self.cdf);
+        let (mut sum, mut at) = (0.0, 0);
+        for &(j, lo, hi) in &self.windows {
+            let cdf = &self.cdf[at..at + hi - lo + 2];
+            at += hi - lo + 2;
+            let mut acc = c[hi] * cdf[hi + 1 - lo] - c[lo] * cdf[0];
+            for e in lo + 1..=hi {
+                acc += (c[e - 1] - c[e]) * cdf[e - lo];
+            }
+            sum += p[j] * acc;
+        }
+        sum
     }
-    acc
 }
 
 /// ∫ p(z) C_{k(z)} dz over the cells by the midpoint rule; p(z) is summed over all j at each
@@ -475,25 +514,43 @@ impl Fsmi {
         &self,
         map: &OccupancyLattice,
         pose: [f64; 3],
-        mut factors: Option<&mut Vec<(usize, f64)>>,
+        factors: Option<&mut Vec<(usize, f64)>>,
     ) -> Result<f64> {
         self.validate()?;
         let origin = lattice_origin(map, &pose)?;
+        thread_local! {
+            static SCRATCH: std::cell::RefCell<ScanScratch> = std::cell::RefCell::default();
+        }
+        SCRATCH.with(|sc| Ok(self.scan_with(map, origin, pose[2], factors, &mut sc.borrow_mut())))
+    }
+
+    /// [`Self::scan`] after its checks, in reusable buffers.
+    fn scan_with(
+        &self,
+        map: &OccupancyLattice,
+        origin: [f64; 2],
+        heading: f64,
+        mut factors: Option<&mut Vec<(usize, f64)>>,
+        sc: &mut ScanScratch,
+    ) -> f64 {
         let (ln_occ, ln_emp) = (self.params.delta_occ.ln(), self.params.delta_emp.ln());
-        let mut cells: Vec<LatticeCell> = Vec::with_capacity(64);
-        let (mut o, mut edges) = (Vec::with_capacity(64), Vec::with_capacity(65));
-        let mut terms = BeamTerms::new();
+        let ScanScratch {
+            cells,
+            o,
+            edges,
+            terms,
+        } = sc;
         let mut total = 0.0;
-        for angle in self.beam_angles.angles(self.n_beams, pose[2]) {
-            traverse_lattice(map, origin, angle, self.params.z_max, &mut cells);
+        for angle in self.beam_angles.angles(self.n_beams, heading) {
+            traverse_lattice(map, origin, angle, self.params.z_max, cells);
             o.clear();
             edges.clear();
-            for cell in &cells {
+            for cell in cells.iter() {
                 o.push(map.get(cell.id));
                 edges.push(cell.t_in);
             }
             edges.push(cells.last().map_or(0.0, |c| c.t_out));
-            total += beam_mi_unchecked(&mut terms, &o, &edges, &self.params, self.variant);
+            total += beam_mi_unchecked(terms, o, edges, &self.params, self.variant);
             if let Some(out) = factors.as_deref_mut() {
                 let hit = o.iter().position(|&p| p > self.p_occ);
                 for (i, cell) in cells.iter().enumerate() {
@@ -505,8 +562,17 @@ impl Fsmi {
                 }
             }
         }
-        Ok(total)
+        total
     }
+}
+
+/// The per-thread buffers of [`Fsmi`]'s scans.
+#[derive(Debug, Default)]
+struct ScanScratch {
+    cells: Vec<LatticeCell>,
+    o: Vec<f64>,
+    edges: Vec<f64>,
+    terms: BeamTerms,
 }
 
 impl InformationFunction for Fsmi {
@@ -523,6 +589,16 @@ impl InformationFunction for Fsmi {
 
     fn units(&self) -> InfoUnits {
         InfoUnits::Nats
+    }
+
+    fn gain(
+        &self,
+        map: &OccupancyLattice,
+        _parent: &(),
+        candidate: &Candidate,
+        _seed: u64,
+    ) -> Result<f64> {
+        self.scan(map, candidate.pose, None)
     }
 
     fn evaluate(
