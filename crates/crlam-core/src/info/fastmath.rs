@@ -5,6 +5,32 @@ use std::sync::OnceLock;
 
 use crate::sensor::normal_cdf;
 
+/// `pub fn $name(args)`: runs `$body(args)` compiled for AVX2 (as `$avx`) when the CPU has it, and
+/// the baseline build of the same body otherwise. The bodies are plain loops that the compiler
+/// vectorises without FMA contraction, so both builds give the same results.
+macro_rules! avx2_dispatch {
+    ($(#[$doc:meta])* $name:ident, $avx:ident, $body:ident, ($($arg:ident: $ty:ty),*)) => {
+        $(#[$doc])*
+        pub fn $name($($arg: $ty),*) {
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2, checked just above.
+                    unsafe { $avx($($arg),*) };
+                    return;
+                }
+            }
+            $body($($arg),*);
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        unsafe fn $avx($($arg: $ty),*) {
+            $body($($arg),*);
+        }
+    };
+}
+
 /// Table spacing of [`normal_cdf_fast`] (in σ units).
 const STEP: f64 = 1.0 / 32.0;
 /// Φ is tabulated on [−LIMIT, 0]; beyond, Φ(−8.5) < 1e-17 is taken as 0 (and Φ(u) = 1 − Φ(−u)).
@@ -260,24 +286,11 @@ pub fn ln_normal(x: f64) -> f64 {
     e * std::f64::consts::LN_2 + 2.0 * s * poly
 }
 
-/// ln(1 + x) of every `xs[i]` into `out[i]` for x > −1 with 1 + x normal, to within a few ulp,
-/// in one pass that vectorises like [`ln_clamped_slice`]: u = 1 + x rounded, then
-/// ln(1 + x) = ln(u) · x/(u − 1), which cancels u's rounding error (x itself when u = 1).
-pub fn ln_1p_slice(xs: &[f64], out: &mut [f64]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            unsafe { ln_1p_slice_avx2(xs, out) };
-            return;
-        }
-    }
-    ln_1p_slice_body(xs, out);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn ln_1p_slice_avx2(xs: &[f64], out: &mut [f64]) {
-    ln_1p_slice_body(xs, out);
+avx2_dispatch! {
+    /// ln(1 + x) of every `xs[i]` into `out[i]` for x > −1 with 1 + x normal, to within a few ulp,
+    /// in one pass that vectorises like [`ln_clamped_slice`]: u = 1 + x rounded, then
+    /// ln(1 + x) = ln(u) · x/(u − 1), which cancels u's rounding error (x itself when u = 1).
+    ln_1p_slice, ln_1p_slice_avx2, ln_1p_slice_body, (xs: &[f64], out: &mut [f64])
 }
 
 #[inline(always)]
@@ -340,25 +353,11 @@ fn exp_in_range(x: f64) -> f64 {
     poly * s1 * s2
 }
 
-/// `out[i] = ln_normal(max(xs[i], f64::MIN_POSITIVE))` over two equal-length slices. On x86-64
-/// CPUs with AVX2 the same code runs four lanes wide (the operations, hence the results, are
-/// those of [`ln_normal`]: no FMA contraction); elsewhere two lanes (SSE2) or scalar.
-pub fn ln_clamped_slice(xs: &[f64], out: &mut [f64]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked just above.
-            unsafe { ln_clamped_slice_avx2(xs, out) };
-            return;
-        }
-    }
-    ln_clamped_slice_body(xs, out);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn ln_clamped_slice_avx2(xs: &[f64], out: &mut [f64]) {
-    ln_clamped_slice_body(xs, out);
+avx2_dispatch! {
+    /// `out[i] = ln_normal(max(xs[i], f64::MIN_POSITIVE))` over two equal-length slices. On x86-64
+    /// CPUs with AVX2 the same code runs four lanes wide (the operations, hence the results, are
+    /// those of [`ln_normal`]: no FMA contraction); elsewhere two lanes (SSE2) or scalar.
+    ln_clamped_slice, ln_clamped_slice_avx2, ln_clamped_slice_body, (xs: &[f64], out: &mut [f64])
 }
 
 #[inline(always)]
@@ -368,26 +367,12 @@ fn ln_clamped_slice_body(xs: &[f64], out: &mut [f64]) {
     }
 }
 
-/// In place, x ← [`exp_fast`](x) for x ≥ −708.3 and 0 below (where e^x < 2.2e-308: the
-/// difference cannot show in a sum that has a term near 1, the use here). −∞ gives 0; inputs
-/// must not be NaN. Branch-free, so it runs four lanes wide on CPUs with AVX2 (the operations,
-/// hence the results, are those of [`exp_fast`]).
-pub fn exp_for_sums(xs: &mut [f64]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked just above.
-            unsafe { exp_for_sums_avx2(xs) };
-            return;
-        }
-    }
-    exp_for_sums_body(xs);
-}
-
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn exp_for_sums_avx2(xs: &mut [f64]) {
-    exp_for_sums_body(xs);
+avx2_dispatch! {
+    /// In place, x ← [`exp_fast`](x) for x ≥ −708.3 and 0 below (where e^x < 2.2e-308: the
+    /// difference cannot show in a sum that has a term near 1, the use here). −∞ gives 0; inputs
+    /// must not be NaN. Branch-free, so it runs four lanes wide on CPUs with AVX2 (the operations,
+    /// hence the results, are those of [`exp_fast`]).
+    exp_for_sums, exp_for_sums_avx2, exp_for_sums_body, (xs: &mut [f64])
 }
 
 #[inline(always)]
