@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -154,7 +155,7 @@ def cave_surface_seconds(*, quick: bool = False) -> dict[str, Any] | None:
     try:
         path = find_dataset("cave-map")
     except (CrlamError, FileNotFoundError) as e:
-        print(f"{SURFACE_BENCH}: skipped ({e})")
+        print(f"{SURFACE_BENCH}: skipped ({e})", file=sys.stderr)
         return None
     prior = load_map_prior(path)
     f = make_function("crmi")
@@ -203,7 +204,7 @@ def iig_run_seconds(function: str, *, quick: bool = False) -> dict[str, Any] | N
     try:
         path = find_dataset("cave-map")
     except (CrlamError, FileNotFoundError) as e:
-        print(f"iig_{function}_run_s_cave: skipped ({e})")
+        print(f"iig_{function}_run_s_cave: skipped ({e})", file=sys.stderr)
         return None
     prior = load_map_prior(path)
     f = function_for(function, mode="reference", particles=20 if quick else 100)
