@@ -83,3 +83,12 @@ def test_real_logs_harness_on_a_slice_of_aces(data_dir: Path, tmp_path: Path) ->
     assert {(r["method"], r["particles"]) for r in res["rows"]} == {("clam", 3), ("ogm", 3)}
     table = (tmp_path / "table.md").read_text()
     assert "RBPF-CLAM" in table and "RBPF-OGM" in table and "Cartographer" in table
+
+
+def test_fresh_process_jobs_run_in_spawned_workers_and_all_finish(tmp_path: Path) -> None:
+    from crlam.experiments.pool import run_jobs
+
+    jobs = [(f"j{i}", {"value": i}) for i in range(3)]
+    for workers in (1, 2):
+        done, errors = run_jobs(jobs, dict, lambda n: False, lambda n: {}, workers=workers, progress=False, fresh_process=True)
+        assert not errors and done == {f"j{i}": {"value": i} for i in range(3)}

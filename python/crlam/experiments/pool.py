@@ -38,6 +38,10 @@ def _call(fn: Callable[..., dict[str, Any]], name: str, kwargs: dict[str, Any], 
         return name, None, f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
 
 
+def _call_packed(args: tuple[Callable[..., dict[str, Any]], str, dict[str, Any], int]) -> tuple[str, Any, str | None]:
+    return _call(*args)
+
+
 def run_jobs(
     jobs: Sequence[Job],
     fn: Callable[..., dict[str, Any]],
@@ -48,9 +52,14 @@ def run_jobs(
     threads: int = 1,
     progress: bool = True,
     desc: str = "runs",
+    fresh_process: bool = False,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """Runs the unfinished jobs (``fn(**kwargs)`` must be a module-level function writing its own
-    result and returning it); returns ({name: result} of all finished jobs, {name: error})."""
+    result and returning it); returns ({name: result} of all finished jobs, {name: error}).
+
+    ``fresh_process`` runs every job in a new spawned process (also with one worker), so that
+    per-process measurements such as the peak resident memory belong to that job alone (a
+    reused worker reports the largest peak of all the jobs it ran, and more)."""
     names = [n for n, _ in jobs]
     if len(set(names)) != len(names):
         raise ValueError("job names must be unique")
@@ -71,7 +80,12 @@ def run_jobs(
             tqdm.write(f"{name} failed: {errors[name].splitlines()[0]}")
         bar.update(1)
 
-    if workers <= 1:
+    if fresh_process:
+        ctx = mp.get_context("spawn")
+        with ctx.Pool(max(workers, 1), maxtasksperchild=1) as procs:
+            for result in procs.imap_unordered(_call_packed, [(fn, n, kw, threads) for n, kw in todo]):
+                collect(*result)
+    elif workers <= 1:
         for n, kw in todo:
             collect(*_call(fn, n, kw, threads))
     else:

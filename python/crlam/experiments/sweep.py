@@ -93,5 +93,7 @@ def run_sweep(
         workers=workers,
         threads=threads,
         progress=progress,
+        # Each SLAM run reports its own peak RSS.
+        fresh_process=True,
         desc="runs",
     )
