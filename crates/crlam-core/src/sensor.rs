@@ -211,6 +211,14 @@ impl SensorModel {
         -0.5 * u * u - self.sigma_hit.ln() - LN_SQRT_2PI - self.log_trunc_norm(d)
     }
 
+    /// Cause distances d with d > lo and z_max − d > TRUNC_SIGMAS σ, where the hit density's
+    /// truncation normaliser is 1 in double precision and [`Self::hit_density`] is the plain
+    /// Gaussian: (lo, hi) with lo < d < hi.
+    pub(crate) fn untruncated_hit_range(&self) -> (f64, f64) {
+        let edge = TRUNC_SIGMAS * self.sigma_hit;
+        (edge, self.z_max - edge)
+    }
+
     /// Hit density φ̃(z; d), 0 beyond [`GAUSS_CUTOFF_SIGMAS`].
     #[inline]
     pub fn hit_density(&self, z: f64, d: f64) -> f64 {

@@ -303,6 +303,167 @@ fn ln_1p_slice_body(xs: &[f64], out: &mut [f64]) {
     }
 }
 
+/// 2^(j/128) for j = 0..127, correctly rounded (bits).
+const EXP2_TABLE: [u64; 128] = [
+    0x3ff0000000000000,
+    0x3ff0163da9fb3335,
+    0x3ff02c9a3e778061,
+    0x3ff04315e86e7f85,
+    0x3ff059b0d3158574,
+    0x3ff0706b29ddf6de,
+    0x3ff0874518759bc8,
+    0x3ff09e3ecac6f383,
+    0x3ff0b5586cf9890f,
+    0x3ff0cc922b7247f7,
+    0x3ff0e3ec32d3d1a2,
+    0x3ff0fb66affed31b,
+    0x3ff11301d0125b51,
+    0x3ff12abdc06c31cc,
+    0x3ff1429aaea92de0,
+    0x3ff15a98c8a58e51,
+    0x3ff172b83c7d517b,
+    0x3ff18af9388c8dea,
+    0x3ff1a35beb6fcb75,
+    0x3ff1bbe084045cd4,
+    0x3ff1d4873168b9aa,
+    0x3ff1ed5022fcd91d,
+    0x3ff2063b88628cd6,
+    0x3ff21f49917ddc96,
+    0x3ff2387a6e756238,
+    0x3ff251ce4fb2a63f,
+    0x3ff26b4565e27cdd,
+    0x3ff284dfe1f56381,
+    0x3ff29e9df51fdee1,
+    0x3ff2b87fd0dad990,
+    0x3ff2d285a6e4030b,
+    0x3ff2ecafa93e2f56,
+    0x3ff306fe0a31b715,
+    0x3ff32170fc4cd831,
+    0x3ff33c08b26416ff,
+    0x3ff356c55f929ff1,
+    0x3ff371a7373aa9cb,
+    0x3ff38cae6d05d866,
+    0x3ff3a7db34e59ff7,
+    0x3ff3c32dc313a8e5,
+    0x3ff3dea64c123422,
+    0x3ff3fa4504ac801c,
+    0x3ff4160a21f72e2a,
+    0x3ff431f5d950a897,
+    0x3ff44e086061892d,
+    0x3ff46a41ed1d0057,
+    0x3ff486a2b5c13cd0,
+    0x3ff4a32af0d7d3de,
+    0x3ff4bfdad5362a27,
+    0x3ff4dcb299fddd0d,
+    0x3ff4f9b2769d2ca7,
+    0x3ff516daa2cf6642,
+    0x3ff5342b569d4f82,
+    0x3ff551a4ca5d920f,
+    0x3ff56f4736b527da,
+    0x3ff58d12d497c7fd,
+    0x3ff5ab07dd485429,
+    0x3ff5c9268a5946b7,
+    0x3ff5e76f15ad2148,
+    0x3ff605e1b976dc09,
+    0x3ff6247eb03a5585,
+    0x3ff6434634ccc320,
+    0x3ff6623882552225,
+    0x3ff68155d44ca973,
+    0x3ff6a09e667f3bcd,
+    0x3ff6c012750bdabf,
+    0x3ff6dfb23c651a2f,
+    0x3ff6ff7df9519484,
+    0x3ff71f75e8ec5f74,
+    0x3ff73f9a48a58174,
+    0x3ff75feb564267c9,
+    0x3ff780694fde5d3f,
+    0x3ff7a11473eb0187,
+    0x3ff7c1ed0130c132,
+    0x3ff7e2f336cf4e62,
+    0x3ff80427543e1a12,
+    0x3ff82589994cce13,
+    0x3ff8471a4623c7ad,
+    0x3ff868d99b4492ed,
+    0x3ff88ac7d98a6699,
+    0x3ff8ace5422aa0db,
+    0x3ff8cf3216b5448c,
+    0x3ff8f1ae99157736,
+    0x3ff9145b0b91ffc6,
+    0x3ff93737b0cdc5e5,
+    0x3ff95a44cbc8520f,
+    0x3ff97d829fde4e50,
+    0x3ff9a0f170ca07ba,
+    0x3ff9c49182a3f090,
+    0x3ff9e86319e32323,
+    0x3ffa0c667b5de565,
+    0x3ffa309bec4a2d33,
+    0x3ffa5503b23e255d,
+    0x3ffa799e1330b358,
+    0x3ffa9e6b5579fdbf,
+    0x3ffac36bbfd3f37a,
+    0x3ffae89f995ad3ad,
+    0x3ffb0e07298db666,
+    0x3ffb33a2b84f15fb,
+    0x3ffb59728de5593a,
+    0x3ffb7f76f2fb5e47,
+    0x3ffba5b030a1064a,
+    0x3ffbcc1e904bc1d2,
+    0x3ffbf2c25bd71e09,
+    0x3ffc199bdd85529c,
+    0x3ffc40ab5fffd07a,
+    0x3ffc67f12e57d14b,
+    0x3ffc8f6d9406e7b5,
+    0x3ffcb720dcef9069,
+    0x3ffcdf0b555dc3fa,
+    0x3ffd072d4a07897c,
+    0x3ffd2f87080d89f2,
+    0x3ffd5818dcfba487,
+    0x3ffd80e316c98398,
+    0x3ffda9e603db3285,
+    0x3ffdd321f301b460,
+    0x3ffdfc97337b9b5f,
+    0x3ffe264614f5a129,
+    0x3ffe502ee78b3ff6,
+    0x3ffe7a51fbc74c83,
+    0x3ffea4afa2a490da,
+    0x3ffecf482d8e67f1,
+    0x3ffefa1bee615a27,
+    0x3fff252b376bba97,
+    0x3fff50765b6e4540,
+    0x3fff7bfdad9cbe14,
+    0x3fffa7c1819e90d8,
+    0x3fffd3c22b8f71f1,
+];
+
+/// Range of [`exp_table`]'s own path; outside it (and for NaN) libm's exp answers.
+const EXP_TABLE_MIN: f64 = -708.0;
+const EXP_TABLE_MAX: f64 = 709.0;
+
+/// e^x within 2 ulp, inlined and without libm's call: x = (128e + j + f)·ln2/128 with
+/// |f·ln2/128| ≤ ln2/256, e^x = 2^e · 2^(j/128) · e^r, 2^(j/128) from a correctly rounded
+/// table and e^r by its series to r⁵ (truncation below 1e-18 relative). For hot loops where a
+/// call to libm's exp is the cost; x outside [−708, 709] (or NaN) goes to libm.
+#[inline(always)]
+pub fn exp_table(x: f64) -> f64 {
+    const INV_LN2_128: f64 = 184.664_965_233_787_3;
+    // ln2/128 split so that k·HI is exact for |k| < 2¹⁸.
+    const LN2_128_HI: f64 = f64::from_bits(0x3f76_2e42_fef8_0000);
+    const LN2_128_LO: f64 = 1.265_508_608_332_543_8e-13;
+    const SHIFTER: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²: adding it rounds to an integer
+    if !(EXP_TABLE_MIN..=EXP_TABLE_MAX).contains(&x) {
+        return x.exp();
+    }
+    let z = x * INV_LN2_128 + SHIFTER;
+    let kf = z - SHIFTER;
+    let k = (z.to_bits() as i64).wrapping_sub(SHIFTER.to_bits() as i64);
+    let r = (x - kf * LN2_128_HI) - kf * LN2_128_LO;
+    // 2^e · 2^(j/128) by adding e to the table entry's exponent (e ∈ [−1022, 1022] here).
+    let t = f64::from_bits(EXP2_TABLE[(k & 127) as usize].wrapping_add(((k >> 7) as u64) << 52));
+    let r2 = r * r;
+    let p = (1.0 + r) + r2 * ((0.5 + r * (1.0 / 6.0)) + r2 * (1.0 / 24.0 + r * (1.0 / 120.0)));
+    t * p
+}
+
 /// e^x to within a few ulp for x ≤ 709.7, branch-light and libm-free: x = n ln 2 + r with
 /// |r| ≤ ½ ln 2 (Cody–Waite split of ln 2), e^r by its Taylor series to r¹³ (truncation below
 /// 1e-17 relative) in Estrin's scheme, scaled by 2ⁿ through the exponent bits. Results that
@@ -476,6 +637,31 @@ mod tests {
             let want = if *x < -708.3 { 0.0 } else { exp_fast(*x) };
             assert_eq!(o.to_bits(), want.to_bits(), "{x}");
         }
+    }
+
+    #[test]
+    fn table_exp_is_within_two_ulp_of_libm() {
+        let mut rng = crate::rng::Rng::new(6);
+        let mut worst: f64 = 0.0;
+        for i in 0..400_000 {
+            let x = match i % 4 {
+                0 => rng.uniform() * 1417.0 - 708.0,
+                1 => (rng.uniform() - 0.5) * 1e-6,
+                2 => -rng.uniform() * 40.0,
+                _ => (rng.uniform() - 0.5) * 4.0,
+            };
+            let (a, b) = (exp_table(x), x.exp());
+            worst = worst.max((a - b).abs() / b);
+        }
+        assert!(worst < 4.5e-16, "{worst}");
+        for x in [0.0, -0.0, 1.0, -708.0, 709.0, -708.5, 709.5, -800.0, 800.0] {
+            let (a, b) = (exp_table(x), x.exp());
+            assert!(a == b || (a - b).abs() <= 4.5e-16 * b, "{x}: {a} vs {b}");
+        }
+        assert_eq!(exp_table(0.0), 1.0);
+        assert_eq!(exp_table(f64::NEG_INFINITY), 0.0);
+        assert_eq!(exp_table(f64::INFINITY), f64::INFINITY);
+        assert!(exp_table(f64::NAN).is_nan());
     }
 
     #[test]
