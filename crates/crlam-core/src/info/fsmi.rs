@@ -41,14 +41,30 @@ pub fn kl_factor(delta: f64, r: f64) -> f64 {
 /// precision. Both branches are sums of O(min(o, q)) terms, so nothing cancels at r → 0 or ∞.
 #[inline]
 fn kl_of_prob(delta: f64, ln_delta: f64, o: f64, q: f64) -> f64 {
+    kl_with_log(delta, ln_delta, o, q, kl_log_arg(delta, o, q).ln_1p())
+}
+
+/// The x of the ln(1 + x) that [`kl_of_prob`] needs for (δ, o, q).
+#[inline]
+fn kl_log_arg(delta: f64, o: f64, q: f64) -> f64 {
+    if o <= q {
+        o * (delta - 1.0)
+    } else {
+        q * (1.0 / delta - 1.0)
+    }
+}
+
+/// [`kl_of_prob`] given `ln_1p` = ln(1 + [`kl_log_arg`]).
+#[inline]
+fn kl_with_log(delta: f64, ln_delta: f64, o: f64, q: f64, ln_1p: f64) -> f64 {
     let f = if o <= q {
         // f = p′ ln δ − ln(1 + o(δ − 1)), p′ the updated occupancy.
         let post = o * delta / (q + o * delta);
-        post * ln_delta - (o * (delta - 1.0)).ln_1p()
+        post * ln_delta - ln_1p
     } else {
         // f = −ln(1 + q(1/δ − 1)) − (1 − p′) ln δ.
         let post_free = q / (q + o * delta);
-        -(q * (1.0 / delta - 1.0)).ln_1p() - post_free * ln_delta
+        -ln_1p - post_free * ln_delta
     };
     f.max(0.0)
 }
@@ -167,15 +183,11 @@ impl BeamTerms {
     fn fill(&mut self, o: &[f64], params: &OgmiParams) {
         let deltas = [params.delta_occ, params.delta_emp];
         let ln_deltas = deltas.map(f64::ln);
-        // kl_of_prob's two branches need ln(1 + x) of x = o(δ − 1) (o ≤ ½) or q(1/δ − 1)
-        // (q = 1 − o < ½): all of a beam's arguments first, then one vectorised pass of logs.
-        let (up, down) = (deltas.map(|d| d - 1.0), deltas.map(|d| 1.0 / d - 1.0));
+        // The ln(1 + x) of both KL terms of every cell first, in one vectorised pass.
         self.xs.clear();
         for &oi in o {
             let q = 1.0 - oi;
-            for i in 0..2 {
-                self.xs.push(if oi <= q { oi * up[i] } else { q * down[i] });
-            }
+            self.xs.extend(deltas.map(|d| kl_log_arg(d, oi, q)));
         }
         self.cdf.resize(self.xs.len(), 0.0);
         ln_1p_slice(&self.xs, &mut self.cdf);
@@ -184,14 +196,7 @@ impl BeamTerms {
         let (mut survive, mut loss) = (1.0, 0.0);
         for (&oi, ln_1p) in o.iter().zip(self.cdf.chunks_exact(2)) {
             let q = 1.0 - oi;
-            let kl = |i: usize| {
-                let f = if oi <= q {
-                    oi * deltas[i] / (q + oi * deltas[i]) * ln_deltas[i] - ln_1p[i]
-                } else {
-                    -ln_1p[i] - q / (q + oi * deltas[i]) * ln_deltas[i]
-                };
-                f.max(0.0)
-            };
+            let kl = |i: usize| kl_with_log(deltas[i], ln_deltas[i], oi, q, ln_1p[i]);
             self.p_first.push(oi * survive);
             survive *= q;
             self.gains.push(loss + kl(0));
@@ -352,10 +357,10 @@ const CDF_SATURATION: f64 = 8.5;
 
 impl BeamTerms {
     /// Σ_j P_j Σ_{k ∈ W_j} C_k G_kj (nats) over the filled terms, W_j being the cells less than
-    /// `width_sigmas`·σ away from cell j's span, or from its centre μ_j when `from_centre`
-    /// (the cells that can hold reading mass when Φ saturates there). Each inner sum is taken by parts over the edges
-    /// (each edge's Φ once: |W_j| + 1 evaluations), and all the Φ of the beam in one vectorised
-    /// pass ([`normal_cdf_slice`]).
+    /// `width_sigmas`·σ away from cell j's span, or from its centre μ_j when `from_centre` (the
+    /// cells that can hold reading mass when Φ saturates there). Each inner sum is taken by parts
+    /// over the edges (each edge's Φ once: |W_j| + 1 evaluations), and all the Φ of the beam in
+    /// one vectorised pass ([`normal_cdf_slice`]).
     fn windowed_sum(
         &mut self,
         edges: &[f64],
