@@ -46,7 +46,8 @@ impl BeamChannel {
         let z_max = m.z_max;
         // Bins that can carry hit mass: within SUPPORT_SIGMAS of d_l.
         let reach = SUPPORT_SIGMAS * sig;
-        let bin_of = |z: f64| ((z / cfg.lambda_z).floor().max(0.0) as usize).min(q_n - 1);
+        // `as usize` truncates toward 0 and saturates negatives at 0: floor, clamped at bin 0.
+        let bin_of = |z: f64| ((z / cfg.lambda_z) as usize).min(q_n - 1);
         // Tail-aware CDFs at every support edge of every cell, in one vectorised pass.
         self.tail_u.clear();
         if w_h > 0.0 {
