@@ -21,7 +21,7 @@ use crate::grid::check_pose;
 pub use crate::info::crmi_channel::{
     beam_crmi, beam_posteriors, channel_masses, BeamChannel, BeamPosteriors,
 };
-use crate::info::crmi_channel::{posterior_entropy, sweep, EntropyBatch};
+use crate::info::crmi_channel::{posterior_kl, sweep, KlBatch};
 use crate::info::fastmath::ln_clamped_slice;
 use crate::info::lattice::BeamAngles;
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
@@ -171,54 +171,56 @@ pub struct CrmiScratch {
     probs: Vec<f64>,
     log_p: Vec<f64>,
     mhat: Vec<f64>,
-    h: Vec<f64>,
-    exp_h: Vec<f64>,
+    /// Σ_q P(q) KL(p'_l(q) ‖ p_l) per cell.
+    kl: Vec<f64>,
+    /// Σ_q P(q) α_l(q) per cell (midpoint quadrature only).
+    eta_alpha: Vec<f64>,
     col: Vec<f64>,
     alpha: Vec<f64>,
     s: Vec<f64>,
     s2: Vec<f64>,
     reach: Vec<f64>,
     p_free: Vec<f64>,
-    p_same: Vec<f64>,
     dist: Vec<f64>,
     cells: Vec<(i64, i64)>,
     per_cell: Vec<f64>,
     pose_cells: Vec<((i64, i64), f64)>,
-    batch: EntropyBatch,
+    batch: KlBatch,
 }
 
 /// Pooled per-cell MI (nats) of one beam into `sc.per_cell`, from `sc.probs` (N × K), `sc.dist`.
+///
+/// The MI of a cell is the expected divergence of its posterior from its prior,
+/// I_l = Σ_q P(q) KL(p'_l(q) ‖ p_l), equal to H(p_l) − Σ_q P(q) H(p'_l(q)) because the exact
+/// channel is normalised (Σ_q P(q) = 1) and Bayes-consistent (Σ_q P(q) p'_l(q) = p_l). In this
+/// form a bin that leaves a cell unchanged (α = 0) contributes nothing and no ln p is needed.
+/// The midpoint quadrature renormalises P(q), which breaks both identities: there the entropy
+/// difference is rebuilt from the same sums, H(p'_l(q)) = −(A_l + α B_l)/s − KL with
+/// A_l = Σ_i p_i ln p_i and B_l = Σ_i p_i (μ_i − m̂_l) ln p_i (s = 1 up to rounding).
 fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
     let k = mu.len();
     let n = sc.dist.len();
     sc.channel.build(cfg, &sc.dist);
     let q_n = cfg.n_bins();
     let pure_hit = cfg.model.kind == SensorModelKind::Ijrr;
+    let midpoint = cfg.quadrature == CrmiQuadrature::Midpoint;
     let ch = &sc.channel;
     sc.mhat.clear();
-    sc.h.clear();
     sc.reach.clear();
-    // Pmf entries are 0 or positive normal numbers (widened from f32). A zero entry gets the
-    // finite ln(MIN_POSITIVE), which only ever multiplies its own zero weight.
-    sc.log_p.resize(sc.probs.len(), 0.0);
-    ln_clamped_slice(&sc.probs, &mut sc.log_p);
     let mut reach = 1.0;
     for l in 0..n {
         let p = &sc.probs[l * k..(l + 1) * k];
-        let lp = &sc.log_p[l * k..(l + 1) * k];
         let m: f64 = (0..k).map(|i| mu[i] * p[i]).sum();
         sc.mhat.push(m);
         sc.reach.push(reach);
         reach *= 1.0 - m;
-        let h: f64 = -(0..k).map(|i| p[i] * lp[i]).sum::<f64>();
-        sc.h.push(h);
     }
-    sc.exp_h.clear();
-    sc.exp_h.resize(n, 0.0);
+    sc.kl.clear();
+    sc.kl.resize(n, 0.0);
+    sc.eta_alpha.clear();
+    sc.eta_alpha.resize(n, 0.0);
     sc.p_free.clear();
     sc.p_free.resize(n + 1, 0.0);
-    sc.p_same.clear();
-    sc.p_same.resize(n + 1, 0.0);
     sc.col.resize(n, 0.0);
     sc.alpha.resize(n, 0.0);
     sc.s.resize(n, 0.0);
@@ -237,7 +239,7 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
             }
             continue;
         }
-        let (first, last) = if pure_hit && q < q_n {
+        let range = if pure_hit && q < q_n {
             // Cells whose hit support contains bin q: a window that only moves forward with q.
             while lo < n && ch.support[lo].1 < q {
                 lo += 1;
@@ -260,21 +262,21 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
             let eta = sc.reach[lo] * s_acc;
             if eta >= LINEAR_ETA_MIN {
                 let inv = 1.0 / eta;
-                for l in lo..hi {
-                    sc.alpha[l] = sc.reach[l] * (ch.like[l * w + q] - sc.s[l]) * inv;
-                }
                 total += eta;
+                // Cells before the window see this bin as "free" (pooled below); cells after it
+                // are left unchanged (α = 0) and gain nothing from it.
                 sc.p_free[lo] += eta;
-                sc.p_same[hi] += eta;
                 for l in lo..hi {
-                    sc.batch.push(l, eta, mu, sc.alpha[l], sc.mhat[l]);
+                    let a = sc.reach[l] * (ch.like[l * w + q] - sc.s[l]) * inv;
+                    sc.eta_alpha[l] += eta * a;
+                    sc.batch.push(l, eta, mu, a, sc.mhat[l]);
                 }
                 continue;
             }
             // Underflow: the generic sweep below has the log-space fallback.
-            (lo, hi)
+            lo..hi
         } else {
-            (0, n)
+            0..n
         };
         for l in 0..n {
             sc.col[l] = ch.like[l * w + q];
@@ -285,64 +287,48 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
         }
         total += eta;
         if pure_hit && q < q_n {
-            sc.p_free[first] += eta;
-            sc.p_same[last] += eta;
+            sc.p_free[range.start] += eta;
         }
-        let range = if pure_hit && q < q_n {
-            first..last
-        } else {
-            0..n
-        };
         // Queued pairs first, so that every cell's sum keeps the bin order.
-        sc.batch.flush(&sc.probs, &sc.log_p, k, &mut sc.exp_h);
+        sc.batch.flush(&sc.probs, k, &mut sc.kl);
         for l in range {
             let p = &sc.probs[l * k..(l + 1) * k];
-            let lp = &sc.log_p[l * k..(l + 1) * k];
-            sc.exp_h[l] += eta * posterior_entropy(p, lp, mu, sc.alpha[l], sc.mhat[l]);
+            sc.eta_alpha[l] += eta * sc.alpha[l];
+            sc.kl[l] += eta * posterior_kl(p, mu, sc.alpha[l], sc.mhat[l]);
         }
     }
-    sc.batch.flush(&sc.probs, &sc.log_p, k, &mut sc.exp_h);
-    // Cell l sees "free" from every bin whose window starts after l and is untouched by every
-    // bin whose window ends at or before l: suffix and prefix sums of the per-bin masses.
     if pure_hit {
-        let mut acc = 0.0;
+        // Cell l sees "free" from every bin whose window starts after l (a suffix sum of the
+        // per-bin masses): one posterior per cell, α = −1/(1 − m̂).
+        let mut pf = 0.0;
         for l in (0..n).rev() {
-            acc += sc.p_free[l + 1];
-            sc.p_free[l + 1] = acc;
-        }
-        let mut acc = 0.0;
-        for l in 0..=n {
-            acc += sc.p_same[l];
-            sc.p_same[l] = acc;
-        }
-    }
-    let renorm = if cfg.quadrature == CrmiQuadrature::Midpoint && total > 0.0 {
-        1.0 / total
-    } else {
-        1.0
-    };
-    if pure_hit {
-        // The pooled "free" bins: one posterior per cell, α = −1/(1 − m̂).
-        for l in 0..n {
-            let pf = sc.p_free[l + 1];
+            pf += sc.p_free[l + 1];
             if pf > 0.0 {
                 let a = -1.0 / (1.0 - sc.mhat[l]).max(1e-300);
+                sc.eta_alpha[l] += pf * a;
                 sc.batch.push(l, pf, mu, a, sc.mhat[l]);
             }
         }
-        sc.batch.flush(&sc.probs, &sc.log_p, k, &mut sc.exp_h);
     }
+    sc.batch.flush(&sc.probs, k, &mut sc.kl);
     sc.per_cell.clear();
+    if !midpoint {
+        sc.per_cell.extend_from_slice(&sc.kl);
+        return;
+    }
+    // I = H − r Σ_q η_q H'_q with H = −A, H'_q = −A − α_q B − KL_q and r = 1 / Σ_q η_q.
+    let renorm = if total > 0.0 { 1.0 / total } else { 1.0 };
+    // Pmf entries are 0 or positive normal numbers (widened from f32). A zero entry gets the
+    // finite ln(MIN_POSITIVE), which only ever multiplies its own zero weight.
+    sc.log_p.resize(sc.probs.len(), 0.0);
+    ln_clamped_slice(&sc.probs, &mut sc.log_p);
     for l in 0..n {
-        let mut e = sc.exp_h[l];
-        if pure_hit {
-            e += sc.p_same[l] * sc.h[l];
-        }
-        let mut i = sc.h[l] - renorm * e;
-        if cfg.quadrature == CrmiQuadrature::Midpoint {
-            i = i.max(0.0);
-        }
-        sc.per_cell.push(i);
+        let (p, lp) = (&sc.probs[l * k..(l + 1) * k], &sc.log_p[l * k..(l + 1) * k]);
+        let m = sc.mhat[l];
+        let a: f64 = (0..k).map(|i| p[i] * lp[i]).sum();
+        let b: f64 = (0..k).map(|i| p[i] * (mu[i] - m) * lp[i]).sum();
+        let expected_h = -(a * total + b * sc.eta_alpha[l] + sc.kl[l]);
+        sc.per_cell.push((-a - renorm * expected_h).max(0.0));
     }
 }
 

@@ -268,117 +268,93 @@ fn posterior(p: &[f64], mu: &[f64], alpha: f64, mhat: f64, out: &mut [f64]) {
     }
 }
 
-/// Levels processed per block by [`posterior_entropy`] (K may be larger: blocks repeat).
-const LEVEL_BLOCK: usize = 16;
-
-/// Entropy (nats) of p ⊙ f / Σ given log p, with f_i = 1 + α(μ_i − m̂) clipped at 0. Written
-/// branch-free over blocks of levels so that the compiler can vectorise the logarithms.
+/// KL(p' ‖ p) (nats) of the posterior p' = p ⊙ f / s, with f_i = max(1 + α(μ_i − m̂), 0) and
+/// s = Σ_i p_i f_i: Σ_i p_i f_i ln f_i / s − ln s. A bin's posterior never needs ln p.
 #[inline]
-pub(crate) fn posterior_entropy(
-    p: &[f64],
-    log_p: &[f64],
-    mu: &[f64],
-    alpha: f64,
-    mhat: f64,
-) -> f64 {
-    let mut sum = 0.0;
-    let mut acc = 0.0;
-    let mut f = [1.0f64; LEVEL_BLOCK];
-    for start in (0..p.len()).step_by(LEVEL_BLOCK) {
-        let len = (p.len() - start).min(LEVEL_BLOCK);
-        let (pb, lb, mb) = (
-            &p[start..start + len],
-            &log_p[start..start + len],
-            &mu[start..start + len],
-        );
-        for i in 0..len {
-            f[i] = (1.0 + alpha * (mb[i] - mhat)).max(0.0);
-        }
-        let mut lf = [0.0f64; LEVEL_BLOCK];
-        for i in 0..len {
-            // A clipped factor has zero weight; its log only needs to be finite.
-            lf[i] = ln_normal(f[i].max(f64::MIN_POSITIVE));
-        }
-        for i in 0..len {
-            let w = pb[i] * f[i];
-            sum += w;
-            acc += w * (lb[i] + lf[i]);
-        }
+pub(crate) fn posterior_kl(p: &[f64], mu: &[f64], alpha: f64, mhat: f64) -> f64 {
+    let (mut s, mut g) = (0.0, 0.0);
+    for i in 0..p.len() {
+        let f = (1.0 + alpha * (mu[i] - mhat)).max(0.0);
+        // A clipped factor has zero weight; its log only needs to be finite.
+        let w = p[i] * f;
+        s += w;
+        g += w * ln_normal(f.max(f64::MIN_POSITIVE));
     }
-    if sum > 0.0 {
-        sum.ln() - acc / sum
+    kl_from_sums(s, g)
+}
+
+/// (Σ_i p_i f_i, Σ_i p_i f_i lf_i) over even and odd levels separately, so that the two
+/// K-long accumulations are not one dependency chain each.
+#[inline(always)]
+fn weighted_sums(p: &[f64], f: &[f64], lf: &[f64]) -> (f64, f64) {
+    let (mut s0, mut s1, mut g0, mut g1) = (0.0, 0.0, 0.0, 0.0);
+    let k = p.len();
+    let (p, f, lf) = (&p[..k], &f[..k], &lf[..k]);
+    let mut i = 0;
+    while i + 1 < k {
+        let (w0, w1) = (p[i] * f[i], p[i + 1] * f[i + 1]);
+        s0 += w0;
+        s1 += w1;
+        g0 += w0 * lf[i];
+        g1 += w1 * lf[i + 1];
+        i += 2;
+    }
+    if i < k {
+        let w = p[i] * f[i];
+        s0 += w;
+        g0 += w * lf[i];
+    }
+    (s0 + s1, g0 + g1)
+}
+
+/// Σ_i p_i f_i ln f_i / s − ln s. For a proper likelihood ratio s = 1 up to rounding, so ln s is
+/// a series (exact to 1e-20 there); 0 when the posterior vanishes.
+#[inline]
+fn kl_from_sums(s: f64, g: f64) -> f64 {
+    if s <= 0.0 {
+        return 0.0;
+    }
+    let d = s - 1.0;
+    if d.abs() < 1e-5 {
+        // Series of g/s and ln s to third order (error < 1e-20 relative): no division.
+        g * (1.0 - d * (1.0 - d * (1.0 - d))) - d * (1.0 - d * (0.5 - d * (1.0 / 3.0)))
     } else {
-        0.0
+        g / s - s.ln()
     }
 }
 
-/// Posterior entropies of many (cell, bin) pairs of one beam, evaluated together: every pair's
-/// factors are written first and their logarithms taken in one contiguous pass (which vectorises
-/// fully, unlike K = 10 logarithms at a time), then each entropy is reduced with the operations
-/// of [`posterior_entropy`] in the same order (ln Σ by [`ln_normal`] too: equal to within a few
-/// ulp).
+/// KL divergences of many (cell, bin) posteriors of one beam from their priors, evaluated
+/// together: every pair's factors are written first and their logarithms taken in one contiguous
+/// pass (which vectorises fully, unlike K = 10 logarithms at a time), then each divergence is
+/// reduced with the operations of [`posterior_kl`] in the same order (equal to within a few ulp).
 #[derive(Debug, Default)]
-pub(crate) struct EntropyBatch {
+pub(crate) struct KlBatch {
     /// K clipped factors f_i = max(1 + α(μ_i − m̂), 0) per pair.
     f: Vec<f64>,
     /// Their logarithms (of max(f, MIN_POSITIVE)).
     lf: Vec<f64>,
-    /// (cell, weight) per pair: the pair adds weight · H to `out[cell]` on flush.
+    /// (cell, weight) per pair: the pair adds weight · KL to `out[cell]` on flush.
     jobs: Vec<(usize, f64)>,
-    /// Per pair on flush: Σ_i p_i f_i, its log, and Σ_i p_i f_i (ln p_i + ln f_i).
-    sums: Vec<f64>,
-    log_sums: Vec<f64>,
-    accs: Vec<f64>,
 }
 
-impl EntropyBatch {
+impl KlBatch {
     /// Queues the posterior of `cell` (levels `mu`, mean `mhat`) under coefficient `alpha`.
     #[inline]
     pub(crate) fn push(&mut self, cell: usize, weight: f64, mu: &[f64], alpha: f64, mhat: f64) {
-        let start = self.f.len();
-        self.f.resize(start + mu.len(), 0.0);
-        for (o, &m) in self.f[start..].iter_mut().zip(mu) {
-            *o = (1.0 + alpha * (m - mhat)).max(0.0);
-        }
+        self.f
+            .extend(mu.iter().map(|&m| (1.0 + alpha * (m - mhat)).max(0.0)));
         self.jobs.push((cell, weight));
     }
 
-    /// Adds weight · H(posterior) of every queued pair to `out[cell]` (in queue order) and empties
-    /// the queue. `probs` and `log_p` hold the cells' pmfs and their logs (N × K).
-    pub(crate) fn flush(&mut self, probs: &[f64], log_p: &[f64], k: usize, out: &mut [f64]) {
-        // A clipped factor has zero weight; its log only needs to be finite.
+    /// Adds weight · KL of every queued pair to `out[cell]` (in queue order) and empties the
+    /// queue. `probs` holds the cells' pmfs (N × K).
+    pub(crate) fn flush(&mut self, probs: &[f64], k: usize, out: &mut [f64]) {
         self.lf.resize(self.f.len(), 0.0);
         ln_clamped_slice(&self.f, &mut self.lf);
-        // H = ln Σ − acc / Σ with Σ = Σ_i p_i f_i and acc = Σ_i p_i f_i (ln p_i + ln f_i); the
-        // logarithms of the sums are taken in one more contiguous pass.
-        self.sums.clear();
-        self.accs.clear();
-        self.sums.clear();
-        self.accs.clear();
-        for (j, &(l, _)) in self.jobs.iter().enumerate() {
-            let (f, lf) = (&self.f[j * k..(j + 1) * k], &self.lf[j * k..(j + 1) * k]);
-            let (p, lp) = (&probs[l * k..(l + 1) * k], &log_p[l * k..(l + 1) * k]);
-            let (mut sum, mut acc) = (0.0, 0.0);
-            for i in 0..k {
-                let w = p[i] * f[i];
-                sum += w;
-                acc += w * (lp[i] + lf[i]);
-            }
-            self.sums.push(sum);
-            self.accs.push(acc);
-        }
-        self.log_sums.resize(self.sums.len(), 0.0);
-        ln_clamped_slice(&self.sums, &mut self.log_sums);
         for (j, &(l, weight)) in self.jobs.iter().enumerate() {
-            let (sum, acc) = (self.sums[j], self.accs[j]);
-            let h = if sum >= f64::MIN_POSITIVE {
-                self.log_sums[j] - acc / sum
-            } else if sum > 0.0 {
-                sum.ln() - acc / sum
-            } else {
-                0.0
-            };
-            out[l] += weight * h;
+            let (f, lf) = (&self.f[j * k..(j + 1) * k], &self.lf[j * k..(j + 1) * k]);
+            let (s, g) = weighted_sums(&probs[l * k..(l + 1) * k], f, lf);
+            out[l] += weight * kl_from_sums(s, g);
         }
         self.f.clear();
         self.jobs.clear();
