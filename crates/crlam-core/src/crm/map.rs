@@ -2,9 +2,8 @@
 
 use crate::crm::beam::{plan_beam, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
-use crate::crm::update::{
-    apply_factor, cause_sweep, cause_sweep_log, normalize_with_floor, LINEAR_ETA_MIN,
-};
+use crate::crm::scan_cells::ScanCells;
+use crate::crm::update::{apply_factor, cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::error::{config_err, CrlamError, Result};
 use crate::grid::{check_pose, CellRect, GridGeometry, TileStats, TiledGrid};
 use crate::raycast::{traverse_with, RayCell};
@@ -49,13 +48,24 @@ pub struct CrmScratch {
     like: Vec<f64>,
     alpha: Vec<f64>,
     s: Vec<f64>,
-    // Batch accumulation: per-cell products of factors, keyed through a window or a hash map.
-    pending: Vec<(i64, i64, f64, f64)>,
-    acc_cells: Vec<(i64, i64, bool)>,
-    acc: Vec<f64>,
-    window: CellRect,
-    window_slots: Vec<u32>,
-    hashed_slots: std::collections::HashMap<(i64, i64), u32>,
+    /// Batch mode: the scan's cell table and, per gathered cell, its id there.
+    scan: ScanCells,
+    ids: Vec<usize>,
+}
+
+/// Runs `f` with this thread's reusable [`CrmScratch`] (a fresh one if it is already in use
+/// further up the stack). Reusing it across scans keeps the batch update's cell table
+/// allocated: its dense part spans the sensor range around the robot (up to 16 MB for long
+/// ranges on fine grids) and costs nothing to reuse, while allocating it per scan does.
+pub fn with_thread_scratch<R>(f: impl FnOnce(&mut CrmScratch) -> R) -> R {
+    thread_local! {
+        static SCRATCH: std::cell::RefCell<CrmScratch> =
+            std::cell::RefCell::new(CrmScratch::default());
+    }
+    SCRATCH.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut sc) => f(&mut sc),
+        Err(_) => f(&mut CrmScratch::default()),
+    })
 }
 
 /// A confidence-rich map (crm-spec 1–3). Cloning shares tiles copy-on-write.
@@ -67,9 +77,6 @@ pub struct CrmMap {
     placement: LevelPlacement,
     floor: f64,
 }
-
-/// Largest batch window (cells) kept as a dense slot table; larger scans use a hash map.
-const MAX_WINDOW_CELLS: i64 = 1 << 22;
 
 impl CrmMap {
     /// A map where every cell holds the prior.
@@ -240,16 +247,25 @@ impl CrmMap {
         (m, v, h)
     }
 
-    /// Traverses the ray of `plan`, filling `sc.cells` and `sc.mhat`. A fixed extent truncates
-    /// the ray; a hit beyond the truncation becomes a no-return over the truncated ray (2.1).
-    fn gather_ray(&self, plan: &mut BeamPlan, sc: &mut CrmScratch) {
-        let end = self.gather_cells(plan.origin, plan.angle, plan.length, sc);
+    /// Traverses the ray of `plan`, filling `sc.cells` and `sc.mhat` (and `sc.ids` if
+    /// `batch`, see [`Self::gather_cells`]). A fixed extent truncates the ray; a hit beyond the
+    /// truncation becomes a no-return over the truncated ray (2.1).
+    fn gather_ray(&self, plan: &mut BeamPlan, sc: &mut CrmScratch, batch: bool) {
+        let end = self.gather_cells(plan.origin, plan.angle, plan.length, sc, batch);
         self.truncation_to_no_return(plan, end);
     }
 
     /// Traverses a ray of `length` (clipped to a fixed extent) into `sc.cells` / `sc.mhat`;
-    /// returns where the traversal ended.
-    fn gather_cells(&self, origin: [f64; 2], angle: f64, length: f64, sc: &mut CrmScratch) -> f64 {
+    /// returns where the traversal ended. With `batch`, the means come from the scan's cell
+    /// table (each cell read once per scan) and `sc.ids` holds the cells' ids there.
+    fn gather_cells(
+        &self,
+        origin: [f64; 2],
+        angle: f64,
+        length: f64,
+        sc: &mut CrmScratch,
+        batch: bool,
+    ) -> f64 {
         sc.cells.clear();
         let g = *self.grid.geometry();
         let ext = self.grid.fixed_extent();
@@ -259,8 +275,17 @@ impl CrmMap {
             true
         });
         sc.mhat.clear();
-        for c in sc.cells.iter() {
-            sc.mhat.push(self.mean_at(c.ix, c.iy));
+        sc.ids.clear();
+        if batch {
+            for c in sc.cells.iter() {
+                let id = sc.scan.id(&self.grid, &self.mu, c.ix, c.iy);
+                sc.ids.push(id);
+                sc.mhat.push(sc.scan.mean(id));
+            }
+        } else {
+            for c in sc.cells.iter() {
+                sc.mhat.push(self.mean_at(c.ix, c.iy));
+            }
         }
         end
     }
@@ -291,10 +316,7 @@ impl CrmMap {
         if model.kind == SensorModelKind::AuthorsCode {
             return self.authors_alpha(model, plan, sc);
         }
-        sc.like.clear();
-        for c in sc.cells.iter() {
-            sc.like.push(model.on_ray_cell(z, c.t_in, c.t_out));
-        }
+        model.on_ray_cells(z, &sc.cells, &mut sc.like);
         let like_inf = model.infinity(z);
         let alpha = if need_alpha {
             Some(&mut sc.alpha[..])
@@ -390,7 +412,7 @@ impl CrmMap {
             ) else {
                 continue;
             };
-            self.gather_ray(&mut plan, sc);
+            self.gather_ray(&mut plan, sc, false);
             total += self.beam_alpha(model, &plan, sc, false);
             used += 1;
         }
@@ -433,7 +455,8 @@ impl CrmMap {
         let origin = [pose[0], pose[1]];
         let mut st = ScanStats::default();
         let (mut total, mut used) = (0.0, 0);
-        sc.pending.clear();
+        let z_max = weight_model.z_max.max(mapping_model.z_max);
+        sc.scan.begin(self.grid.geometry(), origin, z_max);
         for b in 0..angles.len() {
             let angle = pose[2] + angles[b];
             let w_plan = if b % weight_stride == 0 {
@@ -455,7 +478,7 @@ impl CrmMap {
             if w_plan.is_none() && m_plan.is_none() {
                 continue;
             }
-            let end = self.gather_cells(origin, angle, length, sc);
+            let end = self.gather_cells(origin, angle, length, sc, true);
             // The longer ray is evaluated first; the shorter one is then a prefix of it.
             let weight_first = w_plan.map_or(0.0, |p| p.length) >= m_plan.map_or(0.0, |p| p.length);
             for stage in 0..2 {
@@ -482,17 +505,14 @@ impl CrmMap {
                 }
                 st.n_used += 1;
                 st.n_no_return += usize::from(plan.no_return);
-                for (l, c) in sc.cells.iter().enumerate() {
-                    sc.pending.push((c.ix, c.iy, sc.alpha[l], sc.mhat[l]));
+                for l in 0..sc.cells.len() {
+                    sc.scan
+                        .apply(sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, &mut st);
                 }
             }
         }
-        self.flush_batch(
-            pose,
-            weight_model.z_max.max(mapping_model.z_max),
-            sc,
-            &mut st,
-        )?;
+        sc.scan
+            .write_back(&mut self.grid, self.mu.len(), self.floor)?;
         Ok((total, used, st))
     }
 
@@ -511,8 +531,10 @@ impl CrmMap {
         self.grid.prepare_scan(pose, model.z_max)?;
         let res = self.grid.geometry().resolution;
         let mut st = ScanStats::default();
-        if opts.mode == ScanUpdateMode::Batch {
-            sc.pending.clear();
+        let batch = opts.mode == ScanUpdateMode::Batch;
+        if batch {
+            sc.scan
+                .begin(self.grid.geometry(), [pose[0], pose[1]], model.z_max);
         }
         for b in (0..angles.len()).step_by(opts.beam_stride) {
             st.n_beams += 1;
@@ -530,7 +552,7 @@ impl CrmMap {
                     continue;
                 }
             };
-            self.gather_ray(&mut plan, sc);
+            self.gather_ray(&mut plan, sc, batch);
             if sc.cells.is_empty() {
                 st.n_empty_ray += 1;
                 continue;
@@ -544,8 +566,9 @@ impl CrmMap {
             st.n_no_return += usize::from(plan.no_return);
             match opts.mode {
                 ScanUpdateMode::Batch => {
-                    for (l, c) in sc.cells.iter().enumerate() {
-                        sc.pending.push((c.ix, c.iy, sc.alpha[l], sc.mhat[l]));
+                    for l in 0..sc.cells.len() {
+                        sc.scan
+                            .apply(sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, &mut st);
                     }
                 }
                 ScanUpdateMode::Sequential => {
@@ -558,8 +581,9 @@ impl CrmMap {
                 }
             }
         }
-        if opts.mode == ScanUpdateMode::Batch {
-            self.flush_batch(pose, model.z_max, sc, &mut st)?;
+        if batch {
+            sc.scan
+                .write_back(&mut self.grid, self.mu.len(), self.floor)?;
         }
         Ok(st)
     }
@@ -585,100 +609,6 @@ impl CrmMap {
         }
         Ok(true)
     }
-
-    /// Multiplies all pending factors per cell (pre-scan m̂) and writes each cell once.
-    fn flush_batch(
-        &mut self,
-        pose: [f64; 3],
-        z_max: f64,
-        sc: &mut CrmScratch,
-        st: &mut ScanStats,
-    ) -> Result<()> {
-        let k = self.mu.len();
-        let g = *self.grid.geometry();
-        let (cx, cy) = g.cell_of(pose[0], pose[1]);
-        let r = (z_max / g.resolution).ceil() as i64 + 2;
-        let window = CellRect {
-            ix0: cx - r,
-            iy0: cy - r,
-            nx: 2 * r + 1,
-            ny: 2 * r + 1,
-        };
-        let dense = (window.nx * window.ny) <= MAX_WINDOW_CELLS;
-        sc.acc_cells.clear();
-        sc.acc.clear();
-        sc.hashed_slots.clear();
-        if dense {
-            sc.window = window;
-            sc.window_slots.clear();
-            sc.window_slots.resize(window.n_cells(), 0);
-        }
-        let pending = std::mem::take(&mut sc.pending);
-        for &(ix, iy, alpha, mhat) in pending.iter() {
-            let key = if dense && window.contains(ix, iy) {
-                Some(((iy - window.iy0) * window.nx + (ix - window.ix0)) as usize)
-            } else {
-                None
-            };
-            let existing = match key {
-                Some(i) => sc.window_slots[i],
-                None => sc.hashed_slots.get(&(ix, iy)).copied().unwrap_or(0),
-            };
-            let slot = if existing == 0 {
-                let stored = self.grid.get(ix, iy);
-                let s: f64 = stored.iter().map(|&x| x as f64).sum();
-                sc.acc.extend(stored.iter().map(|&x| x as f64 / s));
-                sc.acc_cells.push((ix, iy, true));
-                let id = sc.acc_cells.len() as u32;
-                match key {
-                    Some(i) => sc.window_slots[i] = id,
-                    None => {
-                        sc.hashed_slots.insert((ix, iy), id);
-                    }
-                }
-                id
-            } else {
-                existing
-            } as usize
-                - 1;
-            if !sc.acc_cells[slot].2 {
-                st.n_frozen += 1;
-                continue;
-            }
-            let p = &mut sc.acc[slot * k..(slot + 1) * k];
-            let c0 = 1.0 - alpha * mhat;
-            let mut sum = 0.0;
-            for i in 0..k {
-                p[i] *= (c0 + alpha * self.mu[i]).max(0.0);
-                sum += p[i];
-            }
-            if !(sum > 0.0 && sum.is_finite()) {
-                // Every factor clipped: keep the pre-scan belief of this cell (crm-spec 3.6).
-                sc.acc_cells[slot].2 = false;
-                st.n_frozen += 1;
-                continue;
-            }
-            st.n_cell_updates += 1;
-            if sum < 1e-100 {
-                let inv = 1.0 / sum;
-                p.iter_mut().for_each(|x| *x *= inv);
-            }
-        }
-        sc.pending = pending;
-        for (slot, &(ix, iy, ok)) in sc.acc_cells.iter().enumerate() {
-            if !ok {
-                continue;
-            }
-            let p = &mut sc.acc[slot * k..(slot + 1) * k];
-            let s: f64 = p.iter().sum();
-            normalize_with_floor(p, s, self.floor);
-            let dst = self.grid.get_mut(ix, iy)?;
-            for i in 0..k {
-                dst[i] = p[i] as f32;
-            }
-        }
-        Ok(())
-    }
 }
 
 /// Cuts a gathered ray to `length`: drops cells that start at or beyond it and ends the last
@@ -691,6 +621,7 @@ fn truncate_ray(sc: &mut CrmScratch, length: f64) {
         .count();
     sc.cells.truncate(keep);
     sc.mhat.truncate(keep);
+    sc.ids.truncate(keep);
     if let Some(last) = sc.cells.last_mut() {
         last.t_out = last.t_out.min(length);
     }

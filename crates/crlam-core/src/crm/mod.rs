@@ -3,8 +3,9 @@
 pub mod beam;
 pub mod levels;
 pub mod map;
+mod scan_cells;
 pub mod update;
 
 pub use beam::{BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
 pub use levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
-pub use map::{CrmConfig, CrmMap, CrmScratch};
+pub use map::{with_thread_scratch, CrmConfig, CrmMap, CrmScratch};

@@ -23,7 +23,7 @@ use rayon::prelude::*;
 
 use crate::crm::beam::plan_beam;
 use crate::crm::update::LINEAR_ETA_MIN;
-use crate::crm::{CrmMap, CrmScratch, ScanOptions};
+use crate::crm::{with_thread_scratch, CrmMap, CrmScratch, ScanOptions};
 use crate::error::{CrlamError, Result};
 use crate::grid::{check_pose, CellRect};
 use crate::info::fastmath::exp_table;
@@ -249,9 +249,7 @@ impl<'a> SharedMapLikelihood<'a> {
     ) -> Result<Vec<f64>> {
         poses
             .par_iter()
-            .map_init(CrmScratch::default, |sc, &p| {
-                self.scan_log_likelihood(p, angles, ranges, sc)
-            })
+            .map(|&p| with_thread_scratch(|sc| self.scan_log_likelihood(p, angles, ranges, sc)))
             .collect()
     }
 }

@@ -12,7 +12,7 @@
 
 use rayon::prelude::*;
 
-use crate::crm::{CrmConfig, CrmMap, CrmScratch, ScanOptions, ScanUpdateMode};
+use crate::crm::{with_thread_scratch, CrmConfig, CrmMap, CrmScratch, ScanOptions, ScanUpdateMode};
 use crate::error::{config_err, Result};
 use crate::motion::MotionModel;
 use crate::pose::{between, compose, wrap, Pose};
@@ -282,40 +282,42 @@ impl RbpfClam {
             .particles
             .par_iter_mut()
             .enumerate()
-            .map_init(CrmScratch::default, |sc, (j, p)| {
-                let mut rng = Rng::stream(cfg.seed, step, j as u64);
-                let opts = scan_opts(cfg.scan_update, cfg.map_stride);
-                if cfg.proposal == ClamProposal::Odometry {
-                    // Weight and map update share one walk of every beam (same pre-scan beliefs).
-                    let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
+            .map(|(j, p)| {
+                with_thread_scratch(|sc| {
+                    let mut rng = Rng::stream(cfg.seed, step, j as u64);
+                    let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+                    if cfg.proposal == ClamProposal::Odometry {
+                        // Weight and map update share one walk of every beam (same pre-scan beliefs).
+                        let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
+                        let sensor = compose(pose, scan.laser_offset);
+                        let (ll, _, _) = p.map.weigh_and_update_scan(
+                            sensor,
+                            scan.angles,
+                            scan.ranges,
+                            &cfg.weight_model,
+                            cfg.weight_stride,
+                            &cfg.mapping_model,
+                            &opts,
+                            sc,
+                        )?;
+                        p.pose = pose;
+                        p.log_w += ll / cfg.tempering;
+                        return Ok(());
+                    }
+                    let (pose, dlogw) = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
+                    p.pose = pose;
+                    p.log_w += dlogw;
                     let sensor = compose(pose, scan.laser_offset);
-                    let (ll, _, _) = p.map.weigh_and_update_scan(
+                    p.map.update_scan(
                         sensor,
                         scan.angles,
                         scan.ranges,
-                        &cfg.weight_model,
-                        cfg.weight_stride,
                         &cfg.mapping_model,
                         &opts,
                         sc,
                     )?;
-                    p.pose = pose;
-                    p.log_w += ll / cfg.tempering;
-                    return Ok(());
-                }
-                let (pose, dlogw) = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
-                p.pose = pose;
-                p.log_w += dlogw;
-                let sensor = compose(pose, scan.laser_offset);
-                p.map.update_scan(
-                    sensor,
-                    scan.angles,
-                    scan.ranges,
-                    &cfg.mapping_model,
-                    &opts,
-                    sc,
-                )?;
-                Ok(())
+                    Ok(())
+                })
             })
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
@@ -331,19 +333,21 @@ impl RbpfClam {
         let results: Vec<Result<()>> = self
             .particles
             .par_iter_mut()
-            .map_init(CrmScratch::default, |sc, p| {
-                let sensor = compose(p.pose, scan.laser_offset);
-                let opts = scan_opts(cfg.scan_update, cfg.map_stride);
-                p.map
-                    .update_scan(
-                        sensor,
-                        scan.angles,
-                        scan.ranges,
-                        &cfg.mapping_model,
-                        &opts,
-                        sc,
-                    )
-                    .map(|_| ())
+            .map(|p| {
+                with_thread_scratch(|sc| {
+                    let sensor = compose(p.pose, scan.laser_offset);
+                    let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+                    p.map
+                        .update_scan(
+                            sensor,
+                            scan.angles,
+                            scan.ranges,
+                            &cfg.mapping_model,
+                            &opts,
+                            sc,
+                        )
+                        .map(|_| ())
+                })
             })
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;

@@ -1,0 +1,19 @@
+//! Timing of the particle filters outside `crlam bench`, for profiling and A/B comparisons
+//! (`cargo run --release -p crlam-core --example filter_timing -- clam|clam180|ogm [scans]`).
+use crlam_core::bench::{rbpf_clam_scans, rbpf_ogm_scans};
+
+fn main() {
+    let which = std::env::args().nth(1).unwrap_or_else(|| "clam".into());
+    let n: usize = std::env::args()
+        .nth(2)
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(10);
+    let fig = match which.as_str() {
+        "clam" => rbpf_clam_scans(n, 100, 1079),
+        "clam180" => rbpf_clam_scans(n, 30, 180),
+        "ogm" => rbpf_ogm_scans(n, 30),
+        other => panic!("unknown workload {other}"),
+    }
+    .expect("benchmark failed");
+    println!("{} {:.3} scans/s", fig.name, fig.per_second);
+}
