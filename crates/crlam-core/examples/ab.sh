@@ -7,6 +7,8 @@
 #   crates/crlam-core/examples/ab.sh /tmp/it_a /tmp/it_b crmi 7
 #
 # Prints the median of each side and the median of the per-pair ratios B/A (< 1: B is faster).
+# Works with any binary whose output starts with one decimal figure, e.g. the `filter_timing`
+# example (`ab.sh /tmp/ft_a /tmp/ft_b clam 5`; a rate, so there B/A > 1 means B is faster).
 set -euo pipefail
 a=$1 b=$2 workload=$3 n=${4:-6}
 for _ in $(seq "$n"); do
