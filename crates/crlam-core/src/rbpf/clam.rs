@@ -307,16 +307,7 @@ impl RbpfClam {
                     let (pose, dlogw) = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
                     p.pose = pose;
                     p.log_w += dlogw;
-                    let sensor = compose(pose, scan.laser_offset);
-                    p.map.update_scan(
-                        sensor,
-                        scan.angles,
-                        scan.ranges,
-                        &cfg.mapping_model,
-                        &opts,
-                        sc,
-                    )?;
-                    Ok(())
+                    update_map_at_pose(cfg, p, scan, sc)
                 })
             })
             .collect();
@@ -333,22 +324,7 @@ impl RbpfClam {
         let results: Vec<Result<()>> = self
             .particles
             .par_iter_mut()
-            .map(|p| {
-                with_thread_scratch(|sc| {
-                    let sensor = compose(p.pose, scan.laser_offset);
-                    let opts = scan_opts(cfg.scan_update, cfg.map_stride);
-                    p.map
-                        .update_scan(
-                            sensor,
-                            scan.angles,
-                            scan.ranges,
-                            &cfg.mapping_model,
-                            &opts,
-                            sc,
-                        )
-                        .map(|_| ())
-                })
-            })
+            .map(|p| with_thread_scratch(|sc| update_map_at_pose(cfg, p, scan, sc)))
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
         let w = vec![1.0 / self.particles.len() as f64; self.particles.len()];
@@ -410,6 +386,26 @@ impl RbpfClam {
             resampled,
         }
     }
+}
+
+/// Updates the particle's map with the scan taken at its current pose (`mapping_model`).
+fn update_map_at_pose(
+    cfg: &ClamConfig,
+    p: &mut ClamParticle,
+    scan: &ScanInput,
+    sc: &mut CrmScratch,
+) -> Result<()> {
+    let sensor = compose(p.pose, scan.laser_offset);
+    let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+    p.map.update_scan(
+        sensor,
+        scan.angles,
+        scan.ranges,
+        &cfg.mapping_model,
+        &opts,
+        sc,
+    )?;
+    Ok(())
 }
 
 /// Proposes the particle's new pose and the log-weight increment.
