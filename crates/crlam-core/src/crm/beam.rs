@@ -1,6 +1,6 @@
 //! How a reading becomes a ray to traverse, and per-scan options and counters.
 
-use crate::error::{config_err, Result};
+use crate::error::{config_err, CrlamError, Result};
 use crate::sensor::{SensorModel, SensorModelKind};
 
 /// How the beams of one scan update the map (crm-spec 3.3).
@@ -142,4 +142,29 @@ pub fn plan_beam(
         no_return,
         length,
     })
+}
+
+/// Validates the arrays and options of a scan.
+pub(crate) fn check_scan(
+    angles: &[f64],
+    ranges: &[f64],
+    model: &SensorModel,
+    opts: &ScanOptions,
+) -> Result<()> {
+    if angles.len() != ranges.len() {
+        return Err(CrlamError::Shape(format!(
+            "scan has {} beam angles but {} ranges",
+            angles.len(),
+            ranges.len()
+        )));
+    }
+    if opts.beam_stride == 0 {
+        return Err(config_err("beam_stride", "must be >= 1"));
+    }
+    if let Some((i, a)) = angles.iter().enumerate().find(|(_, a)| !a.is_finite()) {
+        return Err(CrlamError::Shape(format!(
+            "beam angle {i} is not finite ({a})"
+        )));
+    }
+    model.validate()
 }

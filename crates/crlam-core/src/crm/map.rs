@@ -1,6 +1,6 @@
 //! The confidence-rich map: tiled f32 pmfs per cell, updated beam by beam in f64.
 
-use crate::crm::beam::{plan_beam, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
+use crate::crm::beam::{check_scan, plan_beam, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::update::{apply_factor, cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
@@ -625,29 +625,4 @@ fn truncate_ray(sc: &mut CrmScratch, length: f64) {
     if let Some(last) = sc.cells.last_mut() {
         last.t_out = last.t_out.min(length);
     }
-}
-
-/// Validates the arrays and options of a scan.
-pub(crate) fn check_scan(
-    angles: &[f64],
-    ranges: &[f64],
-    model: &SensorModel,
-    opts: &ScanOptions,
-) -> Result<()> {
-    if angles.len() != ranges.len() {
-        return Err(CrlamError::Shape(format!(
-            "scan has {} beam angles but {} ranges",
-            angles.len(),
-            ranges.len()
-        )));
-    }
-    if opts.beam_stride == 0 {
-        return Err(config_err("beam_stride", "must be >= 1"));
-    }
-    if let Some((i, a)) = angles.iter().enumerate().find(|(_, a)| !a.is_finite()) {
-        return Err(CrlamError::Shape(format!(
-            "beam angle {i} is not finite ({a})"
-        )));
-    }
-    model.validate()
 }
