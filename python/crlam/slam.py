@@ -43,7 +43,8 @@ class SlamConfig:
     weight_stride, map_stride : int
         Use every n-th beam for the weights / the map update (paper: 1).
     tempering : float
-        Weight tempering τ_T (paper: 1).
+        Weight tempering τ_T (paper: 1): every log-weight increment is divided by it. The
+        likelihood-mode proposal still targets the untempered likelihood × motion density.
     resample_threshold : float
         Resample when N_eff < threshold · n_p (paper: 0.5).
     proposal : str

@@ -152,6 +152,49 @@ fn clam_beats_raw_odometry_with_both_proposals() {
 }
 
 #[test]
+fn tempering_divides_the_weights_and_leaves_the_proposal_alone() {
+    // Three steps of the likelihood-mode proposal with τ = 1 and τ = 4, no resampling: the
+    // same proposed poses, and log-weight differences scaled by exactly 1/τ (all particles start
+    // at one pose with one map, so their weights only differ from the second step on).
+    let run = simulate(40);
+    let step = |tempering: f64| {
+        let mut cfg = config(ClamProposal::likelihood_mode());
+        cfg.n_particles = 6;
+        cfg.tempering = tempering;
+        cfg.resample_threshold = 0.0;
+        let mut f = RbpfClam::new(cfg, run.truth[0]).unwrap();
+        for k in 0..4 {
+            f.process(&ScanInput {
+                odom: run.odom[k],
+                angles: &run.angles,
+                ranges: &run.ranges[k],
+                laser_offset: [0.0; 3],
+            })
+            .unwrap();
+        }
+        f.particles()
+            .iter()
+            .map(|p| (p.pose, p.log_w))
+            .collect::<Vec<_>>()
+    };
+    let (plain, tempered) = (step(1.0), step(4.0));
+    let spread = plain.iter().map(|p| p.1).fold(f64::NEG_INFINITY, f64::max)
+        - plain.iter().map(|p| p.1).fold(f64::INFINITY, f64::min);
+    assert!(
+        spread > 1e-3,
+        "the weights must differ for the test to mean anything"
+    );
+    for (a, b) in plain.iter().zip(&tempered) {
+        assert_eq!(a.0, b.0, "the proposal must not depend on the tempering");
+        let (da, db) = (a.1 - plain[0].1, b.1 - tempered[0].1);
+        assert!(
+            (da - 4.0 * db).abs() < 1e-9 * da.abs().max(1.0),
+            "{da} vs 4 x {db}"
+        );
+    }
+}
+
+#[test]
 fn same_seed_same_trajectory_with_one_and_two_threads() {
     let run = simulate(40);
     let one = rayon::ThreadPoolBuilder::new()

@@ -66,7 +66,9 @@ pub struct ClamConfig {
     pub weight_stride: usize,
     /// Beams used for the map update (every n-th; the paper: 1).
     pub map_stride: usize,
-    /// Weight tempering τ_T: Δ log w = Σ log η / τ_T (the paper: 1).
+    /// Weight tempering τ_T: Δ log w = Σ log η / τ_T (the paper: 1). With the likelihood-mode
+    /// proposal it divides the log of the lattice normaliser; the proposal itself always targets
+    /// the untempered likelihood × motion density.
     pub tempering: f64,
     pub resample_threshold: f64,
     /// Standard deviations (m, m, rad) of the initial particle cloud around the first pose.
@@ -429,12 +431,12 @@ fn propose(
             opts,
             sc,
         )?;
-        Ok(ll / cfg.tempering)
+        Ok(ll)
     };
     match cfg.proposal {
         ClamProposal::Odometry => {
             let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
-            Ok((pose, loglik(pose, &weight_opts, sc)?))
+            Ok((pose, loglik(pose, &weight_opts, sc)? / cfg.tempering))
         }
         ClamProposal::LikelihoodMode {
             step,
@@ -471,13 +473,13 @@ fn propose(
             if !m.is_finite() {
                 // No lattice point is plausible under the motion model: fall back to odometry.
                 let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
-                return Ok((pose, loglik(pose, &weight_opts, sc)?));
+                return Ok((pose, loglik(pose, &weight_opts, sc)? / cfg.tempering));
             }
             let w: Vec<f64> = lw.iter().map(|l| (l - m).exp()).collect();
             let s: f64 = w.iter().sum();
             let log_norm = m + s.ln();
             let pose = sample_fitted_gaussian(&pts, &w, s, fine, rng);
-            Ok((pose, log_norm))
+            Ok((pose, log_norm / cfg.tempering))
         }
     }
 }
