@@ -283,30 +283,6 @@ pub(crate) fn posterior_kl(p: &[f64], mu: &[f64], alpha: f64, mhat: f64) -> f64 
     kl_from_sums(s, g)
 }
 
-/// (Σ_i p_i f_i, Σ_i p_i f_i lf_i) over even and odd levels separately, so that the two
-/// K-long accumulations are not one dependency chain each.
-#[inline(always)]
-fn weighted_sums(p: &[f64], f: &[f64], lf: &[f64]) -> (f64, f64) {
-    let (mut s0, mut s1, mut g0, mut g1) = (0.0, 0.0, 0.0, 0.0);
-    let k = p.len();
-    let (p, f, lf) = (&p[..k], &f[..k], &lf[..k]);
-    let mut i = 0;
-    while i + 1 < k {
-        let (w0, w1) = (p[i] * f[i], p[i + 1] * f[i + 1]);
-        s0 += w0;
-        s1 += w1;
-        g0 += w0 * lf[i];
-        g1 += w1 * lf[i + 1];
-        i += 2;
-    }
-    if i < k {
-        let w = p[i] * f[i];
-        s0 += w;
-        g0 += w * lf[i];
-    }
-    (s0 + s1, g0 + g1)
-}
-
 /// Σ_i p_i f_i ln f_i / s − ln s. For a proper likelihood ratio s = 1 up to rounding, so ln s is
 /// a series (exact to 1e-20 there); 0 when the posterior vanishes.
 #[inline]
@@ -353,7 +329,13 @@ impl KlBatch {
         ln_clamped_slice(&self.f, &mut self.lf);
         for (j, &(l, weight)) in self.jobs.iter().enumerate() {
             let (f, lf) = (&self.f[j * k..(j + 1) * k], &self.lf[j * k..(j + 1) * k]);
-            let (s, g) = weighted_sums(&probs[l * k..(l + 1) * k], f, lf);
+            let p = &probs[l * k..(l + 1) * k];
+            let (mut s, mut g) = (0.0, 0.0);
+            for i in 0..k {
+                let w = p[i] * f[i];
+                s += w;
+                g += w * lf[i];
+            }
             out[l] += weight * kl_from_sums(s, g);
         }
         self.f.clear();
