@@ -269,7 +269,7 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
                 for l in lo..hi {
                     let a = sc.reach[l] * (ch.like[l * w + q] - sc.s[l]) * inv;
                     sc.eta_alpha[l] += eta * a;
-                    sc.batch.push(l, eta, mu, a, sc.mhat[l]);
+                    sc.batch.push(l, eta, a, sc.mhat[l]);
                 }
                 continue;
             }
@@ -290,7 +290,7 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
             sc.p_free[range.start] += eta;
         }
         // Queued pairs first, so that every cell's sum keeps the bin order.
-        sc.batch.flush(&sc.probs, k, &mut sc.kl);
+        sc.batch.flush(&sc.probs, mu, &mut sc.kl);
         for l in range {
             let p = &sc.probs[l * k..(l + 1) * k];
             sc.eta_alpha[l] += eta * sc.alpha[l];
@@ -306,11 +306,11 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
             if pf > 0.0 {
                 let a = -1.0 / (1.0 - sc.mhat[l]).max(1e-300);
                 sc.eta_alpha[l] += pf * a;
-                sc.batch.push(l, pf, mu, a, sc.mhat[l]);
+                sc.batch.push(l, pf, a, sc.mhat[l]);
             }
         }
     }
-    sc.batch.flush(&sc.probs, k, &mut sc.kl);
+    sc.batch.flush(&sc.probs, mu, &mut sc.kl);
     sc.per_cell.clear();
     if !midpoint {
         sc.per_cell.extend_from_slice(&sc.kl);

@@ -5,7 +5,7 @@
 use crate::crm::update::{cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::error::Result;
 use crate::info::crmi::{CrmiConfig, CrmiQuadrature, SUPPORT_SIGMAS};
-use crate::info::fastmath::{ln_clamped_slice, ln_normal, lower_tail_abs_slice, tail_difference};
+use crate::info::fastmath::{ln_normal, lower_tail_abs_slice, tail_difference};
 use crate::sensor::{normal_cdf, SensorModelKind};
 
 /// The discretised channel of one beam: bin edges and each cause's bin masses.
@@ -95,7 +95,9 @@ impl BeamChannel {
                 if w_s > 0.0 && short_norm > 0.0 {
                     v += w_s * short_mass(cfg.quadrature, a, b, dl, lam) / short_norm;
                 }
-                v += w_r * (b - a) / z_max;
+                if w_r > 0.0 {
+                    v += w_r * (b - a) / z_max;
+                }
                 row[q] = v;
             }
             row[q_n] = w_x;
@@ -273,12 +275,8 @@ fn posterior(p: &[f64], mu: &[f64], alpha: f64, mhat: f64, out: &mut [f64]) {
 #[inline]
 pub(crate) fn posterior_kl(p: &[f64], mu: &[f64], alpha: f64, mhat: f64) -> f64 {
     let (mut s, mut g) = (0.0, 0.0);
-    for i in 0..p.len() {
-        let f = (1.0 + alpha * (mu[i] - mhat)).max(0.0);
-        // A clipped factor has zero weight; its log only needs to be finite.
-        let w = p[i] * f;
-        s += w;
-        g += w * ln_normal(f.max(f64::MIN_POSITIVE));
+    for (&pi, &m) in p.iter().zip(mu) {
+        kl_level_step(m, alpha, mhat, pi, &mut s, &mut g);
     }
     kl_from_sums(s, g)
 }
@@ -299,46 +297,288 @@ fn kl_from_sums(s: f64, g: f64) -> f64 {
     }
 }
 
+/// One queued (cell, bin) posterior: its coefficient α, the cell's mean m̂, the weight its KL
+/// is added with, and the cell (its pmf starts at `cell · K`). 32 bytes, so that the eight-lane
+/// kernel reads a field of eight jobs with one gather.
+#[derive(Clone, Copy, Debug)]
+#[repr(C)]
+struct KlJob {
+    alpha: f64,
+    mhat: f64,
+    weight: f64,
+    cell: usize,
+}
+
 /// KL divergences of many (cell, bin) posteriors of one beam from their priors, evaluated
-/// together: every pair's factors are written first and their logarithms taken in one contiguous
-/// pass (which vectorises fully, unlike K = 10 logarithms at a time), then each divergence is
-/// reduced with the operations of [`posterior_kl`] in the same order (equal to within a few ulp).
+/// together: every pair adds its K terms in level order with the operations of
+/// [`posterior_kl`] (equal to it bit for bit), but eight pairs at a time with explicit AVX-512
+/// (the fields and pmf entries gathered, the sums kept in registers), or level by level over all
+/// pairs so that each step vectorises four wide with AVX2.
 #[derive(Debug, Default)]
 pub(crate) struct KlBatch {
-    /// K clipped factors f_i = max(1 + α(μ_i − m̂), 0) per pair.
-    f: Vec<f64>,
-    /// Their logarithms (of max(f, MIN_POSITIVE)).
-    lf: Vec<f64>,
-    /// (cell, weight) per pair: the pair adds weight · KL to `out[cell]` on flush.
-    jobs: Vec<(usize, f64)>,
+    jobs: Vec<KlJob>,
+    /// Per job: KL of its posterior, filled by [`KlBatch::flush`].
+    kl: Vec<f64>,
+    /// Level-by-level path: the jobs' α, m̂, pmf entries of one level and running sums.
+    alpha: Vec<f64>,
+    mhat: Vec<f64>,
+    p_level: Vec<f64>,
+    s: Vec<f64>,
+    g: Vec<f64>,
 }
 
 impl KlBatch {
-    /// Queues the posterior of `cell` (levels `mu`, mean `mhat`) under coefficient `alpha`.
+    /// Queues the posterior of `cell` (mean `mhat`) under coefficient `alpha`; it adds
+    /// `weight` · KL to `out[cell]` on flush.
     #[inline]
-    pub(crate) fn push(&mut self, cell: usize, weight: f64, mu: &[f64], alpha: f64, mhat: f64) {
-        self.f
-            .extend(mu.iter().map(|&m| (1.0 + alpha * (m - mhat)).max(0.0)));
-        self.jobs.push((cell, weight));
+    pub(crate) fn push(&mut self, cell: usize, weight: f64, alpha: f64, mhat: f64) {
+        self.jobs.push(KlJob {
+            alpha,
+            mhat,
+            weight,
+            cell,
+        });
     }
 
     /// Adds weight · KL of every queued pair to `out[cell]` (in queue order) and empties the
-    /// queue. `probs` holds the cells' pmfs (N × K).
-    pub(crate) fn flush(&mut self, probs: &[f64], k: usize, out: &mut [f64]) {
-        self.lf.resize(self.f.len(), 0.0);
-        ln_clamped_slice(&self.f, &mut self.lf);
-        for (j, &(l, weight)) in self.jobs.iter().enumerate() {
-            let (f, lf) = (&self.f[j * k..(j + 1) * k], &self.lf[j * k..(j + 1) * k]);
-            let p = &probs[l * k..(l + 1) * k];
-            let (mut s, mut g) = (0.0, 0.0);
-            for i in 0..k {
-                let w = p[i] * f[i];
-                s += w;
-                g += w * lf[i];
-            }
-            out[l] += weight * kl_from_sums(s, g);
+    /// queue. `probs` holds the cells' pmfs (N × K) over the levels `mu`.
+    pub(crate) fn flush(&mut self, probs: &[f64], mu: &[f64], out: &mut [f64]) {
+        let n = self.jobs.len();
+        self.kl.clear();
+        self.kl.resize(n, 0.0);
+        #[cfg(target_arch = "x86_64")]
+        if crate::info::fastlog::has_avx512() {
+            let k = mu.len();
+            assert!(self.jobs.iter().all(|j| (j.cell + 1) * k <= probs.len()));
+            // SAFETY: AVX-512F is there (checked), and every cell's K entries are in `probs`.
+            unsafe { kl_jobs_wide(probs, mu, &self.jobs, &mut self.kl) };
+        } else {
+            self.level_by_level(probs, mu);
         }
-        self.f.clear();
+        #[cfg(not(target_arch = "x86_64"))]
+        self.level_by_level(probs, mu);
+        for (job, kl) in self.jobs.iter().zip(&self.kl) {
+            out[job.cell] += job.weight * kl;
+        }
         self.jobs.clear();
+    }
+
+    /// `self.kl` by sweeping the levels over all jobs (each step vectorises).
+    fn level_by_level(&mut self, probs: &[f64], mu: &[f64]) {
+        let k = mu.len();
+        let n = self.jobs.len();
+        self.alpha.clear();
+        self.alpha.extend(self.jobs.iter().map(|j| j.alpha));
+        self.mhat.clear();
+        self.mhat.extend(self.jobs.iter().map(|j| j.mhat));
+        self.s.clear();
+        self.s.resize(n, 0.0);
+        self.g.clear();
+        self.g.resize(n, 0.0);
+        self.p_level.resize(n, 0.0);
+        for (i, &m) in mu.iter().enumerate() {
+            for (pl, job) in self.p_level.iter_mut().zip(&self.jobs) {
+                *pl = probs[job.cell * k + i];
+            }
+            kl_level_sums(
+                m,
+                &self.alpha,
+                &self.mhat,
+                &self.p_level,
+                &mut self.s,
+                &mut self.g,
+            );
+        }
+        for j in 0..n {
+            self.kl[j] = kl_from_sums(self.s[j], self.g[j]);
+        }
+    }
+}
+
+/// One level's term of a posterior's divergence sums: with the factor f = max(1 + α(μ − m̂), 0)
+/// and w = p f, s += w and g += w ln f (the log of max(f, MIN_POSITIVE): a clipped factor has
+/// zero weight, its log only needs to be finite).
+#[inline(always)]
+fn kl_level_step(mu: f64, alpha: f64, mhat: f64, p: f64, s: &mut f64, g: &mut f64) {
+    let f = (1.0 + alpha * (mu - mhat)).max(0.0);
+    let w = p * f;
+    *s += w;
+    *g += w * ln_normal(f.max(f64::MIN_POSITIVE));
+}
+
+crate::info::fastmath::simd_by_target! {
+    /// [`kl_level_step`] of level `mu` for every pair j (α_j, m̂_j, p_j), into the pair's sums.
+    kl_level_sums, kl_level_sums_avx2, kl_level_sums_body,
+    (mu: f64, alpha: &[f64], mhat: &[f64], p: &[f64], s: &mut [f64], g: &mut [f64])
+}
+
+#[inline(always)]
+fn kl_level_sums_body(
+    mu: f64,
+    alpha: &[f64],
+    mhat: &[f64],
+    p: &[f64],
+    s: &mut [f64],
+    g: &mut [f64],
+) {
+    let n = alpha.len();
+    let (mhat, p, s, g) = (&mhat[..n], &p[..n], &mut s[..n], &mut g[..n]);
+    for j in 0..n {
+        kl_level_step(mu, alpha[j], mhat[j], p[j], &mut s[j], &mut g[j]);
+    }
+}
+
+/// `kl[j]` = [`posterior_kl`] of job j (its cell's pmf in `probs`, α_j, m̂_j), eight jobs at a
+/// time with the scalar's operations in its order; the remainder through the scalar.
+///
+/// # Safety
+/// The CPU must support AVX-512F, and `(cell + 1) · K <= probs.len()` for every job.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn kl_jobs_wide(probs: &[f64], mu: &[f64], jobs: &[KlJob], kl: &mut [f64]) {
+    use crate::info::fastlog::ln_normal_x8;
+    use std::arch::x86_64::*;
+    let k = mu.len();
+    let n = jobs.len();
+    assert!(kl.len() >= n);
+    let whole = n / 8 * 8;
+    let (one, zero) = (_mm512_set1_pd(1.0), _mm512_setzero_pd());
+    let tiny = _mm512_set1_pd(f64::MIN_POSITIVE);
+    // Eight consecutive jobs' copies of one field: 4 words apart.
+    let stride = _mm512_setr_epi64(0, 4, 8, 12, 16, 20, 24, 28);
+    let k_v = _mm512_set1_epi64(k as i64);
+    for j in (0..whole).step_by(8) {
+        // In bounds: jobs j..j + 8 exist (j + 8 <= whole <= n).
+        let base = jobs.as_ptr().add(j) as *const f64;
+        let a = _mm512_i64gather_pd::<8>(stride, base);
+        let m = _mm512_i64gather_pd::<8>(stride, base.add(1));
+        let cell = _mm512_i64gather_epi64::<8>(stride, base.add(3) as *const i64);
+        // cell · K from 32-bit halves (cells and K are far below 2^32), without AVX-512DQ.
+        let row = _mm512_mul_epu32(cell, k_v);
+        let (mut s, mut g) = (zero, zero);
+        for (i, &mu_i) in mu.iter().enumerate() {
+            // max(·, 0) and max(·, tiny) return the second operand for NaN, as f64::max does.
+            let d = _mm512_sub_pd(_mm512_set1_pd(mu_i), m);
+            let f = _mm512_max_pd(_mm512_add_pd(one, _mm512_mul_pd(a, d)), zero);
+            let at = _mm512_add_epi64(row, _mm512_set1_epi64(i as i64));
+            // In bounds: every row + i < (cell + 1) · K <= probs.len() (the caller's contract).
+            let p = _mm512_i64gather_pd::<8>(at, probs.as_ptr());
+            let w = _mm512_mul_pd(p, f);
+            s = _mm512_add_pd(s, w);
+            g = _mm512_add_pd(g, _mm512_mul_pd(w, ln_normal_x8(_mm512_max_pd(f, tiny))));
+        }
+        let mut sv = [0.0; 8];
+        let mut gv = [0.0; 8];
+        _mm512_storeu_pd(sv.as_mut_ptr(), s);
+        _mm512_storeu_pd(gv.as_mut_ptr(), g);
+        for t in 0..8 {
+            kl[j + t] = kl_from_sums(sv[t], gv[t]);
+        }
+    }
+    for j in whole..n {
+        let job = &jobs[j];
+        let p = &probs[job.cell * k..(job.cell + 1) * k];
+        kl[j] = posterior_kl(p, mu, job.alpha, job.mhat);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// (cell, weight, α) of a queued posterior.
+    type Job = (usize, f64, f64);
+
+    /// Levels, seven random pmfs over 10 midpoint levels, their means, and 45 jobs over them
+    /// whose coefficients include 0, the "seen free" −1/(1 − m̂), large hits and factors that
+    /// clip at 0.
+    fn fixture() -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<Job>) {
+        let mut rng = crate::rng::Rng::new(11);
+        let k = 10;
+        let mu: Vec<f64> = (0..k).map(|i| (i as f64 + 0.5) / k as f64).collect();
+        let mut probs = Vec::new();
+        for c in 0..7 {
+            let raw: Vec<f64> = (0..k)
+                .map(|i| {
+                    if c == 3 && i % 3 == 0 {
+                        0.0
+                    } else {
+                        rng.uniform()
+                    }
+                })
+                .collect();
+            let sum: f64 = raw.iter().sum();
+            probs.extend(raw.iter().map(|x| x / sum));
+        }
+        let mhat: Vec<f64> = (0..7)
+            .map(|c| (0..k).map(|i| mu[i] * probs[c * k + i]).sum())
+            .collect();
+        let jobs = (0..45)
+            .map(|j| {
+                let c = (j * 5) % 7;
+                let alpha = match j % 5 {
+                    0 => 0.0,
+                    1 => -1.0 / (1.0 - mhat[c]),
+                    2 => 40.0 * rng.uniform(),
+                    3 => -3.0 * rng.uniform() - 1.5,
+                    _ => (rng.uniform() - 0.5) * 1e-3,
+                };
+                (c, 0.1 + rng.uniform(), alpha)
+            })
+            .collect();
+        (mu, probs, mhat, jobs)
+    }
+
+    #[test]
+    fn batched_divergences_equal_the_scalar_ones_bit_for_bit_on_every_path() {
+        let (mu, probs, mhat, jobs) = fixture();
+        let k = mu.len();
+        let mut want = [0.0; 7];
+        let mut batch = KlBatch::default();
+        for &(c, weight, alpha) in &jobs {
+            let kl = posterior_kl(&probs[c * k..(c + 1) * k], &mu, alpha, mhat[c]);
+            assert!(kl.is_finite() && kl >= -1e-15, "{kl}");
+            want[c] += weight * kl;
+            batch.push(c, weight, alpha, mhat[c]);
+        }
+        // The dispatched path (eight lanes where the CPU has AVX-512).
+        let mut got = vec![0.0; 7];
+        batch.flush(&probs, &mu, &mut got);
+        assert!(batch.jobs.is_empty());
+        // The level-by-level path, whatever the CPU.
+        for &(c, weight, alpha) in &jobs {
+            batch.push(c, weight, alpha, mhat[c]);
+        }
+        batch.kl.resize(jobs.len(), 0.0);
+        batch.level_by_level(&probs, &mu);
+        let mut level = [0.0; 7];
+        for (job, kl) in batch.jobs.iter().zip(&batch.kl) {
+            level[job.cell] += job.weight * kl;
+        }
+        for c in 0..7 {
+            assert_eq!(got[c].to_bits(), want[c].to_bits(), "cell {c}");
+            assert_eq!(level[c].to_bits(), want[c].to_bits(), "cell {c}");
+        }
+    }
+
+    #[test]
+    fn divergence_is_zero_for_an_unchanged_posterior_and_matches_the_definition() {
+        let (mu, probs, mhat, _) = fixture();
+        let k = mu.len();
+        for c in 0..7 {
+            let p = &probs[c * k..(c + 1) * k];
+            // Only the pmf's rounding (its sum is 1 ± an ulp) is left.
+            assert!(posterior_kl(p, &mu, 0.0, mhat[c]).abs() < 1e-15);
+            for alpha in [0.7, -0.9, 5.0] {
+                let mut post = vec![0.0; k];
+                posterior(p, &mu, alpha, mhat[c], &mut post);
+                let direct: f64 = (0..k)
+                    .filter(|&i| post[i] > 0.0)
+                    .map(|i| post[i] * (post[i] / p[i]).ln())
+                    .sum();
+                let kl = posterior_kl(p, &mu, alpha, mhat[c]);
+                assert!((kl - direct).abs() < 1e-14, "{kl} {direct}");
+            }
+        }
     }
 }

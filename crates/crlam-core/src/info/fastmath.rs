@@ -1,17 +1,19 @@
 //! Fast, accurate scalar kernels for the CRMI inner loops: Φ by quintic Hermite interpolation
-//! of a table (absolute error < 1e-13) and a branch-free natural log (a few ulp).
+//! of a table (absolute error < 1e-13) and exponentials; the logarithms live in
+//! [`crate::info::fastlog`] (re-exported here).
+
+pub use crate::info::fastlog::{ln_1p_slice, ln_clamped_slice, ln_normal};
 
 use std::sync::OnceLock;
 
 use crate::sensor::normal_cdf;
 
-/// `pub fn $name(args)`: runs `$body(args)` compiled for AVX2 (as `$avx`) when the CPU has it, and
-/// the baseline build of the same body otherwise. The bodies are plain loops that the compiler
-/// vectorises without FMA contraction, so both builds give the same results.
-macro_rules! avx2_dispatch {
-    ($(#[$doc:meta])* $name:ident, $avx:ident, $body:ident, ($($arg:ident: $ty:ty),*)) => {
+/// `$vis fn $name(args)`: `$body(args)` compiled for AVX2 (as `$avx`) where the CPU has it, the
+/// baseline build of the same body otherwise (the same operations, hence the same results).
+macro_rules! simd_by_target {
+    ($(#[$doc:meta])* $vis:vis $name:ident, $avx:ident, $body:ident, ($($arg:ident: $ty:ty),*)) => {
         $(#[$doc])*
-        pub fn $name($($arg: $ty),*) {
+        $vis fn $name($($arg: $ty),*) {
             #[cfg(target_arch = "x86_64")]
             {
                 if std::arch::is_x86_feature_detected!("avx2") {
@@ -30,6 +32,7 @@ macro_rules! avx2_dispatch {
         }
     };
 }
+pub(crate) use simd_by_target;
 
 /// Table spacing of [`normal_cdf_fast`] (in σ units).
 const STEP: f64 = 1.0 / 32.0;
@@ -253,56 +256,6 @@ pub fn tail_difference(a: (bool, f64), b: (bool, f64)) -> f64 {
     }
 }
 
-/// Natural log of a positive, normal, finite x to within a few ulp, branch-free: x = 2^e·m with
-/// m ∈ [√½, √2), ln m = 2 atanh(s), s = (m − 1)/(m + 1), |s| ≤ 0.172, by its series to s^21
-/// (truncation below 1e-17), evaluated by Estrin's scheme for a short dependency chain. The
-/// exponent is read as a float through the 2^52 trick so that loops over it vectorise.
-#[inline(always)]
-pub fn ln_normal(x: f64) -> f64 {
-    const MANTISSA: u64 = 0x000f_ffff_ffff_ffff;
-    const ONE: u64 = 0x3ff0_0000_0000_0000;
-    const TWO52: f64 = 4_503_599_627_370_496.0;
-    let bits = x.to_bits();
-    let e_field = f64::from_bits(TWO52.to_bits() | (bits >> 52)) - TWO52;
-    let m = f64::from_bits((bits & MANTISSA) | ONE);
-    let big = m > std::f64::consts::SQRT_2;
-    let m = if big { 0.5 * m } else { m };
-    let e = e_field - 1023.0 + if big { 1.0 } else { 0.0 };
-    let s = (m - 1.0) / (m + 1.0);
-    let z = s * s;
-    let z2 = z * z;
-    let z4 = z2 * z2;
-    let z8 = z4 * z4;
-    let p01 = 1.0 + z * (1.0 / 3.0);
-    let p23 = 1.0 / 5.0 + z * (1.0 / 7.0);
-    let p45 = 1.0 / 9.0 + z * (1.0 / 11.0);
-    let p67 = 1.0 / 13.0 + z * (1.0 / 15.0);
-    let p89 = 1.0 / 17.0 + z * (1.0 / 19.0);
-    let p10 = 1.0 / 21.0;
-    let q0 = p01 + z2 * p23;
-    let q1 = p45 + z2 * p67;
-    let q2 = p89 + z2 * p10;
-    let poly = q0 + z4 * q1 + z8 * q2;
-    e * std::f64::consts::LN_2 + 2.0 * s * poly
-}
-
-avx2_dispatch! {
-    /// ln(1 + x) of every `xs[i]` into `out[i]` for x > −1 with 1 + x normal, to within a few ulp,
-    /// in one pass that vectorises like [`ln_clamped_slice`]: u = 1 + x rounded, then
-    /// ln(1 + x) = ln(u) · x/(u − 1), which cancels u's rounding error (x itself when u = 1).
-    ln_1p_slice, ln_1p_slice_avx2, ln_1p_slice_body, (xs: &[f64], out: &mut [f64])
-}
-
-#[inline(always)]
-fn ln_1p_slice_body(xs: &[f64], out: &mut [f64]) {
-    for (o, &x) in out.iter_mut().zip(xs) {
-        let u = 1.0 + x;
-        let d = u - 1.0;
-        let scaled = ln_normal(u) * (x / if d == 0.0 { 1.0 } else { d });
-        *o = if d == 0.0 { x } else { scaled };
-    }
-}
-
 /// 2^(j/128) for j = 0..127, correctly rounded (bits).
 const EXP2_TABLE: [u64; 128] = [
     0x3ff0000000000000,
@@ -505,26 +458,12 @@ fn exp_in_range(x: f64) -> f64 {
     poly * s1 * s2
 }
 
-avx2_dispatch! {
-    /// `out[i] = ln_normal(max(xs[i], f64::MIN_POSITIVE))` over two equal-length slices. On x86-64
-    /// CPUs with AVX2 the same code runs four lanes wide (the operations, hence the results, are
-    /// those of [`ln_normal`]: no FMA contraction); elsewhere two lanes (SSE2) or scalar.
-    ln_clamped_slice, ln_clamped_slice_avx2, ln_clamped_slice_body, (xs: &[f64], out: &mut [f64])
-}
-
-#[inline(always)]
-fn ln_clamped_slice_body(xs: &[f64], out: &mut [f64]) {
-    for (o, &x) in out.iter_mut().zip(xs) {
-        *o = ln_normal(x.max(f64::MIN_POSITIVE));
-    }
-}
-
-avx2_dispatch! {
+simd_by_target! {
     /// In place, x ← `exp_in_range(x)` for x ≥ −708.3 and 0 below (where e^x < 2.2e-308: the
     /// difference cannot show in a sum that has a term near 1, the use here). −∞ gives 0; inputs
     /// must not be NaN. Branch-free, so it runs four lanes wide on CPUs with AVX2 (the operations,
     /// hence the results, are those of the scalar `exp_in_range`).
-    exp_for_sums, exp_for_sums_avx2, exp_for_sums_body, (xs: &mut [f64])
+    pub exp_for_sums, exp_for_sums_avx2, exp_for_sums_body, (xs: &mut [f64])
 }
 
 #[inline(always)]
@@ -582,33 +521,6 @@ mod tests {
         let mut scalar = vec![0.0; xs.len()];
         lower_tail_abs_slice_body(&table().nodes, &xs, &mut scalar);
         assert_eq!(tails, scalar);
-    }
-
-    #[test]
-    fn slice_ln_1p_matches_libm() {
-        let mut rng = crate::rng::Rng::new(5);
-        let mut worst: f64 = 0.0;
-        for i in 0..20_000 {
-            let x = match i % 4 {
-                0 => -0.5 + rng.uniform(),
-                1 => (rng.uniform() - 0.5) * 1e-9,
-                2 => rng.uniform() * 1e6,
-                _ => -0.999 * rng.uniform(),
-            };
-            let mut out = [0.0];
-            ln_1p_slice(&[x], &mut out);
-            let want = x.ln_1p();
-            let err = if want == 0.0 {
-                out[0].abs()
-            } else {
-                ((out[0] - want) / want).abs()
-            };
-            worst = worst.max(err);
-        }
-        assert!(worst < 1e-14, "{worst}");
-        let mut out = [1.0; 2];
-        ln_1p_slice(&[0.0, 1e-300], &mut out);
-        assert_eq!(out, [0.0, 1e-300]);
     }
 
     #[test]
@@ -674,45 +586,6 @@ mod tests {
             1e-300,
         ] {
             worst = worst.max((exp_in_range(x) - x.exp()).abs() / x.exp());
-        }
-        assert!(worst < 1e-15, "{worst}");
-    }
-
-    #[test]
-    fn slice_log_equals_the_scalar_log_bit_for_bit() {
-        let mut rng = crate::rng::Rng::new(3);
-        let xs: Vec<f64> = (0..1003)
-            .map(|i| match i % 7 {
-                0 => 0.0,
-                1 => -1.0,
-                _ => (rng.uniform() * 60.0 - 30.0).exp2(),
-            })
-            .collect();
-        let mut out = vec![0.0; xs.len()];
-        ln_clamped_slice(&xs, &mut out);
-        for (x, o) in xs.iter().zip(&out) {
-            assert_eq!(o.to_bits(), ln_normal(x.max(f64::MIN_POSITIVE)).to_bits());
-        }
-    }
-
-    #[test]
-    fn fast_log_is_accurate_over_the_normal_range() {
-        let mut rng = crate::rng::Rng::new(1);
-        let mut worst: f64 = 0.0;
-        for _ in 0..200_000 {
-            let x = (rng.uniform() * 1400.0 - 700.0).exp2() * (1.0 + rng.uniform());
-            let (a, b) = (ln_normal(x), x.ln());
-            worst = worst.max((a - b).abs() / b.abs().max(1.0));
-        }
-        for x in [
-            1.0,
-            2.0,
-            0.5,
-            std::f64::consts::SQRT_2,
-            f64::MIN_POSITIVE,
-            f64::MAX,
-        ] {
-            worst = worst.max((ln_normal(x) - x.ln()).abs() / x.ln().abs().max(1.0));
         }
         assert!(worst < 1e-15, "{worst}");
     }

@@ -13,6 +13,7 @@ pub mod crmi;
 pub mod crmi_authors;
 pub mod crmi_channel;
 pub mod entropy;
+pub mod fastlog;
 pub mod fastmath;
 pub mod fsmi;
 pub mod gp;
