@@ -21,7 +21,7 @@ use crate::grid::check_pose;
 pub use crate::info::crmi_channel::{
     beam_crmi, beam_posteriors, channel_masses, BeamChannel, BeamPosteriors,
 };
-use crate::info::crmi_channel::{posterior_kl, sweep, KlBatch};
+use crate::info::crmi_channel::{sweep, KlBatch};
 use crate::info::fastmath::ln_clamped_slice;
 use crate::info::lattice::BeamAngles;
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
@@ -226,6 +226,14 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
     sc.s.resize(n, 0.0);
     let mut total = 0.0;
     let (mut lo, mut hi) = (0usize, 0usize);
+    // At most one job per cell and bin of its support plus one "free" job per cell (`ijrr`), or
+    // one per cell and bin (other models, whose generic path queues every cell).
+    let capacity = if pure_hit {
+        ch.support.iter().map(|&(a, b)| b + 1 - a).sum::<usize>() + 2 * n
+    } else {
+        n * (q_n + 2)
+    };
+    let mut jobs = sc.batch.open(capacity);
     for q in 0..=q_n {
         let w = q_n + 1;
         if pure_hit && q == q_n && cfg.model.w_max == 0.0 {
@@ -253,23 +261,28 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
             }
             // Only the window has likelihood; before it the beam passes, after it nothing
             // returns (ℓ_∞(q) = 0 below the atom), so the sweep starts at 0 after the window.
+            // (Local slices of the window, so that the loops keep their pointers in registers.)
+            let (mhat, reach) = (&sc.mhat[lo..hi], &sc.reach[lo..hi]);
+            let like = |l: usize| ch.like[(lo + l) * w + q];
+            let s_win = &mut sc.s[lo..hi];
             let mut s_acc = 0.0;
-            for l in (lo..hi).rev() {
-                sc.s[l] = s_acc;
-                let m = sc.mhat[l];
-                s_acc = m * ch.like[l * w + q] + (1.0 - m) * s_acc;
+            for l in (0..hi - lo).rev() {
+                s_win[l] = s_acc;
+                let m = mhat[l];
+                s_acc = m * like(l) + (1.0 - m) * s_acc;
             }
-            let eta = sc.reach[lo] * s_acc;
+            let eta = reach[0] * s_acc;
             if eta >= LINEAR_ETA_MIN {
                 let inv = 1.0 / eta;
                 total += eta;
                 // Cells before the window see this bin as "free" (pooled below); cells after it
                 // are left unchanged (α = 0) and gain nothing from it.
                 sc.p_free[lo] += eta;
-                for l in lo..hi {
-                    let a = sc.reach[l] * (ch.like[l * w + q] - sc.s[l]) * inv;
-                    sc.eta_alpha[l] += eta * a;
-                    sc.batch.push(l, eta, a, sc.mhat[l]);
+                let eta_alpha = &mut sc.eta_alpha[lo..hi];
+                for l in 0..hi - lo {
+                    let a = reach[l] * (like(l) - s_win[l]) * inv;
+                    eta_alpha[l] += eta * a;
+                    jobs.push(lo + l, eta, a, mhat[l]);
                 }
                 continue;
             }
@@ -289,12 +302,9 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
         if pure_hit && q < q_n {
             sc.p_free[range.start] += eta;
         }
-        // Queued pairs first, so that every cell's sum keeps the bin order.
-        sc.batch.flush(&sc.probs, mu, &mut sc.kl);
         for l in range {
-            let p = &sc.probs[l * k..(l + 1) * k];
             sc.eta_alpha[l] += eta * sc.alpha[l];
-            sc.kl[l] += eta * posterior_kl(p, mu, sc.alpha[l], sc.mhat[l]);
+            jobs.push(l, eta, sc.alpha[l], sc.mhat[l]);
         }
     }
     if pure_hit {
@@ -306,10 +316,13 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
             if pf > 0.0 {
                 let a = -1.0 / (1.0 - sc.mhat[l]).max(1e-300);
                 sc.eta_alpha[l] += pf * a;
-                sc.batch.push(l, pf, a, sc.mhat[l]);
+                jobs.push(l, pf, a, sc.mhat[l]);
             }
         }
     }
+    let used = jobs.used();
+    sc.batch.close(used);
+    // Every cell's sum runs in queue order, i.e. in bin order with its "free" job last.
     sc.batch.flush(&sc.probs, mu, &mut sc.kl);
     sc.per_cell.clear();
     if !midpoint {

@@ -271,9 +271,10 @@ fn posterior(p: &[f64], mu: &[f64], alpha: f64, mhat: f64, out: &mut [f64]) {
 }
 
 /// KL(p' ‖ p) (nats) of the posterior p' = p ⊙ f / s, with f_i = max(1 + α(μ_i − m̂), 0) and
-/// s = Σ_i p_i f_i: Σ_i p_i f_i ln f_i / s − ln s. A bin's posterior never needs ln p.
-#[inline]
-pub(crate) fn posterior_kl(p: &[f64], mu: &[f64], alpha: f64, mhat: f64) -> f64 {
+/// s = Σ_i p_i f_i: Σ_i p_i f_i ln f_i / s − ln s. A bin's posterior never needs ln p. The scalar
+/// definition that [`KlBatch`] reproduces bit for bit (tested).
+#[cfg(test)]
+fn posterior_kl(p: &[f64], mu: &[f64], alpha: f64, mhat: f64) -> f64 {
     let (mut s, mut g) = (0.0, 0.0);
     for (&pi, &m) in p.iter().zip(mu) {
         kl_level_step(m, alpha, mhat, pi, &mut s, &mut g);
@@ -302,7 +303,7 @@ fn kl_from_sums(s: f64, g: f64) -> f64 {
 /// kernel reads a field of eight jobs with one gather.
 #[derive(Clone, Copy, Debug)]
 #[repr(C)]
-struct KlJob {
+pub(crate) struct KlJob {
     alpha: f64,
     mhat: f64,
     weight: f64,
@@ -317,6 +318,8 @@ struct KlJob {
 #[derive(Debug, Default)]
 pub(crate) struct KlBatch {
     jobs: Vec<KlJob>,
+    /// Where the jobs of the open writer start.
+    open_at: usize,
     /// Per job: KL of its posterior, filled by [`KlBatch::flush`].
     kl: Vec<f64>,
     /// Level-by-level path: the jobs' α, m̂, pmf entries of one level and running sums.
@@ -327,17 +330,65 @@ pub(crate) struct KlBatch {
     g: Vec<f64>,
 }
 
-impl KlBatch {
+/// Up to a known number of jobs written into a batch: `push` keeps its count in a register
+/// (a `Vec::push` per job would chain every job through the vector's length in memory).
+pub(crate) struct KlJobWriter<'a> {
+    slots: &'a mut [KlJob],
+    used: usize,
+}
+
+impl KlJobWriter<'_> {
     /// Queues the posterior of `cell` (mean `mhat`) under coefficient `alpha`; it adds
-    /// `weight` · KL to `out[cell]` on flush.
+    /// `weight` · KL to `out[cell]` on flush. Panics past the capacity it was opened with.
     #[inline]
     pub(crate) fn push(&mut self, cell: usize, weight: f64, alpha: f64, mhat: f64) {
-        self.jobs.push(KlJob {
+        self.slots[self.used] = KlJob {
             alpha,
             mhat,
             weight,
             cell,
-        });
+        };
+        self.used += 1;
+    }
+
+    /// The number of jobs written (to pass to [`KlBatch::close`]).
+    pub(crate) fn used(&self) -> usize {
+        self.used
+    }
+}
+
+impl KlBatch {
+    /// Queues the posterior of `cell` (mean `mhat`) under coefficient `alpha`; it adds
+    /// `weight` · KL to `out[cell]` on flush.
+    #[cfg(test)]
+    fn push(&mut self, cell: usize, weight: f64, alpha: f64, mhat: f64) {
+        let mut w = self.open(1);
+        w.push(cell, weight, alpha, mhat);
+        let used = w.used();
+        self.close(used);
+    }
+
+    /// Room for `capacity` more jobs; write them with the writer, then [`KlBatch::close`] with
+    /// its count.
+    pub(crate) fn open(&mut self, capacity: usize) -> KlJobWriter<'_> {
+        let start = self.jobs.len();
+        let blank = KlJob {
+            alpha: 0.0,
+            mhat: 0.0,
+            weight: 0.0,
+            cell: 0,
+        };
+        self.jobs.resize(start + capacity, blank);
+        self.open_at = start;
+        KlJobWriter {
+            slots: &mut self.jobs[start..],
+            used: 0,
+        }
+    }
+
+    /// Keeps the `used` jobs written since [`KlBatch::open`].
+    pub(crate) fn close(&mut self, used: usize) {
+        self.jobs.truncate(self.open_at + used);
     }
 
     /// Adds weight · KL of every queued pair to `out[cell]` (in queue order) and empties the
@@ -429,57 +480,67 @@ fn kl_level_sums_body(
 }
 
 /// `kl[j]` = [`posterior_kl`] of job j (its cell's pmf in `probs`, α_j, m̂_j), eight jobs at a
-/// time with the scalar's operations in its order; the remainder through the scalar.
+/// time with the scalar's operations in its order (a last partial group is padded with copies of
+/// its first job, whose lanes are dropped).
 ///
 /// # Safety
 /// The CPU must support AVX-512F, and `(cell + 1) · K <= probs.len()` for every job.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn kl_jobs_wide(probs: &[f64], mu: &[f64], jobs: &[KlJob], kl: &mut [f64]) {
-    use crate::info::fastlog::ln_normal_x8;
-    use std::arch::x86_64::*;
-    let k = mu.len();
     let n = jobs.len();
     assert!(kl.len() >= n);
     let whole = n / 8 * 8;
+    for j in (0..whole).step_by(8) {
+        let group = kl_group_wide(probs, mu, &jobs[j..j + 8]);
+        kl[j..j + 8].copy_from_slice(&group);
+    }
+    if whole < n {
+        let mut padded = [jobs[whole]; 8];
+        padded[..n - whole].copy_from_slice(&jobs[whole..]);
+        let group = kl_group_wide(probs, mu, &padded);
+        kl[whole..n].copy_from_slice(&group[..n - whole]);
+    }
+}
+
+/// [`posterior_kl`] of eight jobs in the lanes of one vector.
+///
+/// # Safety
+/// As [`kl_jobs_wide`]; `jobs` holds eight jobs.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+unsafe fn kl_group_wide(probs: &[f64], mu: &[f64], jobs: &[KlJob]) -> [f64; 8] {
+    use crate::info::fastlog::ln_normal_x8;
+    use std::arch::x86_64::*;
+    assert!(jobs.len() >= 8);
     let (one, zero) = (_mm512_set1_pd(1.0), _mm512_setzero_pd());
     let tiny = _mm512_set1_pd(f64::MIN_POSITIVE);
-    // Eight consecutive jobs' copies of one field: 4 words apart.
+    // One field of eight consecutive jobs: 4 words apart.
     let stride = _mm512_setr_epi64(0, 4, 8, 12, 16, 20, 24, 28);
-    let k_v = _mm512_set1_epi64(k as i64);
-    for j in (0..whole).step_by(8) {
-        // In bounds: jobs j..j + 8 exist (j + 8 <= whole <= n).
-        let base = jobs.as_ptr().add(j) as *const f64;
-        let a = _mm512_i64gather_pd::<8>(stride, base);
-        let m = _mm512_i64gather_pd::<8>(stride, base.add(1));
-        let cell = _mm512_i64gather_epi64::<8>(stride, base.add(3) as *const i64);
-        // cell · K from 32-bit halves (cells and K are far below 2^32), without AVX-512DQ.
-        let row = _mm512_mul_epu32(cell, k_v);
-        let (mut s, mut g) = (zero, zero);
-        for (i, &mu_i) in mu.iter().enumerate() {
-            // max(·, 0) and max(·, tiny) return the second operand for NaN, as f64::max does.
-            let d = _mm512_sub_pd(_mm512_set1_pd(mu_i), m);
-            let f = _mm512_max_pd(_mm512_add_pd(one, _mm512_mul_pd(a, d)), zero);
-            let at = _mm512_add_epi64(row, _mm512_set1_epi64(i as i64));
-            // In bounds: every row + i < (cell + 1) · K <= probs.len() (the caller's contract).
-            let p = _mm512_i64gather_pd::<8>(at, probs.as_ptr());
-            let w = _mm512_mul_pd(p, f);
-            s = _mm512_add_pd(s, w);
-            g = _mm512_add_pd(g, _mm512_mul_pd(w, ln_normal_x8(_mm512_max_pd(f, tiny))));
-        }
-        let mut sv = [0.0; 8];
-        let mut gv = [0.0; 8];
-        _mm512_storeu_pd(sv.as_mut_ptr(), s);
-        _mm512_storeu_pd(gv.as_mut_ptr(), g);
-        for t in 0..8 {
-            kl[j + t] = kl_from_sums(sv[t], gv[t]);
-        }
+    let base = jobs.as_ptr() as *const f64;
+    let a = _mm512_i64gather_pd::<8>(stride, base);
+    let m = _mm512_i64gather_pd::<8>(stride, base.add(1));
+    let cell = _mm512_i64gather_epi64::<8>(stride, base.add(3) as *const i64);
+    // cell · K from 32-bit halves (cells and K are far below 2^32), without AVX-512DQ.
+    let row = _mm512_mul_epu32(cell, _mm512_set1_epi64(mu.len() as i64));
+    let (mut s, mut g) = (zero, zero);
+    for (i, &mu_i) in mu.iter().enumerate() {
+        // max(·, 0) and max(·, tiny) return the second operand for NaN, as f64::max does.
+        let d = _mm512_sub_pd(_mm512_set1_pd(mu_i), m);
+        let f = _mm512_max_pd(_mm512_add_pd(one, _mm512_mul_pd(a, d)), zero);
+        let at = _mm512_add_epi64(row, _mm512_set1_epi64(i as i64));
+        // In bounds: every row + i < (cell + 1) · K <= probs.len() (the caller's contract).
+        let p = _mm512_i64gather_pd::<8>(at, probs.as_ptr());
+        let w = _mm512_mul_pd(p, f);
+        s = _mm512_add_pd(s, w);
+        g = _mm512_add_pd(g, _mm512_mul_pd(w, ln_normal_x8(_mm512_max_pd(f, tiny))));
     }
-    for j in whole..n {
-        let job = &jobs[j];
-        let p = &probs[job.cell * k..(job.cell + 1) * k];
-        kl[j] = posterior_kl(p, mu, job.alpha, job.mhat);
-    }
+    let mut sv = [0.0; 8];
+    let mut gv = [0.0; 8];
+    _mm512_storeu_pd(sv.as_mut_ptr(), s);
+    _mm512_storeu_pd(gv.as_mut_ptr(), g);
+    std::array::from_fn(|t| kl_from_sums(sv[t], gv[t]))
 }
 
 #[cfg(test)]
