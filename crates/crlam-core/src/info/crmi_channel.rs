@@ -50,9 +50,10 @@ impl BeamChannel {
         let bin_of = |z: f64| ((z / cfg.lambda_z) as usize).min(q_n - 1);
         // Tail-aware CDFs at every support edge of every cell, in one vectorised pass.
         self.tail_u.clear();
+        self.support
+            .extend(d.iter().map(|&dl| (bin_of(dl - reach), bin_of(dl + reach))));
         if w_h > 0.0 {
-            for &dl in d {
-                let (q_lo, q_hi) = (bin_of(dl - reach), bin_of(dl + reach));
+            for (&dl, &(q_lo, q_hi)) in d.iter().zip(&self.support) {
                 self.tail_u
                     .extend(self.edges[q_lo..=q_hi + 1].iter().map(|&z| (z - dl) / sig));
             }
@@ -62,7 +63,7 @@ impl BeamChannel {
         let mut at = 0;
         for (l, &dl) in d.iter().enumerate() {
             let row = &mut self.like[l * (q_n + 1)..(l + 1) * (q_n + 1)];
-            let (q_lo, q_hi) = (bin_of(dl - reach), bin_of(dl + reach));
+            let (q_lo, q_hi) = self.support[l];
             let short_norm = if w_s > 0.0 {
                 -(-lam * dl).exp_m1()
             } else {
@@ -101,7 +102,6 @@ impl BeamChannel {
                 row[q] = v;
             }
             row[q_n] = w_x;
-            self.support.push((q_lo, q_hi));
         }
         let short_norm = -(-lam * z_max).exp_m1();
         for q in 0..q_n {
