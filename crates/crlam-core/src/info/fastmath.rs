@@ -118,18 +118,94 @@ pub fn normal_cdf_slice(xs: &[f64], out: &mut [f64]) {
 }
 
 /// `out[i] = Φ(−|xs[i]|)`: the value of [`normal_tail`]`(xs[i])` (whose flag is `xs[i] > 0`), bit
-/// for bit, in one pass that vectorises (AVX2 where the CPU has it, with the same operations as
-/// the scalar function, so results do not depend on the CPU). Finite inputs only.
+/// for bit, in one pass that vectorises (AVX-512F or AVX2 where the CPU has them, with the same
+/// operations as the scalar function, so results do not depend on the CPU). Finite inputs only.
 pub fn lower_tail_abs_slice(xs: &[f64], out: &mut [f64]) {
     let t = table();
     #[cfg(target_arch = "x86_64")]
     {
+        if crate::info::fastlog::has_avx512() {
+            // SAFETY: the CPU supports AVX-512F, checked just above.
+            unsafe { lower_tail_abs_slice_avx512(t, xs, out) };
+            return;
+        }
         if std::arch::is_x86_feature_detected!("avx2") {
             unsafe { lower_tail_abs_slice_avx2(t, xs, out) };
             return;
         }
     }
     lower_tail_abs_slice_body(&t.nodes, xs, out);
+}
+
+/// Eight lanes at a time with explicit AVX-512F, with the scalar function's operations in its
+/// order and no FMA, so that every lane equals [`lower_tail_with`] bit for bit; the remainder
+/// goes through the scalar. The six node values of each lane's interval are gathered (an 8 × 8
+/// transpose of the lanes' rows, as on the AVX2 path, measured 3 % slower).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn lower_tail_abs_slice_avx512(table: &CdfTable, xs: &[f64], out: &mut [f64]) {
+    use std::arch::x86_64::*;
+    let nodes = &table.nodes;
+    let len = xs.len().min(out.len());
+    let lanes = len / 8 * 8;
+    let base = table.intervals.as_ptr() as *const f64;
+    let last = _mm256_set1_epi32((nodes.len() - 2) as i32);
+    let sign = _mm512_set1_pd(-0.0);
+    let c = |v: f64| _mm512_set1_pd(v);
+    let (limit, neg_limit, step, step2) = (c(LIMIT), c(-LIMIT), c(STEP), c(STEP * STEP));
+    let zero = _mm512_setzero_pd();
+    let (mul, add, sub) = (
+        |a, b| _mm512_mul_pd(a, b),
+        |a, b| _mm512_add_pd(a, b),
+        |a, b| _mm512_sub_pd(a, b),
+    );
+    let mut i = 0;
+    while i < lanes {
+        let x = _mm512_loadu_pd(xs.as_ptr().add(i));
+        let u = _mm512_or_pd(x, sign); // −|x|
+        let t = _mm512_max_pd(_mm512_div_pd(add(u, limit), step), zero);
+        let k = _mm256_min_epi32(_mm512_cvttpd_epi32(t), last);
+        let s = sub(t, _mm512_cvtepi32_pd(k));
+        // k ≤ nodes.len() − 2 = intervals.len() − 1: every read is in bounds. Interval k holds
+        // (a0, a1, a2, b0, b1, b2, 0, 0) at 8k.
+        let row = _mm256_slli_epi32::<3>(k);
+        let field = |f: usize| _mm512_i32gather_pd::<8>(row, base.add(f));
+        let (a0, a1, a2) = (field(0), field(1), field(2));
+        let (b0, b1, b2) = (field(3), field(4), field(5));
+        let s2 = mul(s, s);
+        let s3 = mul(s2, s);
+        let s4 = mul(s3, s);
+        let s5 = mul(s3, s2);
+        let h0 = sub(
+            add(sub(c(1.0), mul(c(10.0), s3)), mul(c(15.0), s4)),
+            mul(c(6.0), s5),
+        );
+        let h1 = sub(
+            add(sub(s, mul(c(6.0), s3)), mul(c(8.0), s4)),
+            mul(c(3.0), s5),
+        );
+        let h2 = sub(
+            add(sub(mul(c(0.5), s2), mul(c(1.5), s3)), mul(c(1.5), s4)),
+            mul(c(0.5), s5),
+        );
+        let h3 = add(sub(mul(c(0.5), s3), s4), mul(c(0.5), s5));
+        let h4 = sub(add(mul(c(-4.0), s3), mul(c(7.0), s4)), mul(c(3.0), s5));
+        let h5 = add(sub(mul(c(10.0), s3), mul(c(15.0), s4)), mul(c(6.0), s5));
+        let v = add(
+            add(
+                add(
+                    add(mul(a0, h0), mul(mul(step, a1), h1)),
+                    mul(step2, add(mul(a2, h2), mul(b2, h3))),
+                ),
+                mul(mul(step, b1), h4),
+            ),
+            mul(b0, h5),
+        );
+        let saturated = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(u, neg_limit);
+        _mm512_storeu_pd(out.as_mut_ptr().add(i), _mm512_maskz_mov_pd(!saturated, v));
+        i += 8;
+    }
+    lower_tail_abs_slice_body(nodes, &xs[lanes..len], &mut out[lanes..len]);
 }
 
 /// Four lanes at a time with explicit AVX2, with the scalar function's operations in its order and
