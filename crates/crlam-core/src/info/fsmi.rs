@@ -184,25 +184,29 @@ impl BeamTerms {
         let deltas = [params.delta_occ, params.delta_emp];
         let ln_deltas = deltas.map(f64::ln);
         // The ln(1 + x) of both KL terms of every cell first, in one vectorised pass.
-        self.xs.clear();
-        for &oi in o {
+        // Buffers sized first and written by index: a push per cell would carry each vector's
+        // length through memory from one cell to the next.
+        let n = o.len();
+        self.xs.resize(2 * n, 0.0);
+        for (x, &oi) in self.xs.chunks_exact_mut(2).zip(o) {
             let q = 1.0 - oi;
-            self.xs.extend(deltas.map(|d| kl_log_arg(d, oi, q)));
+            x.copy_from_slice(&deltas.map(|d| kl_log_arg(d, oi, q)));
         }
-        self.cdf.resize(self.xs.len(), 0.0);
+        self.cdf.resize(2 * n, 0.0);
         ln_1p_slice(&self.xs, &mut self.cdf);
-        self.p_first.clear();
-        self.gains.clear();
+        self.p_first.resize(n, 0.0);
+        self.gains.resize(n + 1, 0.0);
         let (mut survive, mut loss) = (1.0, 0.0);
-        for (&oi, ln_1p) in o.iter().zip(self.cdf.chunks_exact(2)) {
+        let rows = o.iter().zip(self.cdf.chunks_exact(2));
+        for ((&oi, ln_1p), (p, g)) in rows.zip(self.p_first.iter_mut().zip(&mut self.gains)) {
             let q = 1.0 - oi;
             let kl = |i: usize| kl_with_log(deltas[i], ln_deltas[i], oi, q, ln_1p[i]);
-            self.p_first.push(oi * survive);
+            *p = oi * survive;
             survive *= q;
-            self.gains.push(loss + kl(0));
+            *g = loss + kl(0);
             loss += kl(1);
         }
-        self.gains.push(loss);
+        self.gains[n] = loss;
         self.p_none = survive;
     }
 
@@ -371,9 +375,10 @@ impl BeamTerms {
         let (p, c) = (&self.p_first, &self.gains);
         let n = p.len();
         let (reach, inv_sigma) = (width_sigmas * sigma, 1.0 / sigma);
-        self.xs.clear();
-        self.windows.clear();
-        let (mut lo, mut hi) = (0, 0);
+        // The windows first (at most one per cell), then every standardised edge written by
+        // index: pushes would carry the vectors' lengths through memory from one cell to the next.
+        self.windows.resize(n, (0, 0, 0));
+        let (mut lo, mut hi, mut count, mut len) = (0, 0, 0, 0);
         for j in 0..n {
             let mu = 0.5 * (edges[j] + edges[j + 1]);
             let (from, to) = if from_centre {
@@ -389,10 +394,21 @@ impl BeamTerms {
                 hi += 1;
             }
             if p[j] > 0.0 {
-                self.windows.push((j, lo, hi));
-                self.xs
-                    .extend(edges[lo..=hi + 1].iter().map(|&e| (e - mu) * inv_sigma));
+                self.windows[count] = (j, lo, hi);
+                count += 1;
+                len += hi - lo + 2;
             }
+        }
+        self.windows.truncate(count);
+        self.xs.resize(len, 0.0);
+        let mut at = 0;
+        for &(j, lo, hi) in &self.windows {
+            let mu = 0.5 * (edges[j] + edges[j + 1]);
+            let xs = &mut self.xs[at..at + hi - lo + 2];
+            for (x, &e) in xs.iter_mut().zip(&edges[lo..=hi + 1]) {
+                *x = (e - mu) * inv_sigma;
+            }
+            at += hi - lo + 2;
         }
         self.cdf.resize(self.xs.len(), 0.0);
         normal_cdf_slice(&self.xs, &mut self.cdf);
@@ -549,11 +565,9 @@ impl Fsmi {
         for angle in self.beam_angles.angles(self.n_beams, heading) {
             traverse_lattice(map, origin, angle, self.params.z_max, cells);
             o.clear();
+            o.extend(cells.iter().map(|cell| map.get(cell.id)));
             edges.clear();
-            for cell in cells.iter() {
-                o.push(map.get(cell.id));
-                edges.push(cell.t_in);
-            }
+            edges.extend(cells.iter().map(|cell| cell.t_in));
             edges.push(cells.last().map_or(0.0, |c| c.t_out));
             total += beam_mi_unchecked(terms, o, edges, &self.params, self.variant);
             if let Some(out) = factors.as_deref_mut() {
