@@ -18,10 +18,11 @@ use crate::crm::update::LINEAR_ETA_MIN;
 use crate::crm::CrmMap;
 use crate::error::{config_err, Result};
 use crate::grid::check_pose;
+use crate::info::crmi_channel::sweep;
 pub use crate::info::crmi_channel::{
     beam_crmi, beam_posteriors, channel_masses, BeamChannel, BeamPosteriors,
 };
-use crate::info::crmi_channel::{sweep, KlBatch};
+use crate::info::crmi_kl::KlBatch;
 use crate::info::fastmath::ln_clamped_slice;
 use crate::info::lattice::BeamAngles;
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
@@ -226,8 +227,9 @@ fn beam_crmi_pooled(cfg: &CrmiConfig, mu: &[f64], sc: &mut CrmiScratch) {
     sc.s.resize(n, 0.0);
     let mut total = 0.0;
     let (mut lo, mut hi) = (0usize, 0usize);
-    // At most one job per cell and bin of its support plus one "free" job per cell (`ijrr`), or
-    // one per cell and bin (other models, whose generic path queues every cell).
+    // At most one job per cell and bin of its support, one "free" job per cell and, when the
+    // model gives the no-return atom mass of its own, one per cell for it (`ijrr`); one per cell
+    // and bin for the other models, whose generic path queues every cell.
     let capacity = if pure_hit {
         ch.support.iter().map(|&(a, b)| b + 1 - a).sum::<usize>() + 2 * n
     } else {

@@ -12,6 +12,7 @@ pub mod bench;
 pub mod crmi;
 pub mod crmi_authors;
 pub mod crmi_channel;
+mod crmi_kl;
 pub mod entropy;
 pub mod fastlog;
 pub mod fastmath;
