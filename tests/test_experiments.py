@@ -85,6 +85,20 @@ def test_real_logs_harness_on_a_slice_of_aces(data_dir: Path, tmp_path: Path) ->
     assert "RBPF-CLAM" in table and "RBPF-OGM" in table and "Cartographer" in table
 
 
+@pytest.mark.realdata
+def test_real_logs_command_passes_the_update_triggers_to_every_run(data_dir: Path, tmp_path: Path) -> None:
+    from crlam.cli import main
+
+    argv = ["experiment", "real-logs", "--out", str(tmp_path), "--datasets", "aces", "--methods", "ogm"]
+    argv += ["--particles", "2", "--seeds", "1", "--ranges", "8", "--max-scans", "200", "--workers", "1"]
+    assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet"]) == 0
+    (run,) = (tmp_path / "runs").iterdir()
+    metrics = json.loads((run / "metrics.json").read_text())
+    config = (run / "config.toml").read_text()
+    assert "linear_update = 1.0" in config and "angular_update = 0.5" in config
+    assert 0 < metrics["n_processed"] < metrics["n_scans"] == 200
+
+
 def test_fresh_process_jobs_run_in_spawned_workers_and_all_finish(tmp_path: Path) -> None:
     from crlam.experiments.pool import run_jobs
 

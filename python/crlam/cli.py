@@ -227,6 +227,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             weight_stride=args.weight_stride,
             tempering=args.tempering,
             proposal=args.proposal,
+            linear_update=args.linear_update,
+            angular_update=args.angular_update,
         )
         run_real_logs(
             out,
@@ -391,6 +393,18 @@ def build_parser() -> argparse.ArgumentParser:
     rl.add_argument("--ranges", nargs="+", default=["full", "8"], help="z_max settings: 'full' and/or metres (default: full 8)")
     rl.add_argument("--resolution", type=_positive_float, default=0.1, help="cell size in metres (default: 0.1)")
     rl.add_argument("--max-scans", type=_positive_int, default=None, help="only the first N scans of each log")
+    rl.add_argument(
+        "--linear-update",
+        type=float,
+        default=0.0,
+        help="process a scan after this travel in m (default: every scan; GMapping's default is 1)",
+    )
+    rl.add_argument(
+        "--angular-update",
+        type=float,
+        default=0.0,
+        help="... or this rotation in rad (default: every scan; GMapping's default is 0.5)",
+    )
     ig = exp.add_parser(
         "iig",
         help="the IIG planner with several information functions on a map (paper Sec. V.B)",
