@@ -61,6 +61,11 @@ def test_table1_protocol_small(tmp_path: Path) -> None:
         assert (tmp_path / f).stat().st_size > 0
     again = run_table1(tmp_path, runs=2, scans=40, particles=3, methods=("clam",), workers=1, progress=False)
     assert json.dumps(again["rows"], sort_keys=True) == json.dumps(res["rows"], sort_keys=True)
+    # Finished runs kept without their maps (as committed results are) still resume.
+    (tmp_path / "runs" / "clam_run00" / "belief.npz").unlink()
+    kept = run_table1(tmp_path, runs=2, scans=40, particles=3, methods=("clam",), workers=1, progress=False)
+    assert json.dumps(kept["rows"], sort_keys=True) == json.dumps(res["rows"], sort_keys=True)
+    assert (tmp_path / "fig2_trajectories.png").stat().st_size > 0
 
 
 @pytest.mark.realdata

@@ -140,6 +140,9 @@ def _write_figures(out: Path, sim_dir: Path, specs: Sequence[RunSpec], done: dic
     trajs = {"ground truth": gt.poses, "odometry": odo.poses}
     errs = [("odometry", reference_errors(odo.timestamps, odo.poses, gt.timestamps, gt.poses))]
     crm_run = firsts.get("clam")
+    if crm_run is not None and not (crm_run.folder(out) / "belief.npz").is_file():
+        # A run folder kept without its map (e.g. committed results): keep the figure there is.
+        crm_run = None
     for m, s in firsts.items():
         t = read_tum(s.folder(out) / "trajectory.tum")
         trajs[METHOD_NAMES.get(m, m)] = t.poses
