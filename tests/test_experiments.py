@@ -104,6 +104,27 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(data_dir: Pat
     assert 0 < metrics["n_processed"] < metrics["n_scans"] == 200
 
 
+def _child_peak_rss(_: int) -> float:
+    from crlam.experiments.slam_run import peak_rss_mb
+
+    return peak_rss_mb()
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="needs Linux /proc")
+def test_peak_rss_of_a_spawned_worker_is_its_own_not_its_parents() -> None:
+    import multiprocessing
+
+    from crlam.experiments.slam_run import peak_rss_mb
+
+    ballast = bytearray(300 * 1024 * 1024)
+    ballast[::4096] = b"\x01" * len(ballast[::4096])  # touch every page
+    assert peak_rss_mb() > 300
+    with multiprocessing.get_context("spawn").Pool(1) as pool:
+        child = pool.map(_child_peak_rss, [0])[0]
+    assert 0 < child < 200, child
+    del ballast
+
+
 def test_fresh_process_jobs_run_in_spawned_workers_and_all_finish(tmp_path: Path) -> None:
     from crlam.experiments.pool import run_jobs
 

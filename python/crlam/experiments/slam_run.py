@@ -49,7 +49,21 @@ class SlamResult:
 
 
 def peak_rss_mb() -> float:
-    """Peak resident memory of this process (MB)."""
+    """Peak resident memory of this process (MB).
+
+    On Linux this is ``VmHWM`` from ``/proc/self/status``: the high-water mark of this program's
+    own memory since it started. ``ru_maxrss`` is not: a process started by ``fork`` (as the
+    ``spawn`` workers of a sweep are, before their ``exec``) inherits the parent's peak, so a run
+    started by a parent that had just simulated a large log reported the parent's memory. Other
+    systems fall back to ``ru_maxrss``.
+    """
+    try:
+        with open("/proc/self/status") as status:
+            for line in status:
+                if line.startswith("VmHWM:"):
+                    return int(line.split()[1]) / 1024.0
+    except (OSError, ValueError, IndexError):
+        pass
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
