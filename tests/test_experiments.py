@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import os
+import signal
 from pathlib import Path
 
 import pytest
@@ -132,3 +134,19 @@ def test_fresh_process_jobs_run_in_spawned_workers_and_all_finish(tmp_path: Path
     for workers in (1, 2):
         done, errors = run_jobs(jobs, dict, lambda n: False, lambda n: {}, workers=workers, progress=False, fresh_process=True)
         assert not errors and done == {f"j{i}": {"value": i} for i in range(3)}
+
+
+def _die_or_echo(value: int) -> dict[str, int]:
+    if value == 1:
+        os.kill(os.getpid(), signal.SIGKILL)  # what the OOM killer does
+    return {"value": value}
+
+
+def test_a_worker_killed_mid_job_fails_that_job_only(tmp_path: Path) -> None:
+    from crlam.experiments.pool import run_jobs
+
+    jobs = [(f"j{i}", {"value": i}) for i in range(4)]
+    done, errors = run_jobs(jobs, _die_or_echo, lambda n: False, lambda n: {}, workers=2, progress=False, fresh_process=True)
+    assert done == {f"j{i}": {"value": i} for i in (0, 2, 3)}
+    assert list(errors) == ["j1"]
+    assert "SIGKILL" in errors["j1"] and "out of memory" in errors["j1"]

@@ -9,9 +9,11 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import signal
 import traceback
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
@@ -38,8 +40,61 @@ def _call(fn: Callable[..., dict[str, Any]], name: str, kwargs: dict[str, Any], 
         return name, None, f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
 
 
-def _call_packed(args: tuple[Callable[..., dict[str, Any]], str, dict[str, Any], int]) -> tuple[str, Any, str | None]:
-    return _call(*args)
+def _call_and_send(conn: Connection, fn: Callable[..., dict[str, Any]], name: str, kwargs: dict[str, Any], threads: int) -> None:
+    conn.send(_call(fn, name, kwargs, threads))
+    conn.close()
+
+
+def _death_reason(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        try:
+            sig = signal.Signals(-exitcode).name
+        except ValueError:
+            sig = f"signal {-exitcode}"
+        hint = " (killed: out of memory?)" if -exitcode == signal.SIGKILL else ""
+        return f"WorkerDied: the worker process was ended by {sig}{hint} before returning a result"
+    return f"WorkerDied: the worker process exited with code {exitcode} before returning a result"
+
+
+def _run_fresh_processes(
+    todo: Sequence[Job],
+    fn: Callable[..., dict[str, Any]],
+    workers: int,
+    threads: int,
+    collect: Callable[[str, Any, str | None], None],
+) -> None:
+    """Every job in its own spawned process, at most ``workers`` at a time. A process that dies
+    without a result (killed by the OOM killer, a crash in native code) fails its job only;
+    ``multiprocessing.Pool`` would replace the worker and wait for the lost result forever."""
+    ctx = mp.get_context("spawn")
+    queue = list(todo)[::-1]
+    running: dict[Connection, tuple[str, Any]] = {}
+    try:
+        while queue or running:
+            while queue and len(running) < max(workers, 1):
+                name, kw = queue.pop()
+                recv, send = ctx.Pipe(duplex=False)
+                proc = ctx.Process(target=_call_and_send, args=(send, fn, name, kw, threads), daemon=True)
+                proc.start()
+                send.close()  # the child holds the only writer: EOF once it is gone
+                running[recv] = (name, proc)
+            for conn in wait(list(running)):
+                assert isinstance(conn, Connection)
+                name, proc = running.pop(conn)
+                try:
+                    result = conn.recv()
+                except EOFError:
+                    proc.join()
+                    collect(name, None, _death_reason(proc.exitcode))
+                else:
+                    collect(*result)
+                    proc.join()
+                finally:
+                    conn.close()
+    finally:
+        for _, proc in running.values():
+            proc.terminate()
+            proc.join()
 
 
 def run_jobs(
@@ -81,10 +136,7 @@ def run_jobs(
         bar.update(1)
 
     if fresh_process:
-        ctx = mp.get_context("spawn")
-        with ctx.Pool(max(workers, 1), maxtasksperchild=1) as procs:
-            for result in procs.imap_unordered(_call_packed, [(fn, n, kw, threads) for n, kw in todo]):
-                collect(*result)
+        _run_fresh_processes(todo, fn, workers, threads, collect)
     elif workers <= 1:
         for n, kw in todo:
             collect(*_call(fn, n, kw, threads))
