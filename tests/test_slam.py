@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -67,6 +68,14 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
     out = tmp_path / "run"
     assert main(["slam", str(office / "log.clf"), "--out", str(out), "--particles", "3", "--max-scans", "30", "--quiet"]) == 0
     assert json.loads((out / "metrics.json").read_text())["n_scans"] == 30
+    wide = tmp_path / "wide"
+    args = ["slam", str(office / "log.clf"), "--out", str(wide), "--particles", "3", "--max-scans", "5", "--quiet"]
+    assert main([*args, "--sigma-range", "0.05"]) == 0
+    text = (wide / "config.toml").read_text()  # no tomllib: Python 3.10 is supported
+    hit = re.search(r"^sigma_hit_resolved = (\S+)$", text, re.M)
+    assert "\nsigma_range = 0.05\n" in text and hit and float(hit.group(1)) == pytest.approx((0.05**2 + 0.2**2 / 12) ** 0.5)
+    with pytest.raises(SystemExit):
+        main([*args, "--sigma-range", "-1"])
     empty = tmp_path / "empty.clf"
     empty.write_text("")
     assert main(["slam", str(empty), "--out", str(tmp_path / "x"), "--quiet"]) == 2

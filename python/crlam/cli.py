@@ -24,6 +24,19 @@ def _positive_float(text: str) -> float:
     return v
 
 
+_SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
+
+
+def _nonnegative_float(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not (v >= 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return v
+
+
 def _positive_int(text: str) -> int:
     try:
         v = int(text)
@@ -137,6 +150,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         tempering=args.tempering,
         linear_update=args.linear_update,
         angular_update=args.angular_update,
+        sigma_range=args.sigma_range,
     )
     res = run_slam_log(
         args.log,
@@ -207,6 +221,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             weight_stride=args.weight_stride,
             tempering=args.tempering,
             proposal=args.proposal,
+            sigma_range=args.sigma_range,
         )
         run_table1(
             out,
@@ -229,6 +244,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             proposal=args.proposal,
             linear_update=args.linear_update,
             angular_update=args.angular_update,
+            sigma_range=args.sigma_range,
         )
         run_real_logs(
             out,
@@ -343,6 +359,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--weight-stride", type=_positive_int, default=1, help="every n-th beam for the weights (default: 1)")
     p.add_argument("--map-stride", type=_positive_int, default=1, help="every n-th beam for the map update (default: 1)")
     p.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering tau (default: 1)")
+    p.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
     p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
     p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
     p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
@@ -446,6 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
         q.add_argument("--weight-stride", type=_positive_int, default=1, help="beam stride of the weights (default: 1)")
         q.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering (default: 1)")
+        q.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
         q.add_argument("--proposal", choices=("odometry", "likelihood_mode"), default="odometry")
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.set_defaults(func=cmd_experiment)
