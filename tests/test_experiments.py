@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import json
+import multiprocessing
 import os
 import signal
+import time
 from pathlib import Path
 
 import pytest
@@ -114,7 +116,6 @@ def _child_peak_rss(_: int) -> float:
 
 @pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="needs Linux /proc")
 def test_peak_rss_of_a_spawned_worker_is_its_own_not_its_parents() -> None:
-    import multiprocessing
 
     from crlam.experiments.slam_run import peak_rss_mb
 
@@ -150,3 +151,43 @@ def test_a_worker_killed_mid_job_fails_that_job_only(tmp_path: Path) -> None:
     assert done == {f"j{i}": {"value": i} for i in (0, 2, 3)}
     assert list(errors) == ["j1"]
     assert "SIGKILL" in errors["j1"] and "out of memory" in errors["j1"]
+
+
+def _slow_job(pidfile: str) -> dict[str, int]:
+    tmp = Path(pidfile + ".tmp")
+    tmp.write_text(str(os.getpid()))
+    tmp.rename(pidfile)
+    time.sleep(120)
+    return {}
+
+
+def _sweep_parent(pidfile: str) -> None:
+    from crlam.experiments.pool import run_jobs
+
+    run_jobs([("slow", {"pidfile": pidfile})], _slow_job, lambda n: False, lambda n: {}, progress=False, fresh_process=True)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/status").read_text()
+    except FileNotFoundError:
+        return False
+    return "\nState:\tZ" not in state  # a zombie nobody reaped has ended too
+
+
+@pytest.mark.skipif(not Path("/proc/self/status").is_file(), reason="needs Linux /proc")
+def test_workers_end_when_the_sweep_process_is_killed(tmp_path: Path) -> None:
+    pidfile = tmp_path / "pid"
+    parent = multiprocessing.get_context("spawn").Process(target=_sweep_parent, args=(str(pidfile),))
+    parent.start()
+    deadline = time.monotonic() + 60
+    while not pidfile.exists() and time.monotonic() < deadline:
+        time.sleep(0.05)
+    child = int(pidfile.read_text())
+    assert _alive(child)
+    os.kill(parent.pid, signal.SIGKILL)  # no cleanup runs in the parent
+    parent.join()
+    deadline = time.monotonic() + 15
+    while _alive(child) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert not _alive(child), "the run went on without its sweep"

@@ -10,6 +10,8 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import threading
+import time
 import traceback
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -40,7 +42,24 @@ def _call(fn: Callable[..., dict[str, Any]], name: str, kwargs: dict[str, Any], 
         return name, None, f"{type(e).__name__}: {e}\n{traceback.format_exc(limit=3)}"
 
 
-def _call_and_send(conn: Connection, fn: Callable[..., dict[str, Any]], name: str, kwargs: dict[str, Any], threads: int) -> None:
+def _exit_with_parent(parent: int, period: float) -> None:
+    """Ends this worker once its parent is gone (the parent was killed: nobody would collect the
+    run, and a resumed sweep would start the same run a second time next to it)."""
+    while os.getppid() == parent:
+        time.sleep(period)
+    os._exit(3)
+
+
+def _call_and_send(
+    conn: Connection,
+    fn: Callable[..., dict[str, Any]],
+    name: str,
+    kwargs: dict[str, Any],
+    threads: int,
+    parent: int,
+    watch_period: float = 1.0,
+) -> None:
+    threading.Thread(target=_exit_with_parent, args=(parent, watch_period), daemon=True).start()
     conn.send(_call(fn, name, kwargs, threads))
     conn.close()
 
@@ -74,7 +93,7 @@ def _run_fresh_processes(
             while queue and len(running) < max(workers, 1):
                 name, kw = queue.pop()
                 recv, send = ctx.Pipe(duplex=False)
-                proc = ctx.Process(target=_call_and_send, args=(send, fn, name, kw, threads), daemon=True)
+                proc = ctx.Process(target=_call_and_send, args=(send, fn, name, kw, threads, os.getpid()), daemon=True)
                 proc.start()
                 send.close()  # the child holds the only writer: EOF once it is gone
                 running[recv] = (name, proc)

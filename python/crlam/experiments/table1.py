@@ -66,8 +66,9 @@ def run_table1(
     ensure_simulation(sim_dir, scans, sim_seed, world_seed)
     base = base or SlamConfig(particles=particles, resolution=0.2, max_range=8.0)
     specs = []
-    for m in methods:
-        for k in range(runs):
+    # Run-major order: a sweep stopped early leaves as many finished runs of each method.
+    for k in range(runs):
+        for m in methods:
             cfg = SlamConfig(**{**base.to_dict(), "method": m, "particles": particles, "seed": k})
             specs.append(RunSpec(f"{m}_run{k:02d}", str(sim_dir / "log.clf"), cfg, reference=str(sim_dir / "groundtruth.tum")))
     done, errors = run_sweep(specs, out, workers=workers, progress=progress)
