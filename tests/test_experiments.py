@@ -70,6 +70,11 @@ def test_table1_protocol_small(tmp_path: Path) -> None:
     kept = run_table1(tmp_path, runs=2, scans=40, particles=3, methods=("clam",), workers=1, progress=False)
     assert json.dumps(kept["rows"], sort_keys=True) == json.dumps(res["rows"], sort_keys=True)
     assert (tmp_path / "fig2_trajectories.png").stat().st_size > 0
+    # An interim report of a longer protocol runs nothing and covers the finished runs only.
+    (tmp_path / "table.md").unlink()
+    interim = run_table1(tmp_path, runs=5, scans=40, particles=3, methods=("clam",), workers=1, progress=False, report_only=True)
+    assert interim["rows"]["clam"]["runs"] == ["clam_run00", "clam_run01"] and interim["rows"]["clam"]["n_runs"] == 2
+    assert not (tmp_path / "runs" / "clam_run02").exists() and (tmp_path / "table.md").is_file()
 
 
 @pytest.mark.realdata
@@ -106,6 +111,11 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(data_dir: Pat
     config = (run / "config.toml").read_text()
     assert "linear_update = 1.0" in config and "angular_update = 0.5" in config
     assert 0 < metrics["n_processed"] < metrics["n_scans"] == 200
+    # --report-only with one more seed: the table has the finished run, nothing new is run.
+    argv[argv.index("--seeds") + 1] = "2"
+    assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet", "--report-only"]) == 0
+    assert [p.name for p in (tmp_path / "runs").iterdir()] == [run.name]
+    assert "RBPF-OGM" in (tmp_path / "table.md").read_text()
 
 
 def _child_peak_rss(_: int) -> float:

@@ -232,6 +232,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             workers=args.workers,
             base=base,
             progress=not args.quiet,
+            report_only=args.report_only,
         )
     else:
         from crlam.experiments.real_logs import run_real_logs
@@ -257,6 +258,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             workers=args.workers,
             max_scans=args.max_scans,
             progress=not args.quiet,
+            report_only=args.report_only,
         )
     print((out / "table.md").read_text())
     return 0
@@ -466,6 +468,9 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
         q.add_argument("--proposal", choices=("odometry", "likelihood_mode"), default="odometry")
         q.add_argument("--quiet", action="store_true", help="no progress output")
+        q.add_argument(
+            "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"
+        )
         q.set_defaults(func=cmd_experiment)
 
     p = sub.add_parser(

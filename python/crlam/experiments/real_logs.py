@@ -57,8 +57,11 @@ def run_real_logs(
     workers: int = 2,
     max_scans: int | None = None,
     progress: bool = True,
+    report_only: bool = False,
 ) -> dict[str, Any]:
-    """Runs (or resumes) the grid of runs and writes the table; returns the results."""
+    """Runs (or resumes) the grid of runs and writes the table; returns the results.
+
+    ``report_only`` runs nothing: the table covers the runs finished so far."""
     base = base or SlamConfig(resolution=0.1, motion="thrun")
     specs: list[RunSpec] = []
     for ds in datasets:
@@ -72,7 +75,7 @@ def run_real_logs(
                     for k in range(seeds):
                         cfg = SlamConfig(**{**base.to_dict(), "method": m, "particles": n, "seed": k, "max_range": zmax})
                         specs.append(RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans))
-    done, errors = run_sweep(specs, out, workers=workers, progress=progress)
+    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
     rows = []
     for ds in datasets:
         for m in methods:

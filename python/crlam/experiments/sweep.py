@@ -79,10 +79,16 @@ def run_sweep(
     *,
     workers: int = 1,
     progress: bool = True,
+    report_only: bool = False,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
-    """Runs every unfinished spec; returns ({name: metrics} of all finished runs, {name: error})."""
+    """Runs every unfinished spec; returns ({name: metrics} of all finished runs, {name: error}).
+
+    ``report_only`` runs nothing and returns the runs finished so far (an interim report of a
+    sweep that is still going on elsewhere or was stopped)."""
     root.mkdir(parents=True, exist_ok=True)
     by_name = {s.name: s for s in specs}
+    if report_only:
+        return {s.name: load_metrics(s.folder(root)) for s in specs if run_is_finished(s.folder(root))}, {}
     threads = max((s.threads for s in specs), default=1)
     jobs = [(s.name, {"spec_dict": _spec_dict(s), "root": str(root)}) for s in specs]
     return run_jobs(
