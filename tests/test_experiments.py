@@ -61,7 +61,7 @@ def test_table1_protocol_small(tmp_path: Path) -> None:
     assert res["rows"]["clam"]["n_runs"] == 2
     table = (tmp_path / "table.md").read_text()
     assert "RBPF-CLAM" in table and "±" in table
-    for f in ("fig2_trajectories.png", "fig2_errors.png", "table.csv", "results.json"):
+    for f in ("fig2_trajectories.png", "fig2_errors.png", "errors_all_runs.png", "table.csv", "results.json"):
         assert (tmp_path / f).stat().st_size > 0
     again = run_table1(tmp_path, runs=2, scans=40, particles=3, methods=("clam",), workers=1, progress=False)
     assert json.dumps(again["rows"], sort_keys=True) == json.dumps(res["rows"], sort_keys=True)

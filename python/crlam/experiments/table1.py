@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from crlam.eval.trajectory import aggregate_runs, reference_errors
+from crlam.eval.trajectory import ReferenceErrors, aggregate_runs, reference_errors
 from crlam.experiments.sweep import RunSpec, run_sweep
 from crlam.io.belief import load_belief
 from crlam.io.tum import read_tum
@@ -141,7 +141,7 @@ def _write_tables(out: Path, methods: Sequence[str], rows: dict[str, dict[str, A
 
 def _write_figures(out: Path, sim_dir: Path, specs: Sequence[RunSpec], done: dict[str, Any]) -> None:
     from crlam.experiments.known_poses import unknown_mask
-    from crlam.viz.trajectories import save_error_figure, save_trajectories_on_map
+    from crlam.viz.trajectories import save_error_figure, save_error_spread_figure, save_trajectories_on_map
 
     gt = read_tum(sim_dir / "groundtruth.tum")
     odo = read_tum(sim_dir / "odometry.tum")
@@ -167,3 +167,14 @@ def _write_figures(out: Path, sim_dir: Path, specs: Sequence[RunSpec], done: dic
             title="Museum world: trajectories on the RBPF-CLAM map (run 0)",
         )
     save_error_figure(out / "fig2_errors.png", errs, title="Museum world: error against time (run 0)")
+    # Every finished run whose trajectory is still there (committed results keep run 0's only).
+    spread: dict[str, list[ReferenceErrors]] = {}
+    for s in specs:
+        traj = s.folder(out) / "trajectory.tum"
+        if s.name in done and traj.is_file():
+            t = read_tum(traj)
+            spread.setdefault(METHOD_NAMES.get(s.config.method, s.config.method), []).append(
+                reference_errors(t.timestamps, t.poses, gt.timestamps, gt.poses)
+            )
+    if sum(len(v) for v in spread.values()) > len(firsts):
+        save_error_spread_figure(out / "errors_all_runs.png", spread, title="Museum world: error against time, every run")

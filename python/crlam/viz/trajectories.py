@@ -18,7 +18,7 @@ from crlam.eval.trajectory import ReferenceErrors  # noqa: E402
 from crlam.mapping import MapLayer  # noqa: E402
 from crlam.viz.maps import metric_axes, save_figure  # noqa: E402
 
-__all__ = ["save_trajectory_figure", "save_error_figure", "save_trajectories_on_map"]
+__all__ = ["save_trajectory_figure", "save_error_figure", "save_error_spread_figure", "save_trajectories_on_map"]
 
 
 def save_trajectories_on_map(
@@ -76,6 +76,33 @@ def save_error_figure(
         t = e.stamps - e.stamps[0]
         axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), linewidth=0.8, label=name)
         axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), linewidth=0.8, label=name)
+    axes[0].set_ylabel("position error [m]")
+    axes[1].set_ylabel("heading error [deg]")
+    axes[1].set_xlabel("time [s]")
+    for ax in axes:
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=8)
+    if title:
+        fig.suptitle(title)
+    return save_figure(fig, path, dpi)
+
+
+def save_error_spread_figure(
+    path: str | os.PathLike[str],
+    groups: Mapping[str, Sequence[ReferenceErrors]],
+    *,
+    title: str = "",
+    dpi: int = 150,
+) -> Path:
+    """Position and heading error against time of every run, one colour per group (method)."""
+    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, constrained_layout=True)
+    for i, (name, runs) in enumerate(groups.items()):
+        color = f"C{i}"
+        for j, e in enumerate(runs):
+            t = e.stamps - e.stamps[0]
+            label = f"{name} ({len(runs)} runs)" if j == 0 else None
+            axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), color=color, linewidth=0.6, alpha=0.8, label=label)
+            axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), color=color, linewidth=0.6, alpha=0.8)
     axes[0].set_ylabel("position error [m]")
     axes[1].set_ylabel("heading error [deg]")
     axes[1].set_xlabel("time [s]")
