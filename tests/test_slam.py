@@ -76,6 +76,10 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
     assert "\nsigma_range = 0.05\n" in text and hit and float(hit.group(1)) == pytest.approx((0.05**2 + 0.2**2 / 12) ** 0.5)
     with pytest.raises(SystemExit):
         main([*args, "--sigma-range", "-1"])
+    assert main([*args, "--cause-kernel", "chord"]) == 0
+    text = (wide / "config.toml").read_text()
+    assert 'cause_kernel = "chord"' in text and "\nsigma_hit_resolved = 0.01\n" in text
+    assert "cause_kernel = 'chord'" in json.loads((wide / "metrics.json").read_text())["deviations_from_paper"][0]
     empty = tmp_path / "empty.clf"
     empty.write_text("")
     assert main(["slam", str(empty), "--out", str(tmp_path / "x"), "--quiet"]) == 2
@@ -83,7 +87,8 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
 
 
 @pytest.mark.parametrize(
-    ("field", "value"), [("particles", 0), ("tempering", 0.0), ("proposal", "magic"), ("motion_params", (1.0,))]
+    ("field", "value"),
+    [("particles", 0), ("tempering", 0.0), ("proposal", "magic"), ("motion_params", (1.0,)), ("cause_kernel", "box")],
 )
 def test_bad_slam_config_names_the_field(field: str, value: object) -> None:
     with pytest.raises(ConfigError, match=field):

@@ -151,6 +151,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         linear_update=args.linear_update,
         angular_update=args.angular_update,
         sigma_range=args.sigma_range,
+        cause_kernel=args.cause_kernel,
     )
     res = run_slam_log(
         args.log,
@@ -222,6 +223,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             tempering=args.tempering,
             proposal=args.proposal,
             sigma_range=args.sigma_range,
+            cause_kernel=args.cause_kernel,
         )
         run_table1(
             out,
@@ -246,6 +248,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             linear_update=args.linear_update,
             angular_update=args.angular_update,
             sigma_range=args.sigma_range,
+            cause_kernel=args.cause_kernel,
         )
         run_real_logs(
             out,
@@ -362,6 +365,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--map-stride", type=_positive_int, default=1, help="every n-th beam for the map update (default: 1)")
     p.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering tau (default: 1)")
     p.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
+    p.add_argument(
+        "--cause-kernel",
+        choices=("midpoint", "chord"),
+        default="midpoint",
+        help="RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord",
+    )
     p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
     p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
     p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
@@ -466,6 +475,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--weight-stride", type=_positive_int, default=1, help="beam stride of the weights (default: 1)")
         q.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering (default: 1)")
         q.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
+        q.add_argument("--cause-kernel", choices=("midpoint", "chord"), default="midpoint", help="RBPF-CLAM cause kernel")
         q.add_argument("--proposal", choices=("odometry", "likelihood_mode"), default="odometry")
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(

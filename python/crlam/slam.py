@@ -59,6 +59,9 @@ class SlamConfig:
         Spread (m, m, rad) of the initial particles around the first odometry pose.
     sigma_range : float
         Range noise σ_r (m) in σ_hit = sqrt(σ_r² + Δ²/12).
+    cause_kernel : str
+        RBPF-CLAM: ``midpoint`` (spec: a cause sits at its chord midpoint) or ``chord`` (spread
+        along the chord; σ_hit = σ_r), for the map update and the weights alike.
     """
 
     method: str = "clam"
@@ -80,6 +83,7 @@ class SlamConfig:
     angular_update: float = 0.0
     init_sigma: tuple[float, float, float] = (0.0, 0.0, 0.0)
     sigma_range: float = 0.01
+    cause_kernel: str = "midpoint"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -107,6 +111,8 @@ class SlamConfig:
             raise bad("resample_threshold", "must be in [0, 1]")
         if self.proposal not in ("odometry", "likelihood_mode"):
             raise bad("proposal", "must be 'odometry' or 'likelihood_mode'")
+        if self.cause_kernel not in ("midpoint", "chord"):
+            raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
         if self.motion not in ("gaussian", "thrun"):
             raise bad("motion", "must be 'gaussian' or 'thrun'")
         if self.motion_params is not None and len(self.motion_params) != (3 if self.motion == "gaussian" else 4):
@@ -124,6 +130,7 @@ class SlamConfig:
             model=self.mapping_model,
             scan_update=self.scan_update,
             sigma_range=self.sigma_range,
+            cause_kernel=self.cause_kernel,
         )
 
     def to_dict(self) -> dict[str, Any]:
@@ -149,6 +156,7 @@ PAPER_DEFAULTS: dict[str, Any] = {
     "angular_update": 0.0,
     "mapping_model": "ijrr",
     "weight_model": "mixture",
+    "cause_kernel": "midpoint",
 }
 
 
