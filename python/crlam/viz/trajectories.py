@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import Any
 
 import matplotlib
 
@@ -62,20 +63,12 @@ def save_trajectory_figure(
     return save_trajectories_on_map(path, mean, unknown, traj, title=title)
 
 
-def save_error_figure(
-    path: str | os.PathLike[str],
-    errors: ReferenceErrors | Sequence[tuple[str, ReferenceErrors]],
-    *,
-    title: str = "",
-    dpi: int = 150,
-) -> Path:
-    """Position and heading error against time, for one run or several named ones."""
-    runs = [("estimate", errors)] if isinstance(errors, ReferenceErrors) else list(errors)
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, constrained_layout=True)
-    for name, e in runs:
-        t = e.stamps - e.stamps[0]
-        axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), linewidth=0.8, label=name)
-        axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), linewidth=0.8, label=name)
+def _error_axes() -> tuple[Any, Any]:
+    """A figure with the position error above the heading error, sharing the time axis."""
+    return plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, constrained_layout=True)
+
+
+def _save_error_axes(fig: Any, axes: Any, path: str | os.PathLike[str], title: str, dpi: int) -> Path:
     axes[0].set_ylabel("position error [m]")
     axes[1].set_ylabel("heading error [deg]")
     axes[1].set_xlabel("time [s]")
@@ -85,6 +78,23 @@ def save_error_figure(
     if title:
         fig.suptitle(title)
     return save_figure(fig, path, dpi)
+
+
+def save_error_figure(
+    path: str | os.PathLike[str],
+    errors: ReferenceErrors | Sequence[tuple[str, ReferenceErrors]],
+    *,
+    title: str = "",
+    dpi: int = 150,
+) -> Path:
+    """Position and heading error against time, for one run or several named ones."""
+    runs = [("estimate", errors)] if isinstance(errors, ReferenceErrors) else list(errors)
+    fig, axes = _error_axes()
+    for name, e in runs:
+        t = e.stamps - e.stamps[0]
+        axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), linewidth=0.8, label=name)
+        axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), linewidth=0.8, label=name)
+    return _save_error_axes(fig, axes, path, title, dpi)
 
 
 def save_error_spread_figure(
@@ -95,7 +105,7 @@ def save_error_spread_figure(
     dpi: int = 150,
 ) -> Path:
     """Position and heading error against time of every run, one colour per group (method)."""
-    fig, axes = plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, constrained_layout=True)
+    fig, axes = _error_axes()
     for i, (name, runs) in enumerate(groups.items()):
         color = f"C{i}"
         for j, e in enumerate(runs):
@@ -103,12 +113,4 @@ def save_error_spread_figure(
             label = f"{name} ({len(runs)} runs)" if j == 0 else None
             axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), color=color, linewidth=0.6, alpha=0.8, label=label)
             axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), color=color, linewidth=0.6, alpha=0.8)
-    axes[0].set_ylabel("position error [m]")
-    axes[1].set_ylabel("heading error [deg]")
-    axes[1].set_xlabel("time [s]")
-    for ax in axes:
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=8)
-    if title:
-        fig.suptitle(title)
-    return save_figure(fig, path, dpi)
+    return _save_error_axes(fig, axes, path, title, dpi)
