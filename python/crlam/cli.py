@@ -24,6 +24,8 @@ def _positive_float(text: str) -> float:
     return v
 
 
+_CAUSE_KERNELS = ("midpoint", "chord")
+_CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
 _SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
 
 
@@ -70,7 +72,7 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--cause-kernel",
-        choices=("midpoint", "chord"),
+        choices=_CAUSE_KERNELS,
         default="midpoint",
         help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord",
     )
@@ -365,12 +367,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--map-stride", type=_positive_int, default=1, help="every n-th beam for the map update (default: 1)")
     p.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering tau (default: 1)")
     p.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
-    p.add_argument(
-        "--cause-kernel",
-        choices=("midpoint", "chord"),
-        default="midpoint",
-        help="RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord",
-    )
+    p.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
     p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
     p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
     p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
@@ -475,7 +472,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--weight-stride", type=_positive_int, default=1, help="beam stride of the weights (default: 1)")
         q.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering (default: 1)")
         q.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
-        q.add_argument("--cause-kernel", choices=("midpoint", "chord"), default="midpoint", help="RBPF-CLAM cause kernel")
+        q.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
         q.add_argument("--proposal", choices=("odometry", "likelihood_mode"), default="odometry")
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(

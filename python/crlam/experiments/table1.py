@@ -77,13 +77,14 @@ def run_table1(
     done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
     rows: dict[str, dict[str, Any]] = {}
     for m in methods:
-        summaries = [done[s.name]["reference"] for s in specs if s.config.method == m and s.name in done]
+        finished = [done[s.name] | {"name": s.name} for s in specs if s.config.method == m and s.name in done]
+        summaries = [r["reference"] for r in finished]
         agg = aggregate_runs(summaries) if summaries else {}
-        walls = [done[s.name]["wall_time_s"] for s in specs if s.config.method == m and s.name in done]
-        rss = [done[s.name]["peak_rss_mb"] for s in specs if s.config.method == m and s.name in done]
+        walls = [r["wall_time_s"] for r in finished]
+        rss = [r["peak_rss_mb"] for r in finished]
         rows[m] = {
-            "n_runs": len(summaries),
-            "runs": [s.name for s in specs if s.config.method == m and s.name in done],
+            "n_runs": len(finished),
+            "runs": [r["name"] for r in finished],
             "metrics": agg,
             "wall_time_s_mean": float(np.mean(walls)) if walls else None,
             "peak_rss_mb_max": float(np.max(rss)) if rss else None,
