@@ -26,6 +26,8 @@ def _positive_float(text: str) -> float:
 
 _CAUSE_KERNELS = ("midpoint", "chord")
 _CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
+_PROPOSALS = ("odometry", "likelihood_mode")
+_PROPOSAL_HELP = "RBPF-CLAM: odometry (paper) or the CRM improved proposal (default: odometry)"
 _SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
 
 
@@ -357,9 +359,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--relations", help="Kuemmerle relations file: report the relations metric")
     p.add_argument(
         "--proposal",
-        choices=("odometry", "likelihood_mode"),
+        choices=_PROPOSALS,
         default="odometry",
-        help="odometry (paper) or the CRM improved proposal (default: odometry)",
+        help=_PROPOSAL_HELP,
     )
     p.add_argument("--motion", choices=("gaussian", "thrun"), default="gaussian", help="odometry noise model (default: gaussian)")
     p.add_argument("--motion-params", type=float, nargs="+", help="3 sigmas (gaussian) or 4 alphas (thrun)")
@@ -473,7 +475,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering (default: 1)")
         q.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
         q.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
-        q.add_argument("--proposal", choices=("odometry", "likelihood_mode"), default="odometry")
+        q.add_argument("--proposal", choices=_PROPOSALS, default="odometry", help=_PROPOSAL_HELP)
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"
