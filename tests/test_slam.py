@@ -14,10 +14,11 @@ from crlam.errors import ConfigError
 from crlam.eval.trajectory import relations_error
 from crlam.experiments.slam_run import run_slam_log
 from crlam.io.carmen import read_scans
-from crlam.io.relations import read_relations
+from crlam.io.relations import read_relations, write_relations
 from crlam.io.tum import read_tum
+from crlam.pose import between, compose
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
-from crlam.slam import SlamConfig
+from crlam.slam import SlamConfig, SlamRun
 
 
 @pytest.fixture(scope="module")
@@ -28,12 +29,22 @@ def office(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_run_folder_is_complete_and_beats_odometry(office: Path, tmp_path: Path) -> None:
+    # Relations between ground-truth poses 10 scans apart, as the real logs' relations files.
+    gt = read_tum(office / "groundtruth.tum")
+    write_relations(tmp_path / "gt.relations", gt.timestamps[:-10], gt.timestamps[10:], between(gt.poses[:-10], gt.poses[10:]))
     run_slam_log(
-        office / "log.clf", tmp_path, SlamConfig(particles=20, seed=1), reference=office / "groundtruth.tum", progress=False
+        office / "log.clf",
+        tmp_path,
+        SlamConfig(particles=20, seed=1),
+        reference=office / "groundtruth.tum",
+        relations=tmp_path / "gt.relations",
+        progress=False,
     )
     for name in (
         "config.toml",
         "trajectory.tum",
+        "trajectory_best_path.tum",
+        "relations_errors.png",
         "metrics.json",
         "map.pgm",
         "map.yaml",
@@ -45,12 +56,16 @@ def test_run_folder_is_complete_and_beats_odometry(office: Path, tmp_path: Path)
     m = json.loads((tmp_path / "metrics.json").read_text())
     for key in ("wall_time_s", "scans_per_s", "peak_rss_mb", "n_scans", "n_processed", "neff_mean", "n_resamples", "reference"):
         assert key in m, key
+    assert m["relations"]["n"] == m["relations_best_path"]["n"] == 110
+    path = read_tum(tmp_path / "trajectory_best_path.tum")
+    assert path.poses.shape == (120, 3) and np.array_equal(path.timestamps, read_tum(tmp_path / "trajectory.tum").timestamps)
     assert m["n_scans"] == m["n_processed"] == 120
     traj = read_tum(tmp_path / "trajectory.tum")
     assert traj.poses.shape == (120, 3)
     gt, odo = read_tum(office / "groundtruth.tum"), read_tum(office / "odometry.tum")
     odo_rmse = float(np.sqrt(np.mean(np.sum((odo.poses[:, :2] - gt.poses[:, :2]) ** 2, axis=1))))
     assert m["reference"]["rmse_position_m"] < odo_rmse, (m["reference"], odo_rmse)
+    assert m["reference_best_path"]["rmse_position_m"] < odo_rmse, (m["reference_best_path"], odo_rmse)
     assert "[slam]" in (tmp_path / "config.toml").read_text()
 
 
@@ -62,6 +77,31 @@ def test_triggers_carry_odometry_between_processed_scans(office: Path, tmp_path:
     assert m["n_scans"] == 120 and 2 <= m["n_processed"] < 120
     assert any("linear_update" in d for d in m["deviations_from_paper"])
     assert read_tum(tmp_path / "trajectory.tum").poses.shape == (120, 3)
+
+
+def test_best_path_trajectory_follows_the_fill_rule(office: Path, tmp_path: Path) -> None:
+    scans = list(read_scans(office / "log.clf"))[:60]
+
+    def feed(config: SlamConfig) -> SlamRun:
+        run = SlamRun(config)
+        for s in scans:
+            run.step(s.odom, s.angles, s.ranges, s.laser_offset, s.timestamp)
+        return run
+
+    # One particle: its path and the weighted mean are the same poses.
+    one = feed(SlamConfig(particles=1, linear_update=0.3, angular_update=0.3))
+    np.testing.assert_allclose(one.best_path_trajectory()[1], one.trajectory()[1], atol=1e-9)
+    run = feed(SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3))
+    assert run.filter is not None
+    processed = np.array(run.processed)
+    assert 2 <= processed.sum() < len(scans)
+    stamps, poses = run.best_path_trajectory()
+    np.testing.assert_array_equal(poses[processed], run.filter.best_path())
+    i = int(np.argmin(processed[1:])) + 1  # an unprocessed scan
+    j = int(np.flatnonzero(processed[:i])[-1])  # the processed scan before it
+    expected = compose(poses[j], between(scans[j].odom, scans[i].odom))
+    np.testing.assert_allclose(poses[i], expected, atol=1e-12)
+    assert np.array_equal(stamps, run.trajectory()[0])
 
 
 def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -14,8 +14,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from crlam import _native
-from crlam.errors import ConfigError
+from crlam.errors import ConfigError, CrlamError
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
+from crlam.pose import between, compose
 
 __all__ = ["SlamConfig", "SlamStep", "SlamRun", "make_filter", "PAPER_DEFAULTS"]
 
@@ -235,6 +236,7 @@ class SlamRun:
     stamps: list[float] = field(default_factory=list)
     processed: list[bool] = field(default_factory=list)
     neff: list[float] = field(default_factory=list)
+    odometry: list[NDArray[np.float64]] = field(default_factory=list)
 
     def step(self, odom: ArrayLike, angles: ArrayLike, ranges: ArrayLike, laser_offset: ArrayLike, stamp: float) -> SlamStep:
         """Feeds one scan (odometry pose of the robot, beam bearings, ranges, laser offset)."""
@@ -248,6 +250,7 @@ class SlamRun:
             np.ascontiguousarray(laser_offset, dtype=np.float64),
         )
         est = np.array(e)
+        self.odometry.append(odom)
         self.estimates.append(est)
         self.stamps.append(stamp)
         self.processed.append(p)
@@ -262,6 +265,26 @@ class SlamRun:
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(stamps (n,), poses (n, 3)), one per scan in file order."""
         return np.array(self.stamps), np.array(self.estimates).reshape(-1, 3)
+
+    def best_path_trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(stamps (n,), poses (n, 3)) from the final best particle's path, one per scan in file order.
+
+        At a processed scan the pose is that particle's ancestor's pose there (GMapping's
+        trajectory: one lineage, consistent with the map it built); in between, the same fill
+        rule as :meth:`trajectory`: the last processed pose composed with the raw-odometry
+        increment since that scan.
+        """
+        if self.filter is None:
+            raise ConfigError("no scan has been processed yet")
+        path = np.asarray(self.filter.best_path(), dtype=np.float64)
+        processed = np.array(self.processed, dtype=bool)
+        if path.shape[0] != int(processed.sum()):
+            raise CrlamError(f"best path has {path.shape[0]} poses for {int(processed.sum())} processed scans")
+        odom = np.array(self.odometry).reshape(-1, 3)
+        last = np.maximum.accumulate(np.where(processed, np.arange(len(processed)), 0))
+        anchor = path[np.cumsum(processed) - 1]
+        filled = compose(anchor, between(odom[last], odom))
+        return np.array(self.stamps), np.where(processed[:, None], anchor, filled)
 
     def best_map(self) -> ConfidenceRichMap | LogOddsOccupancyMap:
         """The highest-weight particle's map (crm-spec B7), wrapped for the Python API."""

@@ -236,3 +236,41 @@ fn bad_inputs_are_errors() {
     assert!(f.process(&s).is_err());
     let _ = compose([0.0; 3], [0.0; 3]);
 }
+
+#[test]
+fn best_path_is_the_history_of_the_best_particle() {
+    let run = simulate(80);
+    let mut f = RbpfClam::new(config(ClamProposal::Odometry), run.truth[0]).unwrap();
+    let mut poses_at_step: Vec<Vec<Pose>> = Vec::new();
+    let mut truth_at_step = Vec::new();
+    for ((o, r), t) in run.odom.iter().zip(&run.ranges).zip(&run.truth) {
+        let s = ScanInput {
+            odom: *o,
+            angles: &run.angles,
+            ranges: r,
+            laser_offset: [0.0; 3],
+        };
+        if f.process(&s).unwrap().processed {
+            poses_at_step.push(f.particles().iter().map(|p| p.pose).collect());
+            truth_at_step.push(*t);
+        }
+    }
+    let path = f.best_path();
+    assert_eq!(path.len(), f.n_processed());
+    assert!(
+        f.n_resamples() > 0,
+        "the test needs resampling to branch the paths"
+    );
+    assert_eq!(*path.last().unwrap(), f.particles()[f.best_index()].pose);
+    // The ancestor of the final best particle survived every resampling, so its pose at step k
+    // is among the particle poses kept at step k.
+    for (k, p) in path.iter().enumerate() {
+        assert!(poses_at_step[k].contains(p), "step {k}: {p:?}");
+    }
+    let odo_err = mean_position_error(&run.odom, &run.truth);
+    let path_err = mean_position_error(&path, &truth_at_step);
+    assert!(
+        path_err < 0.5 * odo_err,
+        "path {path_err:.3} m vs odometry {odo_err:.3} m"
+    );
+}

@@ -195,6 +195,24 @@ fn beats_raw_odometry_on_a_loop() {
     );
     assert!(e_filter < 0.1 && heading < 0.05);
     assert_eq!(f.n_processed(), n_proc);
+    // The best particle's path: one pose per processed scan, ending at that particle's pose,
+    // as close to the truth as the weighted-mean estimate.
+    let path = f.best_path();
+    assert_eq!(path.len(), n_proc);
+    assert_eq!(*path.last().unwrap(), f.particles()[f.best_index()].pose);
+    let truth_processed: Vec<Pose> = steps
+        .iter()
+        .zip(&run.truth)
+        .filter(|(s, _)| s.processed)
+        .map(|(_, t)| *t)
+        .collect();
+    let e_path = path
+        .iter()
+        .zip(&truth_processed)
+        .map(|(p, t)| position_error(*p, *t))
+        .sum::<f64>()
+        / n_proc as f64;
+    assert!(e_path < 0.1, "best path {e_path} m");
 }
 
 #[test]

@@ -193,6 +193,11 @@ macro_rules! filter_pymethods {
                 poses_array(py, ParticleFilter::poses(&self.inner))
             }
 
+            /// The best particle's pose at every processed scan, first to last, shape (n_processed, 3).
+            fn best_path<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                poses_array(py, ParticleFilter::best_path(&self.inner))
+            }
+
             /// Particle log-weights (unnormalised), shape (n,).
             fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
                 Array1::from_vec(ParticleFilter::log_weights(&self.inner)).into_pyarray(py)

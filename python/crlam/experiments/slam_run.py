@@ -2,8 +2,12 @@
 
 The folder holds ``config.toml`` (every resolved setting), ``trajectory.tum`` (one pose per laser
 scan of the log, in file order, stamped with the scan's ipc timestamp), ``metrics.json``,
+``trajectory_best_path.tum`` (the same from the final best particle's path, GMapping's trajectory;
+its errors are reported as ``reference_best_path`` / ``relations_best_path``),
 ``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best particle's map), ``trajectory.png`` (the
-trajectory over the map) and, with a reference, ``errors.png`` (error against time).
+trajectory over the map) and, with a reference, ``errors.png`` (error against time), with a
+relations file ``relations_errors.png`` (every relation's error against the time of its first
+pose).
 """
 
 from __future__ import annotations
@@ -136,6 +140,13 @@ def run_slam_log(
         raise DataFormatError("the log holds no laser scans", path=str(log_path))
     stamps, poses = run.trajectory()
     write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam {config.method} trajectory of {Path(log_path).name}")
+    _, path_poses = run.best_path_trajectory()
+    write_tum(
+        out / "trajectory_best_path.tum",
+        stamps,
+        path_poses,
+        header=f"crlam {config.method} final best particle's path over {Path(log_path).name}",
+    )
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
     metrics: dict[str, Any] = {
@@ -158,15 +169,20 @@ def run_slam_log(
         "deviations_from_paper": config.deviations(),
     }
     ref_poses = None
+    rel_errors = None
     if reference is not None:
         ref = read_tum(reference)
         errs = reference_errors(stamps, poses, ref.timestamps, ref.poses)
         metrics["reference"] = {"path": str(reference), **errs.summary()}
+        path_errs = reference_errors(stamps, path_poses, ref.timestamps, ref.poses)
+        metrics["reference_best_path"] = path_errs.summary()
         ref_poses = (ref.timestamps, ref.poses, errs)
     if relations is not None:
         # A run cut short by --max-scans cannot cover every relation; the others are counted.
-        rel = relations_error(stamps, poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
-        metrics["relations"] = {"path": str(relations), **rel.summary()}
+        rel_errors = relations_error(stamps, poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
+        metrics["relations"] = {"path": str(relations), **rel_errors.summary()}
+        rel_path = relations_error(stamps, path_poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
+        metrics["relations_best_path"] = rel_path.summary()
     from crlam.experiments.known_poses import unknown_mask
     from crlam.mapping import ConfidenceRichMap
 
@@ -196,7 +212,7 @@ def run_slam_log(
     )
 
     if figures:
-        from crlam.viz.trajectories import save_error_figure, save_trajectory_figure
+        from crlam.viz.trajectories import save_error_figure, save_relations_error_figure, save_trajectory_figure
 
         save_trajectory_figure(
             out / "trajectory.png",
@@ -208,6 +224,13 @@ def run_slam_log(
         )
         if ref_poses is not None:
             save_error_figure(out / "errors.png", ref_poses[2], title=f"{Path(log_path).name}: error against the reference")
+        if rel_errors is not None:
+            save_relations_error_figure(
+                out / "relations_errors.png",
+                rel_errors,
+                t0=float(stamps[0]),
+                title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, relations metric",
+            )
     # metrics.json is written last and atomically: its presence marks a finished run (sweeps resume).
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")

@@ -15,11 +15,17 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-from crlam.eval.trajectory import ReferenceErrors  # noqa: E402
+from crlam.eval.trajectory import ReferenceErrors, RelationsErrors  # noqa: E402
 from crlam.mapping import MapLayer  # noqa: E402
 from crlam.viz.maps import metric_axes, save_figure  # noqa: E402
 
-__all__ = ["save_trajectory_figure", "save_error_figure", "save_error_spread_figure", "save_trajectories_on_map"]
+__all__ = [
+    "save_trajectory_figure",
+    "save_error_figure",
+    "save_error_spread_figure",
+    "save_relations_error_figure",
+    "save_trajectories_on_map",
+]
 
 
 def save_trajectories_on_map(
@@ -68,10 +74,18 @@ def _error_axes() -> tuple[Any, Any]:
     return plt.subplots(2, 1, figsize=(9, 5.5), sharex=True, constrained_layout=True)
 
 
-def _save_error_axes(fig: Any, axes: Any, path: str | os.PathLike[str], title: str, dpi: int) -> Path:
-    axes[0].set_ylabel("position error [m]")
-    axes[1].set_ylabel("heading error [deg]")
-    axes[1].set_xlabel("time [s]")
+def _save_error_axes(
+    fig: Any,
+    axes: Any,
+    path: str | os.PathLike[str],
+    title: str,
+    dpi: int,
+    ylabels: tuple[str, str] = ("position error [m]", "heading error [deg]"),
+    xlabel: str = "time [s]",
+) -> Path:
+    axes[0].set_ylabel(ylabels[0])
+    axes[1].set_ylabel(ylabels[1])
+    axes[1].set_xlabel(xlabel)
     for ax in axes:
         ax.grid(alpha=0.3)
     axes[0].legend(fontsize=8)
@@ -114,3 +128,36 @@ def save_error_spread_figure(
             axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), color=color, linewidth=0.6, alpha=0.8, label=label)
             axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), color=color, linewidth=0.6, alpha=0.8)
     return _save_error_axes(fig, axes, path, title, dpi)
+
+
+def save_relations_error_figure(
+    path: str | os.PathLike[str],
+    errors: RelationsErrors,
+    *,
+    t0: float | None = None,
+    title: str = "",
+    dpi: int = 150,
+) -> Path:
+    """Translational and rotational error of every relation against the time of its first pose.
+
+    Parameters
+    ----------
+    errors : RelationsErrors
+        The relations metric of a run (``relations_error``).
+    t0 : float, optional
+        Time (s) shown as 0, e.g. the log's first scan; default: the earliest relation stamp.
+
+    Each relation is a dot at its first stamp ``t1``; the dashed lines are the means the
+    metric reports, so a few large errors and where in the log they arise can be told apart.
+    """
+    fig, axes = _error_axes()
+    start = float(np.min(errors.t1)) if t0 is None else t0
+    t = errors.t1 - start
+    for ax, y, unit in ((axes[0], errors.trans, "m"), (axes[1], errors.rot, "deg")):
+        ax.plot(t, y, ".", markersize=2.5, color="C0", label=f"{errors.n} relations")
+        mean = float(np.mean(y))
+        ax.axhline(mean, color="C3", linestyle="--", linewidth=0.9, label=f"mean {mean:.3g} {unit}")
+        ax.set_ylim(bottom=0.0)
+    axes[1].legend(fontsize=8)
+    labels = ("translational error [m]", "rotational error [deg]")
+    return _save_error_axes(fig, axes, path, title, dpi, labels, "time of the relation's first pose [s]")

@@ -19,6 +19,7 @@ use crate::pose::{between, compose, wrap, Pose};
 use crate::rbpf::common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger,
 };
+use crate::rbpf::lineage::{NodeId, PathTree, NO_NODE};
 use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
 use crate::rng::Rng;
 use crate::sensor::SensorModel;
@@ -156,6 +157,8 @@ pub struct ClamParticle {
     pub pose: Pose,
     pub log_w: f64,
     pub map: CrmMap,
+    /// The particle's pose at the last processed scan in the filter's [`PathTree`].
+    pub path: NodeId,
 }
 
 /// The RBPF-CLAM filter.
@@ -172,6 +175,7 @@ pub struct RbpfClam {
     best: usize,
     n_resamples: usize,
     n_processed: usize,
+    paths: PathTree,
 }
 
 fn scan_opts(mode: ScanUpdateMode, stride: usize) -> ScanOptions {
@@ -201,6 +205,7 @@ impl RbpfClam {
                     pose,
                     log_w: -(n as f64).ln(),
                     map: map.clone(),
+                    path: NO_NODE,
                 }
             })
             .collect();
@@ -216,6 +221,7 @@ impl RbpfClam {
             best: 0,
             n_resamples: 0,
             n_processed: 0,
+            paths: PathTree::default(),
         })
     }
 
@@ -246,6 +252,16 @@ impl RbpfClam {
 
     pub fn n_processed(&self) -> usize {
         self.n_processed
+    }
+
+    /// The best particle's pose at every processed scan, first to last (GMapping's trajectory).
+    pub fn best_path(&self) -> Vec<Pose> {
+        self.paths.path(self.particles[self.best].path)
+    }
+
+    /// Bytes held by the particles' paths.
+    pub fn path_memory(&self) -> usize {
+        self.paths.memory_bytes()
     }
 
     /// (bytes of distinct map tiles over all particles, distinct tiles, tile references): what the
@@ -314,6 +330,8 @@ impl RbpfClam {
             })
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
+        self.paths
+            .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
         let step_out = self.reweight_and_resample();
         self.tracker.processed(scan.odom);
         self.estimate_odom = scan.odom;
@@ -329,6 +347,8 @@ impl RbpfClam {
             .map(|p| with_thread_scratch(|sc| update_map_at_pose(cfg, p, scan, sc)))
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
+        self.paths
+            .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
         let w = vec![1.0 / self.particles.len() as f64; self.particles.len()];
         let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
         self.estimate = if self.cfg.init_sigma == [0.0; 3] {

@@ -185,6 +185,8 @@ pub trait ParticleFilter {
     fn log_weights(&self) -> Vec<f64>;
     /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
     fn map_memory(&self) -> (usize, usize, usize);
+    /// The best particle's pose at every processed scan (the first one included), in order.
+    fn best_path(&self) -> Vec<crate::pose::Pose>;
 }
 
 /// Implements [`ParticleFilter`] for a filter type with inherent methods of the same names plus
@@ -221,6 +223,9 @@ macro_rules! impl_particle_filter {
             }
             fn map_memory(&self) -> (usize, usize, usize) {
                 <$t>::map_memory(self)
+            }
+            fn best_path(&self) -> Vec<$crate::pose::Pose> {
+                <$t>::best_path(self)
             }
         }
     };

@@ -7,6 +7,7 @@
 
 pub mod clam;
 pub mod common;
+pub mod lineage;
 pub mod ogm;
 pub mod scanmatch;
 
@@ -14,5 +15,6 @@ pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ScanInput, UpdateTrigger,
 };
+pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use ogm::{OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
 pub use scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};

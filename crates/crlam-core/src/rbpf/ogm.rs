@@ -23,6 +23,7 @@
 use rayon::prelude::*;
 
 use super::common::{weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger};
+use super::lineage::{NodeId, PathTree, NO_NODE};
 use super::scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
 use crate::error::{config_err, Result};
 use crate::grid::{check_pose, GridGeometry};
@@ -172,6 +173,8 @@ pub struct OgmParticle {
     pub pose: Pose,
     pub log_w: f64,
     pub map: LogOddsGrid,
+    /// The particle's pose at the last processed scan in the filter's [`PathTree`].
+    pub path: NodeId,
 }
 
 /// Map memory summed over particles. A tile shared by k particles is counted k times in
@@ -304,6 +307,7 @@ pub struct RbpfOgm {
     estimate: Pose,
     n_resamples: usize,
     last_match_failures: usize,
+    paths: PathTree,
 }
 
 impl RbpfOgm {
@@ -326,6 +330,7 @@ impl RbpfOgm {
                     pose,
                     log_w: -(n as f64).ln(),
                     map: map.clone(),
+                    path: NO_NODE,
                 }
             })
             .collect();
@@ -340,6 +345,7 @@ impl RbpfOgm {
             estimate: initial_pose,
             n_resamples: 0,
             last_match_failures: 0,
+            paths: PathTree::default(),
         })
     }
 
@@ -363,6 +369,7 @@ impl RbpfOgm {
         let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
         if !self.initialized {
             self.initialize(scan, &angles, &ranges)?;
+            self.advance_paths();
             self.tracker.processed(scan.odom);
             self.n_processed += 1;
             return Ok(FilterStep {
@@ -401,6 +408,7 @@ impl RbpfOgm {
         self.last_match_failures = accepted.iter().filter(|a| !**a).count();
         self.tracker.processed(scan.odom);
         self.n_processed += 1;
+        self.advance_paths();
         let (neff, resampled) = self.reweight_and_resample();
         Ok(FilterStep {
             processed: true,
@@ -514,6 +522,21 @@ impl RbpfOgm {
     /// Weighted mean pose (circular heading) at the last processed scan.
     pub fn estimate(&self) -> Pose {
         self.estimate
+    }
+
+    fn advance_paths(&mut self) {
+        self.paths
+            .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
+    }
+
+    /// The best particle's pose at every processed scan, first to last (GMapping's trajectory).
+    pub fn best_path(&self) -> Vec<Pose> {
+        self.paths.path(self.particles[self.best_index()].path)
+    }
+
+    /// Bytes held by the particles' paths.
+    pub fn path_memory(&self) -> usize {
+        self.paths.memory_bytes()
     }
 
     /// Index of the highest-weight particle (the lowest index among ties).
