@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import multiprocessing
 import os
 import signal
@@ -95,6 +96,7 @@ def test_real_logs_harness_on_a_slice_of_aces(data_dir: Path, tmp_path: Path) ->
     )
     assert not res["errors"], res["errors"]
     assert {(r["method"], r["particles"]) for r in res["rows"]} == {("clam", 3), ("ogm", 3)}
+    assert all(math.isfinite(r["trans_best_path_m"]) for r in res["rows"])
     table = (tmp_path / "table.md").read_text()
     assert "RBPF-CLAM" in table and "RBPF-OGM" in table and "Cartographer" in table
 
