@@ -27,7 +27,7 @@ from tqdm import tqdm
 
 from crlam import __version__
 from crlam.errors import DataFormatError
-from crlam.eval.trajectory import reference_errors, relations_error
+from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
 from crlam.io.belief import save_belief
 from crlam.io.carmen import CarmenReader, LaserScan
 from crlam.io.nav2 import write_nav2_map
@@ -169,7 +169,7 @@ def run_slam_log(
         "deviations_from_paper": config.deviations(),
     }
     ref_poses = None
-    rel_errors = None
+    rel_figure: dict[str, RelationsErrors] | None = None
     if reference is not None:
         ref = read_tum(reference)
         errs = reference_errors(stamps, poses, ref.timestamps, ref.poses)
@@ -183,6 +183,7 @@ def run_slam_log(
         metrics["relations"] = {"path": str(relations), **rel_errors.summary()}
         rel_path = relations_error(stamps, path_poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
         metrics["relations_best_path"] = rel_path.summary()
+        rel_figure = {"weighted mean": rel_errors, "best particle's path": rel_path}
     from crlam.experiments.known_poses import unknown_mask
     from crlam.mapping import ConfidenceRichMap
 
@@ -224,10 +225,10 @@ def run_slam_log(
         )
         if ref_poses is not None:
             save_error_figure(out / "errors.png", ref_poses[2], title=f"{Path(log_path).name}: error against the reference")
-        if rel_errors is not None:
+        if rel_figure is not None:
             save_relations_error_figure(
                 out / "relations_errors.png",
-                rel_errors,
+                rel_figure,
                 t0=float(stamps[0]),
                 title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, relations metric",
             )

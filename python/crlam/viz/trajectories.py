@@ -132,7 +132,7 @@ def save_error_spread_figure(
 
 def save_relations_error_figure(
     path: str | os.PathLike[str],
-    errors: RelationsErrors,
+    errors: RelationsErrors | Mapping[str, RelationsErrors],
     *,
     t0: float | None = None,
     title: str = "",
@@ -142,22 +142,25 @@ def save_relations_error_figure(
 
     Parameters
     ----------
-    errors : RelationsErrors
-        The relations metric of a run (``relations_error``).
+    errors : RelationsErrors or mapping of name to RelationsErrors
+        The relations metric of a run (``relations_error``), or of several trajectories of it
+        (e.g. the weighted mean and the best particle's path), one colour each.
     t0 : float, optional
         Time (s) shown as 0, e.g. the log's first scan; default: the earliest relation stamp.
 
     Each relation is a dot at its first stamp ``t1``; the dashed lines are the means the
     metric reports, so a few large errors and where in the log they arise can be told apart.
     """
+    runs = {"estimate": errors} if isinstance(errors, RelationsErrors) else dict(errors)
     fig, axes = _error_axes()
-    start = float(np.min(errors.t1)) if t0 is None else t0
-    t = errors.t1 - start
-    for ax, y, unit in ((axes[0], errors.trans, "m"), (axes[1], errors.rot, "deg")):
-        ax.plot(t, y, ".", markersize=2.5, color="C0", label=f"{errors.n} relations")
-        mean = float(np.mean(y))
-        ax.axhline(mean, color="C3", linestyle="--", linewidth=0.9, label=f"mean {mean:.3g} {unit}")
-        ax.set_ylim(bottom=0.0)
+    start = min(float(np.min(e.t1)) for e in runs.values()) if t0 is None else t0
+    for i, (name, e) in enumerate(runs.items()):
+        t = e.t1 - start
+        for ax, y, unit in ((axes[0], e.trans, "m"), (axes[1], e.rot, "deg")):
+            mean = float(np.mean(y))
+            ax.plot(t, y, ".", markersize=2.5, color=f"C{i}", alpha=0.7, label=f"{name} ({e.n} relations)")
+            ax.axhline(mean, color=f"C{i}", linestyle="--", linewidth=0.9, label=f"{name}: mean {mean:.3g} {unit}")
+            ax.set_ylim(bottom=0.0)
     axes[1].legend(fontsize=8)
     labels = ("translational error [m]", "rotational error [deg]")
     return _save_error_axes(fig, axes, path, title, dpi, labels, "time of the relation's first pose [s]")
