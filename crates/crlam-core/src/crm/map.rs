@@ -1,13 +1,14 @@
 //! The confidence-rich map: tiled f32 pmfs per cell, updated beam by beam in f64.
 
 use crate::crm::beam::{check_scan, plan_beam, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
+use crate::crm::forward::mixture_log_eta_forward;
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::update::{apply_factor, cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::error::{config_err, CrlamError, Result};
 use crate::grid::{check_pose, CellRect, GridGeometry, TileStats, TiledGrid};
 use crate::raycast::{traverse_with, RayCell};
-use crate::sensor::{SensorModel, SensorModelKind};
+use crate::sensor::{MixtureReading, SensorModel, SensorModelKind};
 
 /// Configuration of a CRM (crm-spec 9).
 #[derive(Clone, Debug, PartialEq)]
@@ -412,9 +413,20 @@ impl CrmMap {
             ) else {
                 continue;
             };
+            used += 1;
+            let z = if plan.no_return {
+                f64::INFINITY
+            } else {
+                plan.z
+            };
+            let forward = MixtureReading::new(model, z)
+                .and_then(|r| mixture_log_eta_forward(self, &r, &plan));
+            if let Some(log_eta) = forward {
+                total += log_eta;
+                continue;
+            }
             self.gather_ray(&mut plan, sc, false);
             total += self.beam_alpha(model, &plan, sc, false);
-            used += 1;
         }
         Ok((total, used))
     }
