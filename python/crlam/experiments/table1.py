@@ -178,4 +178,6 @@ def _write_figures(out: Path, sim_dir: Path, specs: Sequence[RunSpec], done: dic
                 reference_errors(t.timestamps, t.poses, gt.timestamps, gt.poses)
             )
     if sum(len(v) for v in spread.values()) > len(firsts):
-        save_error_spread_figure(out / "errors_all_runs.png", spread, title="Museum world: error against time, every run")
+        save_error_spread_figure(
+            out / "errors_all_runs.png", spread, title="Museum world: error against time, every run whose trajectory is on disk"
+        )
