@@ -74,18 +74,31 @@ fn item14_ordering_on_a_converged_ray() {
     assert!(at > eta(&mix, &mhat, &d, f64::INFINITY));
 }
 
-#[test]
-fn item14_true_pose_beats_displaced_poses_on_a_converged_map() {
-    let n = 200; // 10 m x 10 m at 0.05 m
+/// Side of the test room in 0.05 m cells (10 m).
+const ROOM_CELLS: usize = 200;
+
+/// Occupancy raster (row-major, 0.05 m cells) of a 10 m square room with 15 cm walls; `door`
+/// leaves those rows of the east wall open.
+fn room(door: Option<std::ops::Range<usize>>) -> Vec<u8> {
+    let n = ROOM_CELLS;
     let mut occ = vec![0u8; n * n];
     for i in 0..n {
         for t in 0..3 {
             occ[t * n + i] = 1;
             occ[(n - 1 - t) * n + i] = 1;
             occ[i * n + t] = 1;
-            occ[i * n + n - 1 - t] = 1;
+            if !door.as_ref().is_some_and(|d| d.contains(&i)) {
+                occ[i * n + n - 1 - t] = 1;
+            }
         }
     }
+    occ
+}
+
+#[test]
+fn item14_true_pose_beats_displaced_poses_on_a_converged_map() {
+    let n = ROOM_CELLS;
+    let mut occ = room(None);
     for y in 60..90 {
         for x in 120..140 {
             occ[y * n + x] = 1;
@@ -183,18 +196,8 @@ fn scan_log_eta_by_sweep(
 fn early_stopping_forward_walk_equals_the_full_backward_sweep_on_80_m_rays() {
     // A 10 m room with 15 cm walls and a 1 m door, mapped from inside at 0.1 m; the mixture
     // walks every beam to z_max = 80 m, through the walls and the unknown space beyond.
-    let n = 200;
-    let mut occ = vec![0u8; n * n];
-    for i in 0..n {
-        for t in 0..3 {
-            occ[t * n + i] = 1;
-            occ[(n - 1 - t) * n + i] = 1;
-            occ[i * n + t] = 1;
-            if !(90..110).contains(&i) {
-                occ[i * n + n - 1 - t] = 1;
-            }
-        }
-    }
+    let n = ROOM_CELLS;
+    let occ = room(Some(90..110));
     let world = WorldRaster::new(GridGeometry::new([0.0, 0.0], 0.05).unwrap(), n, n, &occ).unwrap();
     let angles: Vec<f64> = (0..180).map(|i| (i as f64 * 2.0).to_radians()).collect();
     let mut map =
