@@ -19,7 +19,7 @@ import resource
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -179,9 +179,11 @@ def run_slam_log(
         ref_poses = (ref.timestamps, ref.poses, errs)
     if relations is not None:
         # A run cut short by --max-scans cannot cover every relation; the others are counted.
-        rel_errors = relations_error(stamps, poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
+        rels = read_relations(relations)
+        on_missing: Literal["raise", "skip"] = "skip" if max_scans else "raise"
+        rel_errors = relations_error(stamps, poses, rels, on_missing=on_missing)
         metrics["relations"] = {"path": str(relations), **rel_errors.summary()}
-        rel_path = relations_error(stamps, path_poses, read_relations(relations), on_missing="skip" if max_scans else "raise")
+        rel_path = relations_error(stamps, path_poses, rels, on_missing=on_missing)
         metrics["relations_best_path"] = rel_path.summary()
         rel_figure = {"weighted mean": rel_errors, "best particle's path": rel_path}
     from crlam.experiments.known_poses import unknown_mask
