@@ -259,11 +259,6 @@ impl RbpfClam {
         self.paths.path(self.particles[self.best].path)
     }
 
-    /// Bytes held by the particles' paths.
-    pub fn path_memory(&self) -> usize {
-        self.paths.memory_bytes()
-    }
-
     /// (bytes of distinct map tiles over all particles, distinct tiles, tile references): what the
     /// particle maps really occupy thanks to copy-on-write sharing.
     pub fn map_memory(&self) -> (usize, usize, usize) {

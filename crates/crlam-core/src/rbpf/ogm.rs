@@ -534,11 +534,6 @@ impl RbpfOgm {
         self.paths.path(self.particles[self.best_index()].path)
     }
 
-    /// Bytes held by the particles' paths.
-    pub fn path_memory(&self) -> usize {
-        self.paths.memory_bytes()
-    }
-
     /// Index of the highest-weight particle (the lowest index among ties).
     pub fn best_index(&self) -> usize {
         let mut best = 0;
