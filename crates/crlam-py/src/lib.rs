@@ -4,6 +4,7 @@
 // PyO3 signatures mirror the Python API, argument for argument.
 #![allow(clippy::too_many_arguments, clippy::type_complexity)]
 
+mod bench;
 mod convert;
 mod dispatch;
 mod filters;
@@ -11,6 +12,7 @@ mod info;
 mod info_state;
 mod maps;
 mod planner;
+mod rays;
 
 use pyo3::prelude::*;
 
@@ -30,9 +32,9 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(info::candidate_seed, m)?)?;
     m.add_function(wrap_pyfunction!(planner::run_iig, m)?)?;
     m.add_function(wrap_pyfunction!(planner::geodesic, m)?)?;
-    m.add_function(wrap_pyfunction!(maps::traverse_ray, m)?)?;
-    m.add_function(wrap_pyfunction!(maps::cast_ranges, m)?)?;
-    m.add_function(wrap_pyfunction!(maps::crm_update_ray, m)?)?;
-    m.add_function(wrap_pyfunction!(maps::run_benchmark, m)?)?;
+    m.add_function(wrap_pyfunction!(rays::traverse_ray, m)?)?;
+    m.add_function(wrap_pyfunction!(rays::cast_ranges, m)?)?;
+    m.add_function(wrap_pyfunction!(rays::crm_update_ray, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::run_benchmark, m)?)?;
     Ok(())
 }

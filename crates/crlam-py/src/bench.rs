@@ -1,0 +1,57 @@
+//! `run_benchmark`: the core's named micro-benchmarks, for `crlam bench`.
+
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::convert::{shape_err, IntoPy};
+
+/// Runs one named micro-benchmark of the core (single thread) and returns its figure.
+#[pyfunction]
+#[pyo3(signature = (name, size))]
+pub fn run_benchmark<'py>(
+    py: Python<'py>,
+    name: &str,
+    size: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    use crlam_core::bench;
+    if let Some((us, details)) = py
+        .allow_threads(|| crlam_core::info::bench::info_figure(name, size))
+        .py_err()?
+    {
+        let d = PyDict::new(py);
+        d.set_item("name", name)?;
+        d.set_item("us_per_pose", us)?;
+        d.set_item("per_second", 1e6 / us)?;
+        d.set_item("operations", size)?;
+        d.set_item("unit", "candidate poses")?;
+        for (k, v) in details {
+            d.set_item(k, v)?;
+        }
+        return Ok(d);
+    }
+    let fig = py
+        .allow_threads(|| match name {
+            "crm_beam_updates_per_s" => Some(bench::crm_beam_updates(
+                size,
+                bench::CrmWorkload::FortyCellHits,
+            )),
+            "crm_beam_updates_per_s_paper_scan" => {
+                Some(bench::crm_beam_updates(size, bench::CrmWorkload::PaperScan))
+            }
+            "raycast_cells_per_s" => Some(bench::raycast_cells(size)),
+            "rbpf_clam_scans_per_s_1079x100" => Some(bench::rbpf_clam_scans(size, 100, 1079)),
+            "rbpf_clam_scans_per_s_180x30" => Some(bench::rbpf_clam_scans(size, 30, 180)),
+            "rbpf_ogm_scans_per_s_180x30" => Some(bench::rbpf_ogm_scans(size, 30)),
+            _ => None,
+        })
+        .ok_or_else(|| shape_err(format!("unknown benchmark {name:?}")))?
+        .py_err()?;
+    let d = PyDict::new(py);
+    d.set_item("name", fig.name)?;
+    d.set_item("per_second", fig.per_second)?;
+    d.set_item("operations", fig.operations)?;
+    d.set_item("seconds", fig.seconds)?;
+    d.set_item("unit", fig.unit)?;
+    d.set_item("cells_per_ray", fig.cells_per_ray)?;
+    Ok(d)
+}
