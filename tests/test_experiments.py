@@ -12,7 +12,9 @@ from pathlib import Path
 
 import pytest
 
-from crlam.experiments.sweep import RunSpec, run_is_finished, run_sweep
+from crlam.errors import ConfigError
+from crlam.experiments.slam_run import write_toml
+from crlam.experiments.sweep import RunSpec, run_is_finished, run_sweep, stored_setting_differences
 from crlam.experiments.table1 import run_table1
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 from crlam.slam import SlamConfig
@@ -54,6 +56,44 @@ def test_a_failing_run_is_reported_and_the_sweep_goes_on(office_log: Path, tmp_p
     specs = [*_specs(office_log)[:1], RunSpec("broken", str(tmp_path / "missing.clf"), SlamConfig(particles=2))]
     done, errors = run_sweep(specs, tmp_path, workers=1, progress=False)
     assert set(done) == {specs[0].name} and "broken" in errors
+
+
+def _fake_finished_run(folder: Path, slam: dict[str, object], max_scans: int | None = None) -> None:
+    folder.mkdir(parents=True)
+    write_toml(folder / "config.toml", {"run": {"log": "x.clf", "max_scans": max_scans}, "slam": slam})
+    (folder / "metrics.json").write_text(json.dumps({"wall_time_s": 1.0}))
+
+
+def test_a_finished_run_with_other_settings_stops_the_sweep(tmp_path: Path) -> None:
+    asked = SlamConfig(particles=30, tempering=90.0, motion="thrun", motion_params=(0.1, 0.1, 0.2, 0.05))
+    spec = RunSpec("run", "x.clf", asked)
+    _fake_finished_run(spec.folder(tmp_path), asked.to_dict())
+    assert stored_setting_differences(spec, spec.folder(tmp_path)) == []
+    done, _ = run_sweep([spec], tmp_path, report_only=True, progress=False)
+    assert set(done) == {"run"}
+
+    other = RunSpec("run", "x.clf", SlamConfig(particles=30, tempering=1.0, motion="thrun", motion_params=(0.1, 0.1, 0.2, 0.05)))
+    assert stored_setting_differences(other, other.folder(tmp_path)) == ["tempering: stored 90.0, requested 1.0"]
+    for report_only in (True, False):
+        with pytest.raises(ConfigError, match="tempering: stored 90.0, requested 1.0"):
+            run_sweep([other], tmp_path, report_only=report_only, progress=False)
+    shorter = RunSpec("run", "x.clf", asked, max_scans=100)
+    assert stored_setting_differences(shorter, shorter.folder(tmp_path)) == ["max_scans: stored None, requested 100"]
+
+
+def test_unset_and_missing_settings_of_a_stored_run(tmp_path: Path) -> None:
+    # None is stored as an "(unset)" comment: it differs from a value.
+    spec = RunSpec("a", "x.clf", SlamConfig(motion="thrun", motion_params=(0.1, 0.1, 0.2, 0.05)))
+    _fake_finished_run(spec.folder(tmp_path), SlamConfig(motion="thrun").to_dict())
+    assert stored_setting_differences(spec, spec.folder(tmp_path)) == [
+        "motion_params: stored None, requested [0.1, 0.1, 0.2, 0.05]"
+    ]
+    # A setting the file does not name did not exist yet: the run had the default behaviour.
+    old = {k: v for k, v in SlamConfig().to_dict().items() if k != "cause_kernel"}
+    for name, kernel, expected in (("b", "midpoint", []), ("c", "chord", ["cause_kernel: stored 'midpoint', requested 'chord'"])):
+        s = RunSpec(name, "x.clf", SlamConfig(cause_kernel=kernel))
+        _fake_finished_run(s.folder(tmp_path), old)
+        assert stored_setting_differences(s, s.folder(tmp_path)) == expected
 
 
 @pytest.mark.slow

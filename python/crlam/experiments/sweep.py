@@ -2,22 +2,34 @@
 
 Every run writes its own folder; ``metrics.json`` is written last (atomically), so a folder with
 it is a finished run. Re-running a sweep skips finished runs and redoes only the rest: a killed
-sweep loses at most the runs that were in flight. Workers are started with the ``spawn``
+sweep loses at most the runs that were in flight. A finished run is only reused when the settings
+in its ``config.toml`` are the ones the sweep asks for; otherwise the sweep stops with a
+``ConfigError`` rather than mix settings in one table. Workers are started with the ``spawn``
 context, because a forked child of a process whose rayon pool has started hangs.
 """
 
 from __future__ import annotations
 
 import json
+import re
+import sys
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+from crlam.errors import ConfigError
 from crlam.experiments.pool import run_jobs
 from crlam.slam import SlamConfig
 
-__all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics"]
+__all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics", "stored_setting_differences"]
+
+_UNSET_LINE = re.compile(r"^# (\w+) = \(unset\)$", re.MULTILINE)
 
 
 @dataclass(frozen=True)
@@ -43,6 +55,63 @@ def run_is_finished(folder: Path) -> bool:
 
 def load_metrics(folder: Path) -> dict[str, Any]:
     return json.loads((folder / "metrics.json").read_text())
+
+
+def _normalised(v: Any) -> Any:
+    return list(v) if isinstance(v, tuple) else v
+
+
+def stored_setting_differences(spec: RunSpec, folder: Path) -> list[str]:
+    """The settings of the finished run in ``folder`` that differ from ``spec``, as
+    ``"name: stored X, requested Y"`` (empty when they agree).
+
+    Compared: every ``SlamConfig`` field and ``max_scans``; not the file paths (data may move).
+    ``None`` is written as an ``# name = (unset)`` comment. A field the file does not name at all
+    did not exist when the run was made; the run then had that field's default behaviour, so it
+    matches a request for the default. A run folder without ``config.toml`` is not checked."""
+    path = folder / "config.toml"
+    if not path.is_file():
+        return []
+    text = path.read_text()
+    try:
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML ({e})") from e
+    unset = set(_UNSET_LINE.findall(text))
+    stored_slam = doc.get("slam", {})
+    default = SlamConfig().to_dict()
+    diffs = []
+    requested = spec.config.to_dict()
+    for key, want in requested.items():
+        want = _normalised(want)
+        if key in stored_slam:
+            have = stored_slam[key]
+        elif key in unset:
+            have = None
+        else:
+            have = _normalised(default[key])
+        if have != want:
+            diffs.append(f"{key}: stored {have!r}, requested {want!r}")
+    run_section = doc.get("run", {})
+    have_scans = run_section.get("max_scans")
+    if have_scans != spec.max_scans:
+        diffs.append(f"max_scans: stored {have_scans!r}, requested {spec.max_scans!r}")
+    return diffs
+
+
+def _check_finished_runs(specs: Sequence[RunSpec], root: Path) -> None:
+    problems = []
+    for s in specs:
+        folder = s.folder(root)
+        if run_is_finished(folder):
+            diffs = stored_setting_differences(s, folder)
+            if diffs:
+                problems.append(f"{folder}: " + "; ".join(diffs))
+    if problems:
+        raise ConfigError(
+            f"{len(problems)} finished run(s) under {root} were made with other settings than this command asks "
+            "for (use another output folder, or delete those run folders to redo them):\n  " + "\n  ".join(problems)
+        )
 
 
 def _run_spec(spec_dict: dict[str, Any], root: str) -> dict[str, Any]:
@@ -84,9 +153,16 @@ def run_sweep(
     """Runs every unfinished spec; returns ({name: metrics} of all finished runs, {name: error}).
 
     ``report_only`` runs nothing and returns the runs finished so far (an interim report of a
-    sweep that is still going on elsewhere or was stopped)."""
+    sweep that is still going on elsewhere or was stopped).
+
+    Raises
+    ------
+    ConfigError
+        When a finished run's ``config.toml`` holds other settings than its spec (see
+        ``stored_setting_differences``); nothing is run then."""
     root.mkdir(parents=True, exist_ok=True)
     by_name = {s.name: s for s in specs}
+    _check_finished_runs(specs, root)
     if report_only:
         return {s.name: load_metrics(s.folder(root)) for s in specs if run_is_finished(s.folder(root))}, {}
     threads = max((s.threads for s in specs), default=1)
