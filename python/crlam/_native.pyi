@@ -207,6 +207,7 @@ class ClamFilter:
         linear_update: float = 0.0,
         angular_update: float = 0.0,
         proposal: str = "odometry",
+        proposal_pose: str = "sample",
         seed: int = 0,
     ) -> ClamFilter: ...
     def process(
@@ -253,6 +254,7 @@ class OgmFilter:
         angular_update: float = 0.0,
         resample_threshold: float = 0.5,
         init_sigma: tuple[float, float, float] = ...,
+        proposal_pose: str = "sample",
         seed: int = 0,
     ) -> OgmFilter: ...
     def process(

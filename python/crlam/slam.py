@@ -50,6 +50,11 @@ class SlamConfig:
         Resample when N_eff < threshold · n_p (paper: 0.5).
     proposal : str
         ``odometry`` (paper) or ``likelihood_mode`` (the CRM improved proposal).
+    proposal_pose : str
+        Improved proposals (RBPF-CLAM's ``likelihood_mode``, RBPF-OGM's scan matching): ``sample``
+        draws the new pose from the Gaussian fitted around the match (Grisetti et al. 2007);
+        ``match`` keeps the match itself, as GMapping's released code does (RBPF-CLAM then starts
+        its climb from a motion-model sample, as GMapping does). Same weights either way.
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step) or ``thrun``
         (``motion_params`` = alpha1..alpha4).
@@ -78,6 +83,7 @@ class SlamConfig:
     tempering: float = 1.0
     resample_threshold: float = 0.5
     proposal: str = "odometry"
+    proposal_pose: str = "sample"
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
     linear_update: float = 0.0
@@ -112,6 +118,10 @@ class SlamConfig:
             raise bad("resample_threshold", "must be in [0, 1]")
         if self.proposal not in ("odometry", "likelihood_mode"):
             raise bad("proposal", "must be 'odometry' or 'likelihood_mode'")
+        if self.proposal_pose not in ("sample", "match"):
+            raise bad("proposal_pose", "must be 'sample' or 'match'")
+        if self.method == "clam" and self.proposal == "odometry" and self.proposal_pose != "sample":
+            raise bad("proposal_pose", "'match' needs an improved proposal: proposal='likelihood_mode' (RBPF-CLAM)")
         if self.cause_kernel not in ("midpoint", "chord"):
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
         if self.motion not in ("gaussian", "thrun"):
@@ -153,6 +163,7 @@ PAPER_DEFAULTS: dict[str, Any] = {
     "tempering": 1.0,
     "resample_threshold": 0.5,
     "proposal": "odometry",
+    "proposal_pose": "sample",
     "linear_update": 0.0,
     "angular_update": 0.0,
     "mapping_model": "ijrr",
@@ -185,6 +196,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
                 angular_update=config.angular_update,
                 resample_threshold=config.resample_threshold,
                 init_sigma=config.init_sigma,
+                proposal_pose=config.proposal_pose,
                 seed=config.seed,
             )
         except ValueError as e:
@@ -210,6 +222,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             linear_update=config.linear_update,
             angular_update=config.angular_update,
             proposal=config.proposal,
+            proposal_pose=config.proposal_pose,
             seed=config.seed,
         )
     except ValueError as e:

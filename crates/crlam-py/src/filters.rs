@@ -5,8 +5,8 @@ use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
-    ClamConfig, ClamProposal, FilterStep, OgmFilterConfig, ParticleFilter, RbpfClam, RbpfOgm,
-    ScanInput, UpdateTrigger,
+    ClamConfig, ClamProposal, FilterStep, OgmFilterConfig, ParticleFilter, ProposalParams,
+    ProposalPose, RbpfClam, RbpfOgm, ScanInput, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -233,7 +233,8 @@ filter_pymethods!(ClamFilter {
     #[pyo3(signature = (initial_pose, mapping_model, weight_model, *, n_particles=100, resolution=0.2, origin=(0.0, 0.0),
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
         weight_stride=1, map_stride=1, tempering=1.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
-        motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry", seed=0))]
+        motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
+        proposal_pose="sample", seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -257,6 +258,7 @@ filter_pymethods!(ClamFilter {
         linear_update: f64,
         angular_update: f64,
         proposal: &str,
+        proposal_pose: &str,
         seed: u64,
     ) -> PyResult<Self> {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
@@ -274,10 +276,16 @@ filter_pymethods!(ClamFilter {
             tile_size,
             extent,
         };
-        let proposal = match proposal {
-            "odometry" => ClamProposal::Odometry,
-            "likelihood_mode" => ClamProposal::likelihood_mode(),
-            other => {
+        let pose_rule = ProposalPose::parse(proposal_pose).py_err()?;
+        let proposal = match (proposal, pose_rule) {
+            ("odometry", ProposalPose::Sample) => ClamProposal::Odometry,
+            ("odometry", ProposalPose::Match) => {
+                return Err(shape_err(
+                    "proposal_pose=\"match\" needs proposal=\"likelihood_mode\" (the odometry proposal has no match)",
+                ))
+            }
+            ("likelihood_mode", rule) => ClamProposal::likelihood_mode_with(rule),
+            (other, _) => {
                 return Err(shape_err(format!(
                     "unknown proposal {other:?}; expected odometry or likelihood_mode"
                 )))
@@ -325,7 +333,8 @@ pub struct OgmFilter {
 filter_pymethods!(OgmFilter {
     #[new]
     #[pyo3(signature = (initial_pose, *, n_particles=30, resolution=0.05, usable_range=30.0, motion="thrun", motion_params=None,
-        linear_update=0.0, angular_update=0.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0), seed=0))]
+        linear_update=0.0, angular_update=0.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0), proposal_pose="sample",
+        seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         n_particles: usize,
@@ -337,6 +346,7 @@ filter_pymethods!(OgmFilter {
         angular_update: f64,
         resample_threshold: f64,
         init_sigma: (f64, f64, f64),
+        proposal_pose: &str,
         seed: u64,
     ) -> PyResult<Self> {
         let defaults = OgmFilterConfig::default();
@@ -360,6 +370,10 @@ filter_pymethods!(OgmFilter {
             // Readings arrive with no-returns as inf; every finite one is usable up to usable_range.
             max_range: 1e6,
             init_sigma: [init_sigma.0, init_sigma.1, init_sigma.2],
+            proposal: ProposalParams {
+                pose: ProposalPose::parse(proposal_pose).py_err()?,
+                ..defaults.proposal
+            },
             seed,
             ..defaults
         };

@@ -17,7 +17,7 @@ use crate::error::{config_err, Result};
 use crate::motion::MotionModel;
 use crate::pose::{between, compose, wrap, Pose};
 use crate::rbpf::common::{
-    weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger,
+    weighted_mean_pose, FilterStep, OdometryTracker, ProposalPose, ScanInput, UpdateTrigger,
 };
 use crate::rbpf::lineage::{NodeId, PathTree, NO_NODE};
 use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
@@ -30,25 +30,35 @@ pub enum ClamProposal {
     /// The paper's proposal: sample the odometry motion model.
     Odometry,
     /// The CRM analogue of GMapping's improved proposal: hill-climb the predictive scan
-    /// log-likelihood from the odometry guess, evaluate it on a 3×3×3 lattice around the mode,
-    /// fit a Gaussian to likelihood × motion density there and sample from it; the weight
-    /// increment is the log of the lattice normaliser.
+    /// log-likelihood × motion density from the odometry guess, evaluate it on a 3×3×3 lattice
+    /// around the mode, fit a Gaussian there and sample from it; the weight increment is the log
+    /// of the lattice normaliser. With `pose: Match` the climb starts from a motion-model sample
+    /// and its mode is the new pose (GMapping's released code), with the same weight.
     LikelihoodMode {
         /// Initial hill-climbing steps (m, m, rad), halved `iterations` times.
         step: [f64; 3],
         iterations: usize,
         /// Beam stride used while matching (the final weight uses `weight_stride`).
         match_stride: usize,
+        /// Draw from the fitted Gaussian (default) or keep the climb's mode.
+        pose: ProposalPose,
     },
 }
 
 impl ClamProposal {
-    /// Defaults of the improved proposal: 0.1 m / 0.05 rad steps, 4 halvings, every 3rd beam.
+    /// Defaults of the improved proposal: 0.1 m / 0.05 rad steps, 4 halvings, every 3rd beam,
+    /// a draw from the fitted Gaussian.
     pub fn likelihood_mode() -> Self {
+        Self::likelihood_mode_with(ProposalPose::Sample)
+    }
+
+    /// The improved proposal with the defaults above and the given pose rule.
+    pub fn likelihood_mode_with(pose: ProposalPose) -> Self {
         Self::LikelihoodMode {
             step: [0.1, 0.1, 0.05],
             iterations: 4,
             match_stride: 3,
+            pose,
         }
     }
 }
@@ -457,9 +467,16 @@ fn propose(
             step,
             iterations,
             match_stride,
+            pose: pose_rule,
         } => {
             let match_opts = scan_opts(cfg.scan_update, match_stride);
-            let guess = compose(p.pose, u);
+            // With `Match` nothing is drawn after the climb, so the climb must start from a
+            // motion-model sample (as in GMapping): from the odometry guess, the children of one
+            // parent (same pose, same map) would stay identical copies for ever.
+            let guess = match pose_rule {
+                ProposalPose::Sample => compose(p.pose, u),
+                ProposalPose::Match => cfg.motion.sample(p.pose, u, n_steps, rng),
+            };
             // The target is the proposal's own density, likelihood × motion prior: the prior keeps
             // the climb from sliding along corridors of a poorly converged map.
             let prior = |x: Pose| cfg.motion.log_density(p.pose, x, u, n_steps);
@@ -493,7 +510,10 @@ fn propose(
             let w: Vec<f64> = lw.iter().map(|l| (l - m).exp()).collect();
             let s: f64 = w.iter().sum();
             let log_norm = m + s.ln();
-            let pose = sample_fitted_gaussian(&pts, &w, s, fine, rng);
+            let pose = match pose_rule {
+                ProposalPose::Sample => sample_fitted_gaussian(&pts, &w, s, fine, rng),
+                ProposalPose::Match => mode,
+            };
             Ok((pose, log_norm / cfg.tempering))
         }
     }

@@ -55,6 +55,34 @@ pub struct FilterStep {
     pub resampled: bool,
 }
 
+/// Where an improved proposal puts the particle once it has the likelihood × motion density on a
+/// lattice around the scan match.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ProposalPose {
+    /// Draw from the Gaussian fitted on the lattice (Grisetti et al. 2007, Eqs. 9–11).
+    #[default]
+    Sample,
+    /// Take the scan match itself, with no draw: what GMapping's released code does (it sets the
+    /// pose to the optimiser's result). The weight is the same lattice normaliser as for
+    /// `Sample`; the particles' spread then comes only from their different maps and from the
+    /// climb's start (RBPF-OGM starts from a motion-model sample, RBPF-CLAM from the odometry
+    /// guess).
+    Match,
+}
+
+impl ProposalPose {
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "sample" => Ok(Self::Sample),
+            "match" => Ok(Self::Match),
+            other => Err(config_err(
+                "proposal_pose",
+                format!("unknown value {other:?}; expected sample or match"),
+            )),
+        }
+    }
+}
+
 /// Decides which scans are processed: the first one, then whenever the odometry since the last
 /// processed scan has moved at least `linear` metres or turned `angular` radians (GMapping's
 /// linearUpdate / angularUpdate). Zero thresholds process every scan.

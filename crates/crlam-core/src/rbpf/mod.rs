@@ -13,7 +13,8 @@ pub mod scanmatch;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
 pub use common::{
-    weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ScanInput, UpdateTrigger,
+    weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,
+    UpdateTrigger,
 };
 pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use ogm::{OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};

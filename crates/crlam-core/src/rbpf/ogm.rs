@@ -8,7 +8,8 @@
 //! 1. draw x̃ from the motion model from the particle pose (the scan matcher's starting point);
 //! 2. hill-climb the scan score on the particle's map from x̃ ([`ScanMatcher::optimize`]);
 //! 3. if the score exceeds `min_score`: evaluate likelihood × motion prior on a lattice around the
-//!    match, fit a Gaussian, draw the new pose from it, and add log η = log Σ_k L_k p_k ΔV to the
+//!    match, fit a Gaussian, draw the new pose from it (or, with `ProposalPose::Match`, keep the
+//!    match, as GMapping's released code does), and add log η = log Σ_k L_k p_k ΔV to the
 //!    log-weight (the improved proposal, paper Eqs. 9–11); otherwise keep x̃ and add log L(x̃)
 //!    (the plain motion proposal's weight);
 //! 4. integrate the scan into the particle's map at the new pose.
@@ -22,7 +23,9 @@
 
 use rayon::prelude::*;
 
-use super::common::{weighted_mean_pose, FilterStep, OdometryTracker, ScanInput, UpdateTrigger};
+use super::common::{
+    weighted_mean_pose, FilterStep, OdometryTracker, ProposalPose, ScanInput, UpdateTrigger,
+};
 use super::lineage::{NodeId, PathTree, NO_NODE};
 use super::scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
 use crate::error::{config_err, Result};
@@ -272,7 +275,11 @@ fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Res
             &ctx.cfg.proposal,
             &mut rng,
         )?;
-        (draw.pose, draw.log_normalizer)
+        let pose = match ctx.cfg.proposal.pose {
+            ProposalPose::Sample => draw.pose,
+            ProposalPose::Match => matched,
+        };
+        (pose, draw.log_normalizer)
     } else {
         let fit = ctx.matcher.evaluate(&p.map, ctx.prepared, start)?;
         (start, fit.log_likelihood)

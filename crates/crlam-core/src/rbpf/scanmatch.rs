@@ -17,6 +17,7 @@
 //! The score drives the hill-climbing search ([`ScanMatcher::optimize`]); the log-likelihood
 //! drives the proposal and the weights ([`ScanMatcher::improved_proposal`]).
 
+use super::common::ProposalPose;
 use crate::error::{config_err, Result};
 use crate::grid::{check_pose, GridGeometry};
 use crate::ogm::LogOddsGrid;
@@ -147,6 +148,8 @@ pub struct ProposalParams {
     /// Standard deviations (m, m, rad) added in quadrature to the fitted covariance, so that it
     /// stays positive definite when the likelihood is sharper than the lattice spacing.
     pub regularization: [f64; 3],
+    /// Draw the new pose from the fitted Gaussian (default) or keep the match (GMapping's code).
+    pub pose: ProposalPose,
 }
 
 impl Default for ProposalParams {
@@ -156,6 +159,7 @@ impl Default for ProposalParams {
             half_steps: 1,
             range: [0.05, 0.05, 0.025],
             regularization: [0.005, 0.005, 0.0025],
+            pose: ProposalPose::Sample,
         }
     }
 }
