@@ -142,7 +142,9 @@ def test_real_logs_harness_on_a_slice_of_aces(data_dir: Path, tmp_path: Path) ->
 
 
 @pytest.mark.realdata
-def test_real_logs_command_passes_the_update_triggers_to_every_run(data_dir: Path, tmp_path: Path) -> None:
+def test_real_logs_command_passes_the_update_triggers_to_every_run(
+    data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
     from crlam.cli import main
 
     argv = ["experiment", "real-logs", "--out", str(tmp_path), "--datasets", "aces", "--methods", "ogm"]
@@ -158,6 +160,15 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(data_dir: Pat
     assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet", "--report-only"]) == 0
     assert [p.name for p in (tmp_path / "runs").iterdir()] == [run.name]
     assert "RBPF-OGM" in (tmp_path / "table.md").read_text()
+    # A baseline-only sweep may keep GMapping's match; the finished run was made with the draw,
+    # so resuming it with another pose rule is refused before anything runs.
+    triggers = ["--linear-update", "1.0", "--angular-update", "0.5", "--quiet", "--report-only"]
+    assert main([*argv, *triggers, "--proposal-pose", "match"]) == 2
+    assert "proposal_pose: stored 'sample', requested 'match'" in capsys.readouterr().err
+    # With RBPF-CLAM runs in the sweep, 'match' needs the likelihood-mode proposal.
+    clam = [*argv[: argv.index("--methods")], "--methods", "ogm", "clam", *argv[argv.index("--methods") + 2 :]]
+    assert main([*clam, *triggers, "--proposal-pose", "match"]) == 2
+    assert "proposal='likelihood_mode'" in capsys.readouterr().err
 
 
 def _child_peak_rss(_: int) -> float:

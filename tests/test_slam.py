@@ -120,6 +120,12 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
     text = (wide / "config.toml").read_text()
     assert 'cause_kernel = "chord"' in text and "\nsigma_hit_resolved = 0.01\n" in text
     assert "cause_kernel = 'chord'" in json.loads((wide / "metrics.json").read_text())["deviations_from_paper"][0]
+    for method in ("clam", "ogm"):
+        args_m = [*args, "--method", method, "--proposal", "likelihood_mode", "--proposal-pose", "match"]
+        assert main(args_m) == 0
+        assert 'proposal_pose = "match"' in (wide / "config.toml").read_text()
+        deviations = json.loads((wide / "metrics.json").read_text())["deviations_from_paper"]
+        assert "proposal_pose = 'match' (paper: 'sample')" in deviations
     empty = tmp_path / "empty.clf"
     empty.write_text("")
     assert main(["slam", str(empty), "--out", str(tmp_path / "x"), "--quiet"]) == 2
@@ -128,11 +134,34 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
 
 @pytest.mark.parametrize(
     ("field", "value"),
-    [("particles", 0), ("tempering", 0.0), ("proposal", "magic"), ("motion_params", (1.0,)), ("cause_kernel", "box")],
+    [
+        ("particles", 0),
+        ("tempering", 0.0),
+        ("proposal", "magic"),
+        ("motion_params", (1.0,)),
+        ("cause_kernel", "box"),
+        ("proposal_pose", "mean"),
+        # The paper's odometry proposal has no match to keep.
+        ("proposal_pose", "match"),
+    ],
 )
 def test_bad_slam_config_names_the_field(field: str, value: object) -> None:
     with pytest.raises(ConfigError, match=field):
         SlamConfig(**{field: value})  # type: ignore[arg-type]
+
+
+def test_the_native_filters_check_the_proposal_pose() -> None:
+    from crlam import _native
+
+    sensor = SlamConfig().mapping_config().sensor_model("ijrr")
+    pose = np.zeros(3)
+    with pytest.raises(ValueError, match="likelihood_mode"):
+        _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="odometry", proposal_pose="match")
+    with pytest.raises(ValueError, match="proposal_pose"):
+        _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", proposal_pose="mean")
+    with pytest.raises(ValueError, match="proposal_pose"):
+        _native.OgmFilter(pose, n_particles=2, proposal_pose="mean")
+    assert _native.OgmFilter(pose, n_particles=2, proposal_pose="match").n_particles == 2
 
 
 @pytest.mark.realdata

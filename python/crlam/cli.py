@@ -140,6 +140,12 @@ def cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _base_method(methods: list[str]) -> str:
+    """The method the base config of a sweep is validated as: RBPF-CLAM whenever the sweep has
+    RBPF-CLAM runs (its settings are the stricter), RBPF-OGM for a baseline-only sweep."""
+    return "ogm" if set(methods) == {"ogm"} else "clam"
+
+
 def cmd_slam(args: argparse.Namespace) -> int:
     from crlam.experiments.slam_run import run_slam_log
     from crlam.slam import SlamConfig
@@ -225,6 +231,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         from crlam.experiments.table1 import run_table1
 
         base = SlamConfig(
+            method=_base_method(args.methods),
             particles=args.particles,
             resolution=0.2,
             max_range=8.0,
@@ -250,6 +257,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         from crlam.experiments.real_logs import run_real_logs
 
         base = SlamConfig(
+            method=_base_method(args.methods),
             resolution=args.resolution,
             motion="thrun",
             weight_stride=args.weight_stride,

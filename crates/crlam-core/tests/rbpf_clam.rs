@@ -5,7 +5,7 @@ use crlam_core::crm::CrmConfig;
 use crlam_core::grid::GridGeometry;
 use crlam_core::motion::MotionModel;
 use crlam_core::pose::{between, compose, Pose};
-use crlam_core::rbpf::{ClamConfig, ClamProposal, RbpfClam, ScanInput};
+use crlam_core::rbpf::{ClamConfig, ClamProposal, ProposalPose, RbpfClam, ScanInput};
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
 
@@ -130,6 +130,7 @@ fn clam_beats_raw_odometry_with_both_proposals() {
     for (proposal, n_particles) in [
         (ClamProposal::Odometry, 30),
         (ClamProposal::likelihood_mode(), 8),
+        (ClamProposal::likelihood_mode_with(ProposalPose::Match), 8),
     ] {
         let t = std::time::Instant::now();
         let est = run_filter(
@@ -210,6 +211,61 @@ fn same_seed_same_trajectory_with_one_and_two_threads() {
     assert_eq!(a, b);
     let c = two.install(|| run_filter(&run, config(ClamProposal::Odometry)));
     assert_eq!(b, c);
+}
+
+#[test]
+fn proposal_pose_match_keeps_the_climb_result_and_is_thread_independent() {
+    let run = simulate(30);
+    let cfg = || {
+        let mut c = config(ClamProposal::likelihood_mode_with(ProposalPose::Match));
+        c.n_particles = 6;
+        c.resample_threshold = 0.0;
+        c
+    };
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let two = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap();
+    assert_eq!(
+        one.install(|| run_filter(&run, cfg())),
+        two.install(|| run_filter(&run, cfg()))
+    );
+    // All particles start at one pose with one map; the climbs start from different
+    // motion-model samples, so the particles must not stay identical copies.
+    let mut f = RbpfClam::new(cfg(), run.truth[0]).unwrap();
+    let mut g = RbpfClam::new(
+        config(ClamProposal::likelihood_mode_with(ProposalPose::Sample)),
+        run.truth[0],
+    )
+    .unwrap();
+    for k in 0..3 {
+        let s = ScanInput {
+            odom: run.odom[k],
+            angles: &run.angles,
+            ranges: &run.ranges[k],
+            laser_offset: [0.0; 3],
+        };
+        f.process(&s).unwrap();
+        g.process(&s).unwrap();
+    }
+    let poses: Vec<Pose> = f.particles().iter().map(|p| p.pose).collect();
+    assert!(
+        poses.iter().any(|p| p != &poses[0]),
+        "match: particles stayed identical: {poses:?}"
+    );
+    // Both pose rules stay near the truth.
+    for p in f.particles().iter().chain(g.particles()) {
+        let d = between(run.truth[2], p.pose);
+        assert!(
+            d[0].hypot(d[1]) < 0.2,
+            "pose {:?} far from the truth",
+            p.pose
+        );
+    }
 }
 
 #[test]

@@ -10,7 +10,8 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::{LogOddsGrid, LogOddsParams};
 use crlam_core::pose::{between, compose, wrap, Pose};
 use crlam_core::rbpf::{
-    FilterStep, OgmFilterConfig, PreparedScan, RbpfOgm, ScanInput, ScanMatcher, UpdateTrigger,
+    FilterStep, OgmFilterConfig, PreparedScan, ProposalPose, RbpfOgm, ScanInput, ScanMatcher,
+    UpdateTrigger,
 };
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
@@ -236,6 +237,47 @@ fn unprocessed_scans_carry_the_estimate_by_odometry() {
         }
     }
     assert!(skipped > 0);
+}
+
+#[test]
+fn proposal_pose_match_keeps_the_match_with_the_same_weights() {
+    let run = simulate(240, 1.15);
+    let mut matched = config();
+    matched.proposal.pose = ProposalPose::Match;
+    // First step after the initial scan: one map, one start pose, the same random streams, so
+    // the same motion samples, the same matches and the same lattice normalisers; only the
+    // final draw differs.
+    let first_two = Run {
+        truth: run.truth[..2].to_vec(),
+        odom: run.odom[..2].to_vec(),
+        angles: run.angles.clone(),
+        ranges: run.ranges[..2].to_vec(),
+    };
+    let mut every = config();
+    every.trigger = UpdateTrigger::every_scan();
+    let (fs, _) = run_filter(&first_two, every.clone());
+    every.proposal.pose = ProposalPose::Match;
+    let (fm, _) = run_filter(&first_two, every);
+    assert_eq!(fs.n_processed(), 2);
+    assert_eq!(fs.log_weights(), fm.log_weights());
+    assert!(fs.poses().iter().zip(fm.poses()).all(|(a, b)| *a != b));
+    // Over the whole loop the match rule tracks as well as the draw.
+    let (f, steps) = run_filter(&run, matched);
+    let odo = odometry_in_world(&run);
+    let n = run.truth.len() as f64;
+    let mean = |est: &mut dyn Iterator<Item = Pose>| {
+        est.zip(&run.truth)
+            .map(|(e, t)| position_error(e, *t))
+            .sum::<f64>()
+            / n
+    };
+    let e_filter = mean(&mut steps.iter().map(|s| s.estimate));
+    let e_odom = mean(&mut odo.iter().copied());
+    assert!(
+        e_filter < 0.1 && e_filter < 0.5 * e_odom,
+        "{e_filter} vs {e_odom}"
+    );
+    assert!(f.n_processed() > 10);
 }
 
 #[test]
