@@ -83,6 +83,13 @@ fn simulate(n_scans: usize) -> Run {
     }
 }
 
+fn pool(threads: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+}
+
 fn config(proposal: ClamProposal) -> ClamConfig {
     let mut cfg = ClamConfig::paper(
         CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.1).unwrap()),
@@ -198,14 +205,7 @@ fn tempering_divides_the_weights_and_leaves_the_proposal_alone() {
 #[test]
 fn same_seed_same_trajectory_with_one_and_two_threads() {
     let run = simulate(40);
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let two = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
+    let (one, two) = (pool(1), pool(2));
     let a = one.install(|| run_filter(&run, config(ClamProposal::Odometry)));
     let b = two.install(|| run_filter(&run, config(ClamProposal::Odometry)));
     assert_eq!(a, b);
@@ -222,14 +222,7 @@ fn proposal_pose_match_keeps_the_climb_result_and_is_thread_independent() {
         c.resample_threshold = 0.0;
         c
     };
-    let one = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
-    let two = rayon::ThreadPoolBuilder::new()
-        .num_threads(2)
-        .build()
-        .unwrap();
+    let (one, two) = (pool(1), pool(2));
     assert_eq!(
         one.install(|| run_filter(&run, cfg())),
         two.install(|| run_filter(&run, cfg()))
