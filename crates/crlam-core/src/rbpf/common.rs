@@ -65,8 +65,7 @@ pub enum ProposalPose {
     /// Take the scan match itself, with no draw: what GMapping's released code does (it sets the
     /// pose to the optimiser's result). The weight is the same lattice normaliser as for
     /// `Sample`; the particles' spread then comes only from their different maps and from the
-    /// climb's start (RBPF-OGM starts from a motion-model sample, RBPF-CLAM from the odometry
-    /// guess).
+    /// climb's start, a motion-model sample in both filters.
     Match,
 }
 
