@@ -441,6 +441,17 @@ impl<'a> MixtureReading<'a> {
         m.w_hit * hit + m.w_short * short + self.rand
     }
 
+    /// L_l of a cause far before the reading, where the hit term is negligible and the short
+    /// term is 0: w_r/z_max for a range, w_max for a no-return (every on-ray cause's value).
+    #[inline]
+    pub fn far_before(&self) -> f64 {
+        if self.no_return {
+            self.model.w_max
+        } else {
+            self.rand
+        }
+    }
+
     /// L_∞, the likelihood of the reading if the beam reaches z_max.
     #[inline]
     pub fn infinity(&self) -> f64 {

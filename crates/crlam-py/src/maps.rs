@@ -171,6 +171,7 @@ fn scan_opts(mode: &str, beam_stride: usize, zero_is_no_return: bool) -> PyResul
         mode: ScanUpdateMode::parse(mode).py_err()?,
         beam_stride,
         zero_is_no_return,
+        ..ScanOptions::default()
     })
 }
 

@@ -35,10 +35,47 @@ impl ScanUpdateMode {
     }
 }
 
+/// How a batch scan computes each beam (the results agree to rounding).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BatchKernel {
+    /// Likelihoods and factors only within a window around the reading; the cells before it
+    /// are counted as passes, with a per-beam bound that falls back to the full sweep when the
+    /// window could change η beyond 2^-60 (`crm::windowed`; `ijrr` mapping with midpoint causes,
+    /// `mixture` weights). The default.
+    Windowed,
+    /// Every cell of every ray: its likelihood, the backward sweep and its factor (the
+    /// reference the windowed kernel is tested against; every model).
+    FullRay,
+}
+
+impl BatchKernel {
+    /// Parses `"windowed" | "full_ray"`.
+    pub fn parse(name: &str) -> Result<Self> {
+        match name {
+            "windowed" => Ok(Self::Windowed),
+            "full_ray" => Ok(Self::FullRay),
+            other => Err(config_err(
+                "batch_kernel",
+                format!("unknown kernel {other:?}; expected windowed or full_ray"),
+            )),
+        }
+    }
+
+    /// Canonical name.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Self::Windowed => "windowed",
+            Self::FullRay => "full_ray",
+        }
+    }
+}
+
 /// Options of a scan update or scan likelihood.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScanOptions {
     pub mode: ScanUpdateMode,
+    /// Batch mode only: how each beam is computed.
+    pub kernel: BatchKernel,
     /// Use every `beam_stride`-th beam (1 = all).
     pub beam_stride: usize,
     /// Treat a range of exactly 0 as a no-return (some drivers); otherwise it is dropped.
@@ -49,6 +86,7 @@ impl Default for ScanOptions {
     fn default() -> Self {
         Self {
             mode: ScanUpdateMode::Batch,
+            kernel: BatchKernel::Windowed,
             beam_stride: 1,
             zero_is_no_return: false,
         }

@@ -1,10 +1,14 @@
 //! The confidence-rich map: tiled f32 pmfs per cell, updated beam by beam in f64.
 
-use crate::crm::beam::{check_scan, plan_beam, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
+use crate::crm::beam::{
+    check_scan, plan_beam, BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode,
+};
 use crate::crm::forward::mixture_log_eta_forward;
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
-use crate::crm::scan_cells::ScanCells;
+use crate::crm::mean_cache::MeanCache;
+use crate::crm::scan_cells::{scan_window, ScanCells};
 use crate::crm::update::{apply_factor, cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
+use crate::crm::windowed::{WindowScratch, WindowedBeam, WindowedScan};
 use crate::error::{config_err, CrlamError, Result};
 use crate::grid::{check_pose, CellRect, GridGeometry, TileStats, TiledGrid};
 use crate::raycast::{traverse_with, RayCell};
@@ -50,8 +54,10 @@ pub struct CrmScratch {
     alpha: Vec<f64>,
     s: Vec<f64>,
     /// Batch mode: the scan's cell table and, per gathered cell, its id there.
-    scan: ScanCells,
+    pub(super) scan: ScanCells,
     ids: Vec<usize>,
+    /// Buffers of the windowed batch kernel.
+    pub(super) window: WindowScratch,
 }
 
 /// Runs `f` with this thread's reusable [`CrmScratch`] (a fresh one if it is already in use
@@ -77,6 +83,9 @@ pub struct CrmMap {
     prior: Vec<f64>,
     placement: LevelPlacement,
     floor: f64,
+    /// Means shared with the copies of this map that have not written since (a batch scan
+    /// fills it when the map is shared); replaced on every write.
+    means: MeanCache,
 }
 
 impl CrmMap {
@@ -107,6 +116,7 @@ impl CrmMap {
             prior,
             placement: cfg.placement,
             floor: cfg.belief_floor,
+            means: MeanCache::default(),
         })
     }
 
@@ -221,6 +231,7 @@ impl CrmMap {
             let scale = if (s - 1.0).abs() < 1e-5 { 1.0 } else { 1.0 / s };
             out.extend(p.iter().map(|x| (x * scale) as f32));
         }
+        self.means.invalidate();
         self.grid.import(rect, &out)
     }
 
@@ -460,21 +471,65 @@ impl CrmMap {
             return Ok((ll, used, st));
         }
         check_scan(angles, ranges, weight_model, &wopts)?;
+        self.batch_scan(
+            pose,
+            angles,
+            ranges,
+            Some((weight_model, weight_stride)),
+            mapping_model,
+            opts,
+            sc,
+        )
+    }
+
+    /// The batch scan (crm-spec 3.3) with an optional weight: every beam's coefficients from
+    /// the pre-scan beliefs, one walk per beam for the weight and the update, factors multiplied
+    /// per cell and written back once. `opts.kernel` picks the windowed kernel where it applies.
+    #[allow(clippy::too_many_arguments)]
+    fn batch_scan(
+        &mut self,
+        pose: [f64; 3],
+        angles: &[f64],
+        ranges: &[f64],
+        weight: Option<(&SensorModel, usize)>,
+        mapping_model: &SensorModel,
+        opts: &ScanOptions,
+        sc: &mut CrmScratch,
+    ) -> Result<(f64, usize, ScanStats)> {
         check_scan(angles, ranges, mapping_model, opts)?;
-        self.grid
-            .prepare_scan(pose, weight_model.z_max.max(mapping_model.z_max))?;
+        let z_max = weight.map_or(mapping_model.z_max, |(w, _)| {
+            w.z_max.max(mapping_model.z_max)
+        });
+        self.grid.prepare_scan(pose, z_max)?;
         let res = self.grid.geometry().resolution;
         let origin = [pose[0], pose[1]];
         let mut st = ScanStats::default();
         let (mut total, mut used) = (0.0, 0);
-        let z_max = weight_model.z_max.max(mapping_model.z_max);
-        sc.scan.begin(self.grid.geometry(), origin, z_max);
+        let windowed = if opts.kernel == BatchKernel::Windowed && self.grid.fixed_extent().is_none()
+        {
+            WindowedScan::new(mapping_model, weight.map(|(w, _)| w))
+        } else {
+            None
+        };
+        let window = scan_window(self.grid.geometry(), origin, z_max);
+        let means = (windowed.is_some() && self.means.is_shared() && window.nx > 0).then(|| {
+            self.means.table(window, |rect, out| {
+                // The rectangle is valid and `out` sized for it, so this cannot fail.
+                let _ = self.means_into(rect, out);
+            })
+        });
+        sc.scan.begin(self.grid.geometry(), origin, z_max, means);
         for b in 0..angles.len() {
             let angle = pose[2] + angles[b];
-            let w_plan = if b % weight_stride == 0 {
-                plan_beam(weight_model, &wopts, res, origin, angle, ranges[b]).ok()
-            } else {
-                None
+            let w_plan = match weight {
+                Some((w, stride)) if b % stride == 0 => {
+                    let wopts = ScanOptions {
+                        beam_stride: stride,
+                        ..*opts
+                    };
+                    plan_beam(w, &wopts, res, origin, angle, ranges[b]).ok()
+                }
+                _ => None,
             };
             let m_plan = if b % opts.beam_stride == 0 {
                 st.n_beams += 1;
@@ -484,48 +539,96 @@ impl CrmMap {
             } else {
                 None
             };
-            let length = w_plan
-                .map_or(0.0, |p| p.length)
-                .max(m_plan.map_or(0.0, |p| p.length));
             if w_plan.is_none() && m_plan.is_none() {
                 continue;
             }
-            let end = self.gather_cells(origin, angle, length, sc, true);
-            // The longer ray is evaluated first; the shorter one is then a prefix of it.
-            let weight_first = w_plan.map_or(0.0, |p| p.length) >= m_plan.map_or(0.0, |p| p.length);
-            for stage in 0..2 {
-                let is_weight = (stage == 0) == weight_first;
-                let Some(mut plan) = (if is_weight { w_plan } else { m_plan }) else {
+            if let Some(k) = &windowed {
+                let out = k.beam(
+                    &self.grid,
+                    &self.mu,
+                    &mut sc.scan,
+                    &mut sc.window,
+                    w_plan.as_ref(),
+                    m_plan.as_ref(),
+                    &mut st,
+                );
+                if let WindowedBeam::Done(log_eta) = out {
+                    if let Some(l) = log_eta {
+                        total += l;
+                        used += 1;
+                    }
                     continue;
-                };
-                truncate_ray(sc, plan.length);
-                let cut = end.min(plan.length);
-                self.truncation_to_no_return(&mut plan, cut);
-                if is_weight {
-                    total += self.beam_alpha(weight_model, &plan, sc, false);
-                    used += 1;
-                    continue;
-                }
-                if sc.cells.is_empty() {
-                    st.n_empty_ray += 1;
-                    continue;
-                }
-                let log_eta = self.beam_alpha(mapping_model, &plan, sc, true);
-                if !log_eta.is_finite() {
-                    st.n_skipped_eta += 1;
-                    continue;
-                }
-                st.n_used += 1;
-                st.n_no_return += usize::from(plan.no_return);
-                for l in 0..sc.cells.len() {
-                    sc.scan
-                        .apply(sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, &mut st);
                 }
             }
+            let (ll, weighed) = self.full_ray_beam(
+                weight.map(|(w, _)| w),
+                w_plan,
+                mapping_model,
+                m_plan,
+                sc,
+                &mut st,
+            );
+            total += ll;
+            used += usize::from(weighed);
         }
-        sc.scan
-            .write_back(&mut self.grid, self.mu.len(), self.floor)?;
+        self.means.invalidate();
+        sc.scan.write_back(&mut self.grid, &self.mu, self.floor)?;
         Ok((total, used, st))
+    }
+
+    /// One beam of a batch scan by the full sweep ([`BatchKernel::FullRay`]): its weight (log η,
+    /// and whether it was weighed) and its factors into the scan table.
+    fn full_ray_beam(
+        &self,
+        weight_model: Option<&SensorModel>,
+        w_plan: Option<BeamPlan>,
+        mapping_model: &SensorModel,
+        m_plan: Option<BeamPlan>,
+        sc: &mut CrmScratch,
+        st: &mut ScanStats,
+    ) -> (f64, bool) {
+        let Some(any) = w_plan.or(m_plan) else {
+            return (0.0, false);
+        };
+        let length = w_plan
+            .map_or(0.0, |p| p.length)
+            .max(m_plan.map_or(0.0, |p| p.length));
+        let end = self.gather_cells(any.origin, any.angle, length, sc, true);
+        let (mut total, mut weighed) = (0.0, false);
+        // The longer ray is evaluated first; the shorter one is then a prefix of it.
+        let weight_first = w_plan.map_or(0.0, |p| p.length) >= m_plan.map_or(0.0, |p| p.length);
+        for stage in 0..2 {
+            let is_weight = (stage == 0) == weight_first;
+            let Some(mut plan) = (if is_weight { w_plan } else { m_plan }) else {
+                continue;
+            };
+            truncate_ray(sc, plan.length);
+            let cut = end.min(plan.length);
+            self.truncation_to_no_return(&mut plan, cut);
+            if is_weight {
+                if let Some(w) = weight_model {
+                    total += self.beam_alpha(w, &plan, sc, false);
+                    weighed = true;
+                }
+                continue;
+            }
+            if sc.cells.is_empty() {
+                st.n_empty_ray += 1;
+                continue;
+            }
+            let log_eta = self.beam_alpha(mapping_model, &plan, sc, true);
+            if !log_eta.is_finite() {
+                st.n_skipped_eta += 1;
+                continue;
+            }
+            st.n_used += 1;
+            st.n_no_return += usize::from(plan.no_return);
+            for l in 0..sc.cells.len() {
+                sc.scan
+                    .apply(&self.grid, sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, st);
+            }
+        }
+        (total, weighed)
     }
 
     /// Updates the map with one scan taken from the sensor pose `pose` (x, y, θ); beam b points
@@ -539,15 +642,15 @@ impl CrmMap {
         opts: &ScanOptions,
         sc: &mut CrmScratch,
     ) -> Result<ScanStats> {
+        if opts.mode == ScanUpdateMode::Batch {
+            return Ok(self
+                .batch_scan(pose, angles, ranges, None, model, opts, sc)?
+                .2);
+        }
         check_scan(angles, ranges, model, opts)?;
         self.grid.prepare_scan(pose, model.z_max)?;
         let res = self.grid.geometry().resolution;
         let mut st = ScanStats::default();
-        let batch = opts.mode == ScanUpdateMode::Batch;
-        if batch {
-            sc.scan
-                .begin(self.grid.geometry(), [pose[0], pose[1]], model.z_max);
-        }
         for b in (0..angles.len()).step_by(opts.beam_stride) {
             st.n_beams += 1;
             let mut plan = match plan_beam(
@@ -564,7 +667,7 @@ impl CrmMap {
                     continue;
                 }
             };
-            self.gather_ray(&mut plan, sc, batch);
+            self.gather_ray(&mut plan, sc, false);
             if sc.cells.is_empty() {
                 st.n_empty_ray += 1;
                 continue;
@@ -576,26 +679,12 @@ impl CrmMap {
             }
             st.n_used += 1;
             st.n_no_return += usize::from(plan.no_return);
-            match opts.mode {
-                ScanUpdateMode::Batch => {
-                    for l in 0..sc.cells.len() {
-                        sc.scan
-                            .apply(sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, &mut st);
-                    }
-                }
-                ScanUpdateMode::Sequential => {
-                    for l in 0..sc.cells.len() {
-                        let (ix, iy) = (sc.cells[l].ix, sc.cells[l].iy);
-                        let ok = self.apply_to_cell(ix, iy, sc.alpha[l], sc.mhat[l])?;
-                        st.n_cell_updates += usize::from(ok);
-                        st.n_frozen += usize::from(!ok);
-                    }
-                }
+            for l in 0..sc.cells.len() {
+                let (ix, iy) = (sc.cells[l].ix, sc.cells[l].iy);
+                let ok = self.apply_to_cell(ix, iy, sc.alpha[l], sc.mhat[l])?;
+                st.n_cell_updates += usize::from(ok);
+                st.n_frozen += usize::from(!ok);
             }
-        }
-        if batch {
-            sc.scan
-                .write_back(&mut self.grid, self.mu.len(), self.floor)?;
         }
         Ok(st)
     }
@@ -615,6 +704,7 @@ impl CrmMap {
         if !apply_factor(&mut p[..k], &self.mu, alpha, mhat, self.floor) {
             return Ok(false);
         }
+        self.means.invalidate();
         let dst = self.grid.get_mut(ix, iy)?;
         for i in 0..k {
             dst[i] = p[i] as f32;

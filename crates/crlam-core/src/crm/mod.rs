@@ -4,9 +4,11 @@ pub mod beam;
 mod forward;
 pub mod levels;
 pub mod map;
+mod mean_cache;
 mod scan_cells;
 pub mod update;
+mod windowed;
 
-pub use beam::{BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
+pub use beam::{BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
 pub use levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
 pub use map::{with_thread_scratch, CrmConfig, CrmMap, CrmScratch};

@@ -1,10 +1,13 @@
-//! The cells one batch-mode scan touches (crm-spec 3.3): each cell's pre-scan belief and mean,
-//! read from the tiles once per scan however many beams cross it, and the product of the
-//! factors its beams have applied so far, written back once at the end of the scan.
+//! The cells one batch-mode scan touches (crm-spec 3.3): each cell's pre-scan mean, read once
+//! per scan however many beams cross it, how many beams passed it (factor ∝ 1 − μ, see
+//! [`super::windowed`]) and the product of the other factors its beams applied, written back
+//! once at the end of the scan.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use crate::crm::beam::ScanStats;
+use crate::crm::mean_cache::MeanTable;
 use crate::crm::update::normalize_with_floor;
 use crate::error::Result;
 use crate::grid::{CellRect, GridGeometry, TiledGrid};
@@ -13,12 +16,18 @@ use crate::grid::{CellRect, GridGeometry, TiledGrid};
 /// larger) go through a hash map.
 const MAX_WINDOW_CELLS: i64 = 1 << 22;
 
+/// Largest number of levels (the level count is at most 64, plus one for endpoints).
+const MAX_LEVELS: usize = 65;
+
+/// No factor product held for the cell (its pmf is read from the tiles at write-back).
+const NO_SLOT: u32 = u32::MAX;
+
 /// State of a touched cell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum CellState {
-    /// Read (its mean was used) but no factor applied yet: not written back.
+    /// Read (its mean was used), nothing applied yet: not written back unless passed.
     Read,
-    /// At least one factor applied.
+    /// At least one factor other than a pass applied.
     Updated,
     /// Every level of a factor clipped to 0: keeps its pre-scan belief (crm-spec 3.6).
     Frozen,
@@ -30,6 +39,8 @@ enum CellState {
 #[derive(Debug, Default)]
 pub(crate) struct ScanCells {
     window: CellRect,
+    /// Means of the pre-scan map shared by its copies, when the scan was given one.
+    means: Option<Arc<MeanTable>>,
     /// Window cell → 1 + cell id (0: untouched this scan).
     ids: Vec<u32>,
     /// Dense-table indices written this scan.
@@ -38,14 +49,50 @@ pub(crate) struct ScanCells {
     cells: Vec<(i64, i64)>,
     state: Vec<CellState>,
     mean: Vec<f64>,
-    /// K per cell: the pre-scan pmf times the factors applied so far (unnormalised).
+    /// Per cell: beams that passed it, each a factor (1 − μ_k)/(1 − m̂) applied at write-back.
+    passes: Vec<u32>,
+    /// Per cell: its slot in `acc`, or [`NO_SLOT`].
+    slot: Vec<u32>,
+    /// K per slot: the pre-scan pmf times the non-pass factors applied so far (unnormalised).
     acc: Vec<f64>,
+    /// Row n (K values): ((1 − μ_k)/(1 − μ_min))^n, the pass factor of n beams scaled so that
+    /// its largest entry is 1; grown on demand, rebuilt when the levels change.
+    pass_pow: Vec<f64>,
+    pass_levels: Vec<f64>,
+}
+
+/// The stored pmf of a cell normalised in f64: the sum in storage order, as [`pmf_mean`] and
+/// `CrmMap::mean_at` take it.
+#[inline]
+fn read_pmf(stored: &[f32], out: &mut [f64]) {
+    let s: f64 = stored.iter().map(|&q| q as f64).sum();
+    for (o, &q) in out.iter_mut().zip(stored) {
+        *o = q as f64 / s;
+    }
+}
+
+/// The mean of a stored pmf, with `CrmMap::mean_at`'s sums in its order.
+#[inline]
+fn pmf_mean(stored: &[f32], mu: &[f64]) -> f64 {
+    let (mut s, mut m) = (0.0f64, 0.0f64);
+    for (&x, &q) in mu.iter().zip(stored) {
+        s += q as f64;
+        m += x * q as f64;
+    }
+    m / s
 }
 
 impl ScanCells {
     /// Starts a scan whose beams stay within `z_max` (m) of `position` (cells beyond still work,
-    /// through the hash map).
-    pub(crate) fn begin(&mut self, g: &GridGeometry, position: [f64; 2], z_max: f64) {
+    /// through the hash map). `means`, if given, holds the pre-scan means of (at least) the
+    /// dense window.
+    pub(crate) fn begin(
+        &mut self,
+        g: &GridGeometry,
+        position: [f64; 2],
+        z_max: f64,
+        means: Option<Arc<MeanTable>>,
+    ) {
         for &i in &self.dirty {
             self.ids[i as usize] = 0;
         }
@@ -54,26 +101,17 @@ impl ScanCells {
         self.cells.clear();
         self.state.clear();
         self.mean.clear();
+        self.passes.clear();
+        self.slot.clear();
         self.acc.clear();
-        let (cx, cy) = g.cell_of(position[0], position[1]);
-        let r = (z_max / g.resolution).ceil() as i64 + 2;
-        let side = 2 * r + 1;
-        self.window = if side * side <= MAX_WINDOW_CELLS {
-            CellRect {
-                ix0: cx - r,
-                iy0: cy - r,
-                nx: side,
-                ny: side,
-            }
-        } else {
-            CellRect::default()
-        };
+        self.window = scan_window(g, position, z_max);
         if self.ids.len() < self.window.n_cells() {
             self.ids.resize(self.window.n_cells(), 0);
         }
+        self.means = means.filter(|t| t.covers(&self.window) && self.window.nx > 0);
     }
 
-    /// The id of cell (ix, iy), reading its belief from `grid` (levels `mu`) on first use.
+    /// The id of cell (ix, iy), reading its mean on first use.
     #[inline]
     pub(crate) fn id(&mut self, grid: &TiledGrid<f32>, mu: &[f64], ix: i64, iy: i64) -> usize {
         let w = &self.window;
@@ -91,17 +129,15 @@ impl ScanCells {
             None
         };
         let id = self.cells.len();
-        let stored = grid.get(ix, iy);
-        // The same sums, in the same order, as `CrmMap::mean_at`.
-        let (mut s, mut m) = (0.0f64, 0.0f64);
-        for (&x, &q) in mu.iter().zip(stored) {
-            s += q as f64;
-            m += x * q as f64;
-        }
-        self.mean.push(m / s);
-        self.acc.extend(stored.iter().map(|&x| x as f64 / s));
+        let mean = match (&self.means, dense) {
+            (Some(t), Some(_)) => t.get(ix, iy),
+            _ => pmf_mean(grid.get(ix, iy), mu),
+        };
+        self.mean.push(mean);
         self.cells.push((ix, iy));
         self.state.push(CellState::Read);
+        self.passes.push(0);
+        self.slot.push(NO_SLOT);
         let tag = id as u32 + 1;
         match dense {
             Some(i) => {
@@ -115,6 +151,30 @@ impl ScanCells {
         id
     }
 
+    /// The dense window as (ix0, iy0, nx), if this scan has one (every cell within z_max of the
+    /// scan's position lies in it).
+    pub(crate) fn dense_window(&self) -> Option<(i64, i64, i64)> {
+        let w = &self.window;
+        (w.nx > 0).then_some((w.ix0, w.iy0, w.nx))
+    }
+
+    /// [`Self::id`] of a cell of the dense window given its window index (row-major).
+    #[inline]
+    pub(crate) fn id_at(
+        &mut self,
+        index: usize,
+        grid: &TiledGrid<f32>,
+        mu: &[f64],
+        ix: i64,
+        iy: i64,
+    ) -> usize {
+        let id = self.ids[index];
+        if id != 0 {
+            return id as usize - 1;
+        }
+        self.id(grid, mu, ix, iy)
+    }
+
     /// Pre-scan mean m̂ of cell `id`.
     #[inline]
     pub(crate) fn mean(&self, id: usize) -> f64 {
@@ -125,6 +185,7 @@ impl ScanCells {
     #[inline]
     pub(crate) fn apply(
         &mut self,
+        grid: &TiledGrid<f32>,
         id: usize,
         alpha: f64,
         mhat: f64,
@@ -136,7 +197,15 @@ impl ScanCells {
             return;
         }
         let k = mu.len();
-        let p = &mut self.acc[id * k..(id + 1) * k];
+        if self.slot[id] == NO_SLOT {
+            let s = self.acc.len() / k;
+            self.slot[id] = s as u32;
+            self.acc.resize((s + 1) * k, 0.0);
+            let (ix, iy) = self.cells[id];
+            read_pmf(grid.get(ix, iy), &mut self.acc[s * k..]);
+        }
+        let s = self.slot[id] as usize;
+        let p = &mut self.acc[s * k..(s + 1) * k];
         let c0 = 1.0 - alpha * mhat;
         let mut sum = 0.0;
         for i in 0..k {
@@ -158,25 +227,140 @@ impl ScanCells {
         }
     }
 
-    /// Normalises (with the floor) and stores every updated cell into `grid`.
+    /// Records that a beam passed cell `id`: its factor is (1 − μ)/(1 − m̂) (crm-spec 3.1, the
+    /// cells far before a hit), applied with the others at write-back.
+    #[inline]
+    pub(crate) fn pass(&mut self, id: usize, st: &mut ScanStats) {
+        if self.state[id] == CellState::Frozen {
+            st.n_frozen += 1;
+            return;
+        }
+        self.passes[id] += 1;
+        st.n_cell_updates += 1;
+    }
+
+    /// Counts an update whose factor is 1 to rounding (|α| below 2^-50): nothing to apply.
+    #[inline]
+    pub(crate) fn unchanged(&mut self, id: usize, st: &mut ScanStats) {
+        if self.state[id] == CellState::Frozen {
+            st.n_frozen += 1;
+        } else {
+            st.n_cell_updates += 1;
+        }
+    }
+
+    /// Makes rows 0..=n of the pass-power table available for levels `mu`.
+    fn ensure_pass_pow(&mut self, mu: &[f64], n: usize) {
+        let k = mu.len();
+        if self.pass_levels != mu {
+            self.pass_levels = mu.to_vec();
+            self.pass_pow.clear();
+        }
+        if self.pass_pow.is_empty() {
+            self.pass_pow.resize(k, 1.0);
+        }
+        let mu_min = mu.iter().copied().fold(f64::INFINITY, f64::min);
+        let ratio: Vec<f64> = mu.iter().map(|&m| (1.0 - m) / (1.0 - mu_min)).collect();
+        while self.pass_pow.len() < (n + 1) * k {
+            let start = self.pass_pow.len() - k;
+            for i in 0..k {
+                let v = self.pass_pow[start + i] * ratio[i];
+                self.pass_pow.push(v);
+            }
+        }
+    }
+
+    /// Normalises (with the floor) and stores every updated or passed cell into `grid`; `mu`
+    /// are the levels (for the pass factors).
     pub(crate) fn write_back(
         &mut self,
         grid: &mut TiledGrid<f32>,
-        k: usize,
+        mu: &[f64],
         floor: f64,
     ) -> Result<()> {
+        let k = mu.len();
+        let max_passes = self.passes.iter().copied().max().unwrap_or(0) as usize;
+        if max_passes > 0 {
+            self.ensure_pass_pow(mu, max_passes);
+        }
+        let mut p = [0.0f64; MAX_LEVELS];
+        let p = &mut p[..k];
         for (id, &(ix, iy)) in self.cells.iter().enumerate() {
-            if self.state[id] != CellState::Updated {
-                continue;
+            let n = self.passes[id] as usize;
+            match self.state[id] {
+                CellState::Frozen => continue,
+                CellState::Read if n == 0 => continue,
+                _ => {}
             }
-            let p = &mut self.acc[id * k..(id + 1) * k];
-            let s: f64 = p.iter().sum();
-            normalize_with_floor(p, s, floor);
             let dst = grid.get_mut(ix, iy)?;
+            match self.slot[id] {
+                NO_SLOT => read_pmf(dst, p),
+                s => p.copy_from_slice(&self.acc[s as usize * k..(s as usize + 1) * k]),
+            }
+            let s = if n > 0 {
+                let row = &self.pass_pow[n * k..(n + 1) * k];
+                let mut s = 0.0;
+                for (x, &r) in p.iter_mut().zip(row) {
+                    *x *= r;
+                    s += *x;
+                }
+                if s > 1e-290 && s.is_finite() {
+                    s
+                } else {
+                    // Undo the table factors and redo them in logs (rare: underflow).
+                    match self.slot[id] {
+                        NO_SLOT => read_pmf(dst, p),
+                        s => p.copy_from_slice(&self.acc[s as usize * k..(s as usize + 1) * k]),
+                    }
+                    if !passes_in_logs(p, mu, n) {
+                        continue;
+                    }
+                    p.iter().sum()
+                }
+            } else {
+                p.iter().sum()
+            };
+            normalize_with_floor(p, s, floor);
             for i in 0..k {
                 dst[i] = p[i] as f32;
             }
         }
         Ok(())
     }
+}
+
+/// The window of a scan from `position` reaching `z_max`: every cell a ray can reach, or the
+/// empty rectangle when that is larger than [`MAX_WINDOW_CELLS`].
+pub(crate) fn scan_window(g: &GridGeometry, position: [f64; 2], z_max: f64) -> CellRect {
+    let (cx, cy) = g.cell_of(position[0], position[1]);
+    let r = (z_max / g.resolution).ceil() as i64 + 2;
+    let side = 2 * r + 1;
+    if side * side <= MAX_WINDOW_CELLS {
+        CellRect {
+            ix0: cx - r,
+            iy0: cy - r,
+            nx: side,
+            ny: side,
+        }
+    } else {
+        CellRect::default()
+    }
+}
+
+/// Multiplies `p` by (1 − μ_k)^n in log space, rescaled so that its largest entry is 1, for
+/// the rare product that underflows the table route. Returns false if no level keeps any mass
+/// (the cell then keeps its pre-scan belief, as a frozen cell does).
+fn passes_in_logs(p: &mut [f64], mu: &[f64], n: usize) -> bool {
+    let mut top = f64::NEG_INFINITY;
+    for (x, &m) in p.iter_mut().zip(mu) {
+        *x = x.ln() + n as f64 * (1.0 - m).ln();
+        top = top.max(*x);
+    }
+    if !top.is_finite() {
+        return false;
+    }
+    for x in p.iter_mut() {
+        *x = (*x - top).exp();
+    }
+    true
 }

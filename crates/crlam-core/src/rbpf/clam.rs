@@ -192,7 +192,7 @@ fn scan_opts(mode: ScanUpdateMode, stride: usize) -> ScanOptions {
     ScanOptions {
         mode,
         beam_stride: stride,
-        zero_is_no_return: false,
+        ..ScanOptions::default()
     }
 }
 

@@ -1,0 +1,350 @@
+//! One beam of a batch scan with the cells far before the reading folded into pass counts
+//! (crm-spec 3.1, 3.3, 4.1): the default [`BatchKernel::Windowed`] of the batch update and of
+//! the fused weight + update walk.
+//!
+//! Under the `ijrr` mapping model the coefficient of cell l is α_l = R_l (L_l − S_{l+1}) / η,
+//! and α_l (1 − m̂_l) = −(1 − F_l/η − R_l L_l/η) with F_l = Σ_{j<l} π_j L_j. Where no cause up to
+//! l can explain the reading, α_l = −1/(1 − m̂_l) and the factor 1 + α_l (μ − m̂_l) is
+//! (1 − μ)/(1 − m̂_l): the same shape for every such beam, the constant removed by the
+//! normalisation. A cell passed by n such beams of a scan is multiplied by (1 − μ_k)^n once, at
+//! write-back ([`super::scan_cells`]). Every cell of a no-return beam is such a pass (L_l = 0,
+//! L_∞ = 1, exactly).
+//!
+//! For a hit at z, only the cells whose chord midpoint is within W σ below z, and those up to the
+//! end of the mapping ray (z + 6σ + Δ), are swept with likelihoods. The cells before them ("far"
+//! cells) cost a mean lookup, a reach product and, on every beam, an upper bound of the mass the
+//! window ignores: Σ_far R_j · 2 φ_peak e^{−⌊u_j⌋²/2} with u_j = (z − d_j)/σ (a table; the
+//! truncation normaliser is at least ½). A beam whose bound is not below 2^-60 of the window's
+//! η, or whose window η underflows, is redone by the full sweep ([`BatchKernel::FullRay`]), so
+//! the result equals the full sweep to rounding on every beam.
+//!
+//! The mixture weight of the same beam needs no check: every L_j ≥ w_r/z_max so η ≥ w_r/z_max,
+//! and W is chosen per scan so that the hit terms of the far cells are below 2^-60 of that floor.
+//! The far cells then contribute (1 − R_a)·w_r/z_max (their cause probabilities sum to
+//! 1 − R_a; their short term is 0 before the reading), and the cells past the mapping ray are
+//! summed forward until the rest of the ray cannot change η ([`super::forward`]'s rule).
+//!
+//! [`BatchKernel::Windowed`]: super::beam::BatchKernel::Windowed
+//! [`BatchKernel::FullRay`]: super::beam::BatchKernel::FullRay
+
+use crate::crm::beam::{BeamPlan, ScanStats};
+use crate::crm::scan_cells::ScanCells;
+use crate::crm::update::LINEAR_ETA_MIN;
+use crate::grid::{GridGeometry, TiledGrid};
+use crate::raycast::{GridWalk, MIN_CHORD};
+use crate::sensor::{
+    CauseKernel, MixtureReading, SensorModel, SensorModelKind, GAUSS_CUTOFF_SIGMAS,
+};
+
+/// Relative size of what the window may ignore: far below half an ulp (2^-53).
+const TAIL_EPS: f64 = 1.0 / (1u64 << 60) as f64;
+
+/// A factor within this of 1 (|α| small) is skipped; one within this of the pass shape
+/// (|α (1 − m̂) + 1| small) is counted as a pass. Both differ from the swept factor by less than
+/// 2^-50 relative, far below the f32 storage of the pmfs.
+const FACTOR_EPS: f64 = 1.0 / (1u64 << 50) as f64;
+
+/// The window starts at least this many σ of the mapping model below the reading.
+const MAP_WINDOW_SIGMAS: f64 = 10.0;
+
+/// The pass-count bound is checked on every `CHECK_EVERY`-th cell past the mapping ray.
+const CHECK_EVERY: u32 = 4;
+
+/// Length of the bound table: e^{−k²/2} for k = ⌊u⌋ up to the Gaussian cutoff, 0 beyond.
+const BOUND_TABLE: usize = GAUSS_CUTOFF_SIGMAS as usize + 2;
+
+/// A cell of the window: its scan-table id, pre-scan mean, chord (cut at the mapping ray's end)
+/// and the probability that the beam reaches it.
+#[derive(Clone, Copy, Debug)]
+struct WindowCell {
+    id: u32,
+    mhat: f64,
+    t_in: f64,
+    t_out: f64,
+    reach: f64,
+    like: f64,
+    s_next: f64,
+}
+
+/// Reusable buffers of the windowed beams (one per thread, inside the map scratch).
+#[derive(Debug, Default)]
+pub(crate) struct WindowScratch {
+    far: Vec<u32>,
+    window: Vec<WindowCell>,
+}
+
+/// Per-scan constants of the windowed kernel; `None` from [`WindowedScan::new`] when the scan's
+/// models are not the ones it handles (the full sweep then does every beam).
+#[derive(Clone, Debug)]
+pub(crate) struct WindowedScan<'a> {
+    mapping: &'a SensorModel,
+    weight: Option<&'a SensorModel>,
+    /// Window start below the reading (m).
+    below: f64,
+    /// 2 φ_peak e^{−k²/2} of the mapping model, 0 from the cutoff on.
+    bound: [f64; BOUND_TABLE],
+    inv_sigma: f64,
+}
+
+/// What became of a beam.
+pub(crate) enum WindowedBeam {
+    /// Applied to the scan table; the weight's log η when the beam is weighed.
+    Done(Option<f64>),
+    /// Nothing applied: the caller sweeps the whole ray.
+    FullSweep,
+}
+
+impl<'a> WindowedScan<'a> {
+    /// The kernel for `mapping` (`ijrr`, midpoint causes) and an optional `weight` model
+    /// (`mixture`, midpoint causes, the same z_max); `None` for any other combination.
+    pub(crate) fn new(mapping: &'a SensorModel, weight: Option<&'a SensorModel>) -> Option<Self> {
+        if mapping.kind != SensorModelKind::Ijrr || mapping.kernel != CauseKernel::Midpoint {
+            return None;
+        }
+        let sqrt_2pi = (2.0 * std::f64::consts::PI).sqrt();
+        let mut below = MAP_WINDOW_SIGMAS * mapping.sigma_hit;
+        if let Some(w) = weight {
+            if w.kind != SensorModelKind::Mixture
+                || w.kernel != CauseKernel::Midpoint
+                || w.z_max != mapping.z_max
+            {
+                return None;
+            }
+            // Far hit terms below 2^-60 of the floor w_r/z_max: w_h 2 φ_peak e^{−W²/2} ≤ that.
+            let floor = w.w_rand / w.z_max;
+            let peak2 = 2.0 / (w.sigma_hit * sqrt_2pi);
+            let wsig = if floor > 0.0 {
+                let ratio = w.w_hit * peak2 / (TAIL_EPS * floor);
+                if ratio > 1.0 {
+                    (2.0 * ratio.ln()).sqrt()
+                } else {
+                    0.0
+                }
+            } else {
+                GAUSS_CUTOFF_SIGMAS
+            };
+            below = below.max(wsig.min(GAUSS_CUTOFF_SIGMAS) * w.sigma_hit);
+        }
+        let peak2 = 2.0 / (mapping.sigma_hit * sqrt_2pi);
+        let mut bound = [0.0; BOUND_TABLE];
+        for (k, b) in bound.iter_mut().enumerate().take(BOUND_TABLE - 1) {
+            *b = peak2 * (-0.5 * (k * k) as f64).exp();
+        }
+        Some(Self {
+            mapping,
+            weight,
+            below,
+            bound,
+            inv_sigma: 1.0 / mapping.sigma_hit,
+        })
+    }
+
+    /// Weighs (`w_plan`) and updates (`m_plan`) one beam, both from the same reading; the map
+    /// has no fixed extent. Counters go to `st` only when the beam is done here.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn beam(
+        &self,
+        grid: &TiledGrid<f32>,
+        mu: &[f64],
+        scan: &mut ScanCells,
+        ws: &mut WindowScratch,
+        w_plan: Option<&BeamPlan>,
+        m_plan: Option<&BeamPlan>,
+        st: &mut ScanStats,
+    ) -> WindowedBeam {
+        let Some(any) = w_plan.or(m_plan) else {
+            return WindowedBeam::Done(None);
+        };
+        let (origin, angle, z, no_return) = (any.origin, any.angle, any.z, any.no_return);
+        let reading = match (self.weight, w_plan) {
+            (Some(w), Some(_)) => match MixtureReading::new(w, z) {
+                Some(r) => Some(r),
+                None => return WindowedBeam::FullSweep,
+            },
+            _ => None,
+        };
+        let m_len = m_plan.map_or(0.0, |p| p.length);
+        let length = m_len.max(w_plan.map_or(0.0, |p| p.length));
+        let lo = z - self.below;
+        // Cause likelihood of a far cell under the weight model (hit and short terms vanish).
+        let far_like = match &reading {
+            Some(r) => r.far_before(),
+            None => 0.0,
+        };
+        let g: GridGeometry = *grid.geometry();
+        ws.far.clear();
+        ws.window.clear();
+        let (mut reach, mut bound, mut eta_w) = (1.0f64, 0.0f64, 0.0f64);
+        let mut reach_far: Option<f64> = None;
+        let mut past = 0u32;
+        let mut stopped = false;
+        let map_on = m_plan.is_some();
+        let Some(window) = scan.dense_window() else {
+            return WindowedBeam::FullSweep;
+        };
+        for wc in GridWalk::new(&g, origin, angle, length, window) {
+            let c = wc.cell;
+            let id = scan.id_at(wc.index as usize, grid, mu, c.ix, c.iy);
+            let m = scan.mean(id);
+            let in_map = map_on && c.t_in < m_len && m_len - c.t_in >= MIN_CHORD;
+            let d = 0.5 * (c.t_in + c.t_out);
+            if no_return || d < lo {
+                if in_map {
+                    ws.far.push(id as u32);
+                    if !no_return {
+                        let k = (((z - d) * self.inv_sigma) as usize).min(BOUND_TABLE - 1);
+                        bound += reach * self.bound[k];
+                    }
+                }
+                reach *= 1.0 - m;
+                continue;
+            }
+            let r_far = *reach_far.get_or_insert(reach);
+            if in_map {
+                ws.window.push(WindowCell {
+                    id: id as u32,
+                    mhat: m,
+                    t_in: c.t_in,
+                    t_out: c.t_out.min(m_len),
+                    reach,
+                    like: 0.0,
+                    s_next: 0.0,
+                });
+            }
+            if let Some(r) = &reading {
+                eta_w += reach * m * r.cell(c.t_in, c.t_out);
+            }
+            reach *= 1.0 - m;
+            if !in_map {
+                let Some(r) = &reading else {
+                    break;
+                };
+                past += 1;
+                let total = (1.0 - r_far) * far_like + eta_w;
+                if past.is_multiple_of(CHECK_EVERY)
+                    && reach * r.bound_beyond(c.t_out) <= total * TAIL_EPS
+                {
+                    stopped = true;
+                    break;
+                }
+            }
+        }
+        let r_far = reach_far.unwrap_or(reach);
+
+        let log_eta_w = match &reading {
+            Some(r) => {
+                let mut eta = (1.0 - r_far) * far_like + eta_w;
+                if !stopped {
+                    eta += reach * r.infinity();
+                }
+                if !(eta >= LINEAR_ETA_MIN && eta.is_finite()) {
+                    return WindowedBeam::FullSweep;
+                }
+                Some(eta.ln())
+            }
+            None => None,
+        };
+        if !map_on {
+            return WindowedBeam::Done(log_eta_w);
+        }
+        if ws.far.is_empty() && ws.window.is_empty() {
+            return WindowedBeam::FullSweep;
+        }
+        if no_return {
+            // η = R_end under ijrr; an underflowed or zero η is left to the log-space sweep.
+            if reach.is_nan() || reach < LINEAR_ETA_MIN {
+                return WindowedBeam::FullSweep;
+            }
+            count_passes(scan, &ws.far, st);
+            st.n_used += 1;
+            st.n_no_return += 1;
+            return WindowedBeam::Done(log_eta_w);
+        }
+        // Backward sweep over the window (S past its end is L_∞), then η and α.
+        let model = self.mapping;
+        let mut s = model.infinity(z);
+        for c in ws.window.iter_mut().rev() {
+            c.like = model.on_ray_cell(z, c.t_in, c.t_out);
+            c.s_next = s;
+            s = c.mhat * c.like + (1.0 - c.mhat) * s;
+        }
+        let eta = r_far * s;
+        if !(eta >= LINEAR_ETA_MIN && eta.is_finite()) || bound > eta * TAIL_EPS {
+            return WindowedBeam::FullSweep;
+        }
+        let inv = 1.0 / eta;
+        for c in &ws.window {
+            let alpha = c.reach * (c.like - c.s_next) * inv;
+            let id = c.id as usize;
+            if (alpha * (1.0 - c.mhat) + 1.0).abs() <= FACTOR_EPS {
+                scan.pass(id, st);
+            } else if alpha.abs() <= FACTOR_EPS {
+                scan.unchanged(id, st);
+            } else {
+                scan.apply(grid, id, alpha, c.mhat, mu, st);
+            }
+        }
+        count_passes(scan, &ws.far, st);
+        st.n_used += 1;
+        WindowedBeam::Done(log_eta_w)
+    }
+}
+
+fn count_passes(scan: &mut ScanCells, far: &[u32], st: &mut ScanStats) {
+    for &id in far {
+        scan.pass(id as usize, st);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crm::beam::{plan_beam, ScanOptions};
+    use crate::crm::{CrmConfig, CrmMap, CrmScratch, LevelPlacement};
+    use crate::grid::CellRect;
+
+    /// A beam along +x from a cell centre, reading `z`, on a map with endpoint levels where the
+    /// cells from `free_from` m on are certainly free (m̂ ≈ the floor): the window around the
+    /// reading then explains it so poorly that the far cells' bound is not negligible, and the
+    /// beam must go to the full sweep; with ordinary beliefs it is done here.
+    fn outcome(free_from: Option<f64>) -> bool {
+        let g = GridGeometry::new([0.0, 0.0], 0.2).unwrap();
+        let mut cfg = CrmConfig::new(g);
+        cfg.placement = LevelPlacement::Endpoints;
+        let mut map = CrmMap::new(&cfg).unwrap();
+        if let Some(x0) = free_from {
+            let rect = CellRect {
+                ix0: (x0 / 0.2) as i64,
+                iy0: 0,
+                nx: 30,
+                ny: 1,
+            };
+            let k = map.levels().len();
+            let mut pmf = vec![1e-13; k];
+            pmf[0] = 1.0;
+            map.set_beliefs(rect, &pmf.repeat(30)).unwrap();
+        }
+        let model = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.2);
+        let kernel = WindowedScan::new(&model, None).unwrap();
+        let plan = plan_beam(&model, &ScanOptions::default(), 0.2, [0.1, 0.1], 0.0, 4.05).unwrap();
+        let mut sc = CrmScratch::default();
+        sc.scan.begin(map.geometry(), [0.1, 0.1], 8.0, None);
+        let mut st = ScanStats::default();
+        let out = kernel.beam(
+            map.grid(),
+            map.levels(),
+            &mut sc.scan,
+            &mut sc.window,
+            None,
+            Some(&plan),
+            &mut st,
+        );
+        matches!(out, WindowedBeam::Done(_))
+    }
+
+    #[test]
+    fn a_window_that_cannot_explain_the_reading_goes_to_the_full_sweep() {
+        assert!(outcome(None));
+        assert!(!outcome(Some(3.4)));
+    }
+}
