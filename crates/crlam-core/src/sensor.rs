@@ -254,6 +254,28 @@ impl SensorModel {
         }
     }
 
+    /// Distance (m) from a reading beyond which the mixture's hit term w_h φ̃ is below 2^-60
+    /// of its floor w_r/z_max, which bounds every L_l from below: hit terms of causes farther
+    /// away cannot change η in double precision. Capped at the [`GAUSS_CUTOFF_SIGMAS`] cutoff,
+    /// beyond which [`Self::hit_density`] is 0 anyway (and that cap when w_r = 0).
+    pub fn negligible_hit_distance(&self) -> f64 {
+        let tail_eps = 1.0 / (1u64 << 60) as f64;
+        let floor = self.w_rand / self.z_max;
+        // The truncation normaliser is at least 1/2, so φ̃ ≤ 2 φ_peak e^{−u²/2}.
+        let peak2 = 2.0 / (self.sigma_hit * SQRT_2PI);
+        let sigmas = if floor > 0.0 {
+            let ratio = self.w_hit * peak2 / (tail_eps * floor);
+            if ratio > 1.0 {
+                (2.0 * ratio.ln()).sqrt()
+            } else {
+                0.0
+            }
+        } else {
+            GAUSS_CUTOFF_SIGMAS
+        };
+        sigmas.min(GAUSS_CUTOFF_SIGMAS) * self.sigma_hit
+    }
+
     /// Short-reading density ε(z; d) = λ e^{−λz} / (1 − e^{−λd}) on [0, d].
     #[inline]
     pub fn short_density(&self, z: f64, d: f64) -> f64 {
@@ -471,6 +493,21 @@ impl<'a> MixtureReading<'a> {
             self.short_numerator / (1.0 - crate::info::fastmath::exp_table(-m.lambda_short * d))
         };
         m.w_hit * hit + m.w_short * short + self.rand
+    }
+
+    /// The model.
+    pub fn model(&self) -> &SensorModel {
+        self.model
+    }
+
+    /// The reading (m; z_max or more for a no-return).
+    pub fn z(&self) -> f64 {
+        self.z
+    }
+
+    /// True for a no-return.
+    pub fn is_no_return(&self) -> bool {
+        self.no_return
     }
 
     /// L_l of a cause far before the reading, where the hit term is negligible and the short

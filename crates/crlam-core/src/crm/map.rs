@@ -5,7 +5,7 @@ use crate::crm::beam::{
 };
 use crate::crm::forward::mixture_log_eta_forward;
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
-use crate::crm::mean_cache::MeanCache;
+use crate::crm::mean_cache::{MeanCache, TileMeans};
 use crate::crm::scan_cells::{scan_window, ScanCells};
 use crate::crm::update::{apply_factor, cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::crm::windowed::{WindowScratch, WindowedBeam, WindowedScan};
@@ -166,6 +166,37 @@ impl CrmMap {
             m += x * q as f64;
         }
         m / s
+    }
+
+    /// The block means shared by the copies of this map (`None` for a fixed extent), for walks
+    /// that read many cells many times (the likelihoods of a proposal's hill climb).
+    pub(crate) fn tile_means(&self) -> Option<&TileMeans> {
+        if self.grid.fixed_extent().is_some() {
+            return None;
+        }
+        Some(self.means.tiles(|| {
+            let (mut s, mut m) = (0.0f64, 0.0f64);
+            for (&x, &q) in self.mu.iter().zip(self.grid.fill()) {
+                s += q as f64;
+                m += x * q as f64;
+            }
+            TileMeans::new(self.grid.bounds(), self.grid.tile_size(), m / s)
+        }))
+    }
+
+    /// The block of the block means `tm` of this map that holds cell (ix, iy) (see
+    /// [`TileMeans::block`]).
+    #[inline]
+    pub(crate) fn mean_block<'t>(
+        &self,
+        tm: &'t TileMeans,
+        ix: i64,
+        iy: i64,
+    ) -> (i64, Option<&'t [f64]>) {
+        tm.block(ix, iy, |rect, out| {
+            // The block is a valid rectangle and `out` is sized for it: this cannot fail.
+            let _ = self.means_into(rect, out);
+        })
     }
 
     /// Expected occupancy m̂ of every cell of `rect` into `out` (row-major [iy][ix], length

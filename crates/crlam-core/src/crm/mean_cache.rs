@@ -1,4 +1,5 @@
-//! Expected occupancies of a map window, computed once and shared by every copy of the map.
+//! Expected occupancies of a map, computed once and shared by every copy of the map: a window
+//! around a scan (for the batch update) and tile by tile on demand (for likelihood walks).
 //!
 //! After resampling, the particles of a filter are copies of a few parents and share their map
 //! tiles until they write. Each particle's scan reads the means of the same few thousand cells;
@@ -9,7 +10,7 @@
 //! values are [`super::CrmMap::mean_at`]'s bit for bit, so results do not depend on which copy
 //! (or thread) filled it.
 
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock};
 
 use crate::grid::CellRect;
 
@@ -42,16 +43,112 @@ impl MeanTable {
     }
 }
 
-/// The shared slot (see the module documentation). Cloning shares it.
+/// Means in square blocks of cells, each filled the first time one of its cells is asked for
+/// (lock-free reads after that). The blocks tile the map's storage at creation; every cell
+/// outside holds the prior. Values are `means_of`'s, i.e. `CrmMap::mean_at`'s bit for bit.
+#[derive(Debug)]
+pub(crate) struct TileMeans {
+    shift: u32,
+    /// Storage at creation, in blocks.
+    bx0: i64,
+    by0: i64,
+    nbx: i64,
+    nby: i64,
+    outside: f64,
+    blocks: Vec<OnceLock<Box<[f64]>>>,
+}
+
+impl TileMeans {
+    /// Blocks of `side` cells (a power of two) over `storage` (block-aligned), with `outside`
+    /// the mean of every cell beyond it.
+    pub(crate) fn new(storage: CellRect, side: usize, outside: f64) -> Self {
+        let shift = side.trailing_zeros();
+        let (nbx, nby) = (storage.nx >> shift, storage.ny >> shift);
+        Self {
+            shift,
+            bx0: storage.ix0 >> shift,
+            by0: storage.iy0 >> shift,
+            nbx,
+            nby,
+            outside,
+            blocks: (0..(nbx * nby).max(0)).map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// The block holding cell (ix, iy) as (key, means): `means` is `None` beyond the storage
+    /// (every cell there holds the prior, [`Self::outside`]); `means_of(rect, out)` fills a
+    /// block's means row-major the first time. Cells of one block share its key.
+    #[inline]
+    pub(crate) fn block(
+        &self,
+        ix: i64,
+        iy: i64,
+        means_of: impl FnOnce(CellRect, &mut [f64]),
+    ) -> (i64, Option<&[f64]>) {
+        let bx = (ix >> self.shift) - self.bx0;
+        let by = (iy >> self.shift) - self.by0;
+        if bx < 0 || by < 0 || bx >= self.nbx || by >= self.nby {
+            // One key for all of the outside, distinct from every block's.
+            return (-1, None);
+        }
+        let side = 1i64 << self.shift;
+        let key = by * self.nbx + bx;
+        let block = self.blocks[key as usize].get_or_init(|| {
+            let rect = CellRect {
+                ix0: (bx + self.bx0) << self.shift,
+                iy0: (by + self.by0) << self.shift,
+                nx: side,
+                ny: side,
+            };
+            let mut v = vec![0.0; rect.n_cells()];
+            means_of(rect, &mut v);
+            v.into_boxed_slice()
+        });
+        (key, Some(block))
+    }
+
+    /// The key of the block holding cell (ix, iy), as [`Self::block`] gives it.
+    #[inline]
+    pub(crate) fn key(&self, ix: i64, iy: i64) -> i64 {
+        let bx = (ix >> self.shift) - self.bx0;
+        let by = (iy >> self.shift) - self.by0;
+        if bx < 0 || by < 0 || bx >= self.nbx || by >= self.nby {
+            -1
+        } else {
+            by * self.nbx + bx
+        }
+    }
+
+    /// Index of cell (ix, iy) within its block's means.
+    #[inline]
+    pub(crate) fn offset(&self, ix: i64, iy: i64) -> usize {
+        let mask = (1i64 << self.shift) - 1;
+        (((iy & mask) << self.shift) | (ix & mask)) as usize
+    }
+
+    /// The mean of every cell beyond the storage (the prior's).
+    #[inline]
+    pub(crate) fn outside(&self) -> f64 {
+        self.outside
+    }
+}
+
+#[derive(Debug, Default)]
+struct Shared {
+    window: Mutex<Option<Arc<MeanTable>>>,
+    tiles: OnceLock<TileMeans>,
+}
+
+/// The shared caches (see the module documentation). Cloning shares them.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct MeanCache {
-    slot: Arc<Mutex<Option<Arc<MeanTable>>>>,
+    shared: Arc<Shared>,
 }
 
 impl MeanCache {
     /// True if another copy of the map holds this cache (a table then pays for itself).
     pub(crate) fn is_shared(&self) -> bool {
-        Arc::strong_count(&self.slot) > 1
+        Arc::strong_count(&self.shared) > 1
     }
 
     /// A table covering `rect`: the cached one if it does, else one filled by `fill` over
@@ -62,7 +159,7 @@ impl MeanCache {
         fill: impl FnOnce(CellRect, &mut [f64]),
     ) -> Arc<MeanTable> {
         // A poisoned lock only means another thread panicked while filling; start afresh.
-        let mut slot = self.slot.lock().unwrap_or_else(|e| e.into_inner());
+        let mut slot = self.shared.window.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(t) = slot.as_ref().filter(|t| t.covers(&rect)) {
             return Arc::clone(t);
         }
@@ -83,7 +180,12 @@ impl MeanCache {
         t
     }
 
-    /// Detaches this map from the copies it shared the cache with (call before writing).
+    /// The block means of the map, made by `make` on first use.
+    pub(crate) fn tiles(&self, make: impl FnOnce() -> TileMeans) -> &TileMeans {
+        self.shared.tiles.get_or_init(make)
+    }
+
+    /// Detaches this map from the copies it shared the caches with (call before writing).
     pub(crate) fn invalidate(&mut self) {
         *self = Self::default();
     }

@@ -120,22 +120,11 @@ impl<'a> WindowedScan<'a> {
             {
                 return None;
             }
-            // Far hit terms below 2^-60 of the floor w_r/z_max: w_h 2 φ_peak e^{−W²/2} ≤ that.
-            let floor = w.w_rand / w.z_max;
-            let peak2 = 2.0 / (w.sigma_hit * sqrt_2pi);
-            let wsig = if floor > 0.0 {
-                let ratio = w.w_hit * peak2 / (TAIL_EPS * floor);
-                if ratio > 1.0 {
-                    (2.0 * ratio.ln()).sqrt()
-                } else {
-                    0.0
-                }
-            } else {
-                GAUSS_CUTOFF_SIGMAS
-            };
-            below = below.max(wsig.min(GAUSS_CUTOFF_SIGMAS) * w.sigma_hit);
-            if floor > 0.0 {
-                weight_hit_reach = wsig * w.sigma_hit;
+            // Far hit terms below 2^-60 of the floor w_r/z_max (so of η).
+            let reach = w.negligible_hit_distance();
+            below = below.max(reach);
+            if w.w_rand > 0.0 {
+                weight_hit_reach = reach;
             }
         }
         let peak2 = 2.0 / (mapping.sigma_hit * sqrt_2pi);
