@@ -69,6 +69,19 @@ def test_run_folder_is_complete_and_beats_odometry(office: Path, tmp_path: Path)
     assert "[slam]" in (tmp_path / "config.toml").read_text()
 
 
+def test_windowed_and_full_ray_kernels_track_alike(office: Path, tmp_path: Path) -> None:
+    """The default batch kernel and the reference sweep weigh and update alike to rounding; over
+    a short run the filter makes the same choices, so the trajectories coincide."""
+    traj = {}
+    for kernel in ("windowed", "full_ray"):
+        out = tmp_path / kernel
+        run_slam_log(office / "log.clf", out, SlamConfig(particles=10, seed=2, batch_kernel=kernel), max_scans=60, progress=False)
+        traj[kernel] = read_tum(out / "trajectory.tum").poses
+        assert f'batch_kernel = "{kernel}"' in (out / "config.toml").read_text()
+    assert traj["windowed"].shape == (60, 3)
+    np.testing.assert_allclose(traj["windowed"], traj["full_ray"], rtol=0, atol=1e-6)
+
+
 def test_triggers_carry_odometry_between_processed_scans(office: Path, tmp_path: Path) -> None:
     res = run_slam_log(
         office / "log.clf", tmp_path, SlamConfig(particles=5, linear_update=0.3, angular_update=0.3), progress=False
@@ -140,6 +153,7 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("proposal", "magic"),
         ("motion_params", (1.0,)),
         ("cause_kernel", "box"),
+        ("batch_kernel", "fast"),
         ("proposal_pose", "mean"),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),

@@ -113,6 +113,7 @@ class CrmMap:
         model: SensorModel,
         *,
         mode: str = "batch",
+        batch_kernel: str = "windowed",
         beam_stride: int = 1,
         zero_is_no_return: bool = False,
     ) -> dict[str, int]: ...
@@ -124,6 +125,7 @@ class CrmMap:
         model: SensorModel,
         *,
         mode: str = "batch",
+        batch_kernel: str = "windowed",
         beam_stride: int = 1,
         zero_is_no_return: bool = False,
     ) -> dict[str, int]: ...
@@ -197,6 +199,7 @@ class ClamFilter:
         tile_size: int = 32,
         extent: _CellRect | None = None,
         scan_update: str = "batch",
+        batch_kernel: str = "windowed",
         weight_stride: int = 1,
         map_stride: int = 1,
         tempering: float = 1.0,

@@ -25,6 +25,11 @@ def _positive_float(text: str) -> float:
 
 
 _CAUSE_KERNELS = ("midpoint", "chord")
+_BATCH_KERNELS = ("windowed", "full_ray")
+_BATCH_KERNEL_HELP = (
+    "how a batch scan computes each beam: windowed (default; likelihoods near the reading, the cells before it "
+    "as pass counts) or full_ray (every cell: the reference); they agree to rounding"
+)
 _CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
 _PROPOSALS = ("odometry", "likelihood_mode")
 _PROPOSAL_HELP = "RBPF-CLAM: odometry (paper) or the CRM improved proposal (default: odometry)"
@@ -82,6 +87,7 @@ def _add_map_options(p: argparse.ArgumentParser) -> None:
         default="midpoint",
         help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord",
     )
+    g.add_argument("--batch-kernel", choices=_BATCH_KERNELS, default="windowed", help=_BATCH_KERNEL_HELP)
     g.add_argument("--beam-stride", type=_positive_int, default=1, help="use every n-th beam (default: 1)")
 
 
@@ -94,6 +100,7 @@ def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         model=args.model,
         levels=args.levels,
         scan_update=args.scan_update,
+        batch_kernel=args.batch_kernel,
         cause_kernel=args.cause_kernel,
         beam_stride=args.beam_stride,
     )
@@ -167,6 +174,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         angular_update=args.angular_update,
         sigma_range=args.sigma_range,
         cause_kernel=args.cause_kernel,
+        batch_kernel=args.batch_kernel,
     )
     res = run_slam_log(
         args.log,
@@ -386,6 +394,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering tau (default: 1)")
     p.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
     p.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
+    p.add_argument("--batch-kernel", choices=_BATCH_KERNELS, default="windowed", help=_BATCH_KERNEL_HELP)
     p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
     p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
     p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")

@@ -29,12 +29,14 @@ __all__ = [
     "SENSOR_MODELS",
     "LEVEL_PLACEMENTS",
     "SCAN_UPDATE_MODES",
+    "BATCH_KERNELS",
     "CAUSE_KERNELS",
 ]
 
 SENSOR_MODELS = ("ijrr", "mixture", "authors_code")
 LEVEL_PLACEMENTS = ("midpoints", "endpoints", "r1_right")
 SCAN_UPDATE_MODES = ("batch", "sequential")
+BATCH_KERNELS = ("windowed", "full_ray")
 CAUSE_KERNELS = ("midpoint", "chord")
 
 CellRect = tuple[int, int, int, int]
@@ -118,6 +120,11 @@ class MappingConfig:
         ε_b floor of every pmf entry after an update (0 disables).
     scan_update : str
         ``"batch"`` (default) or ``"sequential"``.
+    batch_kernel : str
+        How a batch update computes each beam: ``"windowed"`` (default: likelihoods only near
+        the reading, the cells before it counted as passes; ``ijrr`` with midpoint causes, other
+        models take the full sweep) or ``"full_ray"`` (every cell's likelihood and factor: the
+        reference). The two agree to f32 storage precision.
     cause_kernel : str
         ``"midpoint"`` (the spec: a cause sits at its chord midpoint) or ``"chord"`` (spread
         uniformly along the chord; sharper walls under grazing incidence, see BENCHMARKS.md).
@@ -147,6 +154,7 @@ class MappingConfig:
     prior_mean: float | None = None
     belief_floor: float = 1e-12
     scan_update: str = "batch"
+    batch_kernel: str = "windowed"
     cause_kernel: str = "midpoint"
     sigma_range: float = 0.01
     sigma_hit: float | None = None
@@ -181,6 +189,8 @@ class MappingConfig:
             raise bad("levels", f"must be one of {LEVEL_PLACEMENTS}")
         if self.scan_update not in SCAN_UPDATE_MODES:
             raise bad("scan_update", f"must be one of {SCAN_UPDATE_MODES}")
+        if self.batch_kernel not in BATCH_KERNELS:
+            raise bad("batch_kernel", f"must be one of {BATCH_KERNELS}")
         if self.cause_kernel not in CAUSE_KERNELS:
             raise bad("cause_kernel", f"must be one of {CAUSE_KERNELS}")
         if not (isinstance(self.n_levels, int) and 2 <= self.n_levels <= 64):
@@ -333,7 +343,15 @@ class ConfidenceRichMap:
     def update(self, pose: ArrayLike, angles: ArrayLike, ranges: ArrayLike) -> ScanUpdateStats:
         """Integrates one scan from the sensor pose; returns this scan's counters."""
         p, a, r = _check_scan(pose, angles, ranges)
-        d = self.native.update_scan(p, a, r, self._model, mode=self.config.scan_update, beam_stride=self.config.beam_stride)
+        d = self.native.update_scan(
+            p,
+            a,
+            r,
+            self._model,
+            mode=self.config.scan_update,
+            batch_kernel=self.config.batch_kernel,
+            beam_stride=self.config.beam_stride,
+        )
         s = ScanUpdateStats(**d)
         self.stats += s
         return s
@@ -346,6 +364,7 @@ class ConfidenceRichMap:
             _f64(ranges),
             self._model,
             mode=self.config.scan_update,
+            batch_kernel=self.config.batch_kernel,
             beam_stride=self.config.beam_stride,
         )
         s = ScanUpdateStats(**d)

@@ -41,6 +41,9 @@ class SlamConfig:
         Cause models of the map update and of the weights (``ijrr`` / ``mixture`` by default).
     scan_update : str
         ``batch`` or ``sequential``.
+    batch_kernel : str
+        RBPF-CLAM batch scans: ``windowed`` (default) or ``full_ray`` (the reference sweep of
+        every cell); the two agree to rounding (see :class:`crlam.mapping.MappingConfig`).
     weight_stride, map_stride : int
         Use every n-th beam for the weights / the map update (paper: 1).
     tempering : float
@@ -78,6 +81,7 @@ class SlamConfig:
     mapping_model: str = "ijrr"
     weight_model: str = "mixture"
     scan_update: str = "batch"
+    batch_kernel: str = "windowed"
     weight_stride: int = 1
     map_stride: int = 1
     tempering: float = 1.0
@@ -124,6 +128,8 @@ class SlamConfig:
             raise bad("proposal_pose", "'match' needs an improved proposal: proposal='likelihood_mode' (RBPF-CLAM)")
         if self.cause_kernel not in ("midpoint", "chord"):
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
+        if self.batch_kernel not in ("windowed", "full_ray"):
+            raise bad("batch_kernel", "must be 'windowed' or 'full_ray'")
         if self.motion not in ("gaussian", "thrun"):
             raise bad("motion", "must be 'gaussian' or 'thrun'")
         if self.motion_params is not None and len(self.motion_params) != (3 if self.motion == "gaussian" else 4):
@@ -140,6 +146,7 @@ class SlamConfig:
             max_range=self.max_range,
             model=self.mapping_model,
             scan_update=self.scan_update,
+            batch_kernel=self.batch_kernel,
             sigma_range=self.sigma_range,
             cause_kernel=self.cause_kernel,
         )
@@ -212,6 +219,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             n_particles=config.particles,
             resolution=config.resolution,
             scan_update=config.scan_update,
+            batch_kernel=config.batch_kernel,
             weight_stride=config.weight_stride,
             map_stride=config.map_stride,
             tempering=config.tempering,

@@ -1,6 +1,6 @@
 //! Python class for the RBPF-CLAM particle filter.
 
-use crlam_core::crm::{CrmConfig, LevelPlacement, ScanUpdateMode};
+use crlam_core::crm::{BatchKernel, CrmConfig, LevelPlacement, ScanUpdateMode};
 use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
@@ -232,7 +232,7 @@ filter_pymethods!(ClamFilter {
     #[new]
     #[pyo3(signature = (initial_pose, mapping_model, weight_model, *, n_particles=100, resolution=0.2, origin=(0.0, 0.0),
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
-        weight_stride=1, map_stride=1, tempering=1.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
+        batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
         proposal_pose="sample", seed=0))]
     fn new(
@@ -248,6 +248,7 @@ filter_pymethods!(ClamFilter {
         tile_size: usize,
         extent: Option<(i64, i64, i64, i64)>,
         scan_update: &str,
+        batch_kernel: &str,
         weight_stride: usize,
         map_stride: usize,
         tempering: f64,
@@ -302,6 +303,7 @@ filter_pymethods!(ClamFilter {
             mapping_model: mapping_model.inner,
             weight_model: weight_model.inner,
             scan_update: ScanUpdateMode::parse(scan_update).py_err()?,
+            batch_kernel: BatchKernel::parse(batch_kernel).py_err()?,
             weight_stride,
             map_stride,
             tempering,

@@ -1,7 +1,8 @@
 //! Python classes for sensor models, CRMs and log-odds maps.
 
 use crlam_core::crm::{
-    self, CrmConfig, CrmScratch, LevelPlacement, ScanOptions, ScanStats, ScanUpdateMode,
+    self, BatchKernel, CrmConfig, CrmScratch, LevelPlacement, ScanOptions, ScanStats,
+    ScanUpdateMode,
 };
 use crlam_core::grid::{CellRect, GridGeometry, TileStats};
 use crlam_core::ogm::{LogOddsGrid, LogOddsParams};
@@ -166,12 +167,17 @@ fn tiles_dict<'py>(py: Python<'py>, s: &TileStats) -> PyResult<Bound<'py, PyDict
     Ok(d)
 }
 
-fn scan_opts(mode: &str, beam_stride: usize, zero_is_no_return: bool) -> PyResult<ScanOptions> {
+fn scan_opts(
+    mode: &str,
+    kernel: &str,
+    beam_stride: usize,
+    zero_is_no_return: bool,
+) -> PyResult<ScanOptions> {
     Ok(ScanOptions {
         mode: ScanUpdateMode::parse(mode).py_err()?,
+        kernel: BatchKernel::parse(kernel).py_err()?,
         beam_stride,
         zero_is_no_return,
-        ..ScanOptions::default()
     })
 }
 
@@ -303,7 +309,7 @@ impl CrmMap {
     }
 
     /// Updates the map with one scan from the sensor pose; returns counters.
-    #[pyo3(signature = (pose, angles, ranges, model, *, mode="batch", beam_stride=1, zero_is_no_return=false))]
+    #[pyo3(signature = (pose, angles, ranges, model, *, mode="batch", batch_kernel="windowed", beam_stride=1, zero_is_no_return=false))]
     #[allow(clippy::too_many_arguments)]
     fn update_scan<'py>(
         &mut self,
@@ -313,10 +319,11 @@ impl CrmMap {
         ranges: PyReadonlyArray1<'py, f64>,
         model: &SensorModel,
         mode: &str,
+        batch_kernel: &str,
         beam_stride: usize,
         zero_is_no_return: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let opts = scan_opts(mode, beam_stride, zero_is_no_return)?;
+        let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
         let pose = pose3(&pose)?;
         let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
         let m = model.inner;
@@ -328,7 +335,7 @@ impl CrmMap {
     }
 
     /// Updates the map with n scans (poses (n, 3), ranges (n, m), shared angles (m,)).
-    #[pyo3(signature = (poses, angles, ranges, model, *, mode="batch", beam_stride=1, zero_is_no_return=false))]
+    #[pyo3(signature = (poses, angles, ranges, model, *, mode="batch", batch_kernel="windowed", beam_stride=1, zero_is_no_return=false))]
     #[allow(clippy::too_many_arguments)]
     fn update_scans<'py>(
         &mut self,
@@ -338,10 +345,11 @@ impl CrmMap {
         ranges: PyReadonlyArray2<'py, f64>,
         model: &SensorModel,
         mode: &str,
+        batch_kernel: &str,
         beam_stride: usize,
         zero_is_no_return: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let opts = scan_opts(mode, beam_stride, zero_is_no_return)?;
+        let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
         let poses = poses_n3(&poses)?;
         let a = slice1(&angles, "angles")?;
         let shape = ranges.shape();
@@ -389,7 +397,7 @@ impl CrmMap {
         beam_stride: usize,
         zero_is_no_return: bool,
     ) -> PyResult<(f64, usize)> {
-        let opts = scan_opts("batch", beam_stride, zero_is_no_return)?;
+        let opts = scan_opts("batch", "windowed", beam_stride, zero_is_no_return)?;
         let pose = pose3(&pose)?;
         let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
         let m = model.inner;

@@ -12,7 +12,9 @@
 
 use rayon::prelude::*;
 
-use crate::crm::{with_thread_scratch, CrmConfig, CrmMap, CrmScratch, ScanOptions, ScanUpdateMode};
+use crate::crm::{
+    with_thread_scratch, BatchKernel, CrmConfig, CrmMap, CrmScratch, ScanOptions, ScanUpdateMode,
+};
 use crate::error::{config_err, Result};
 use crate::motion::MotionModel;
 use crate::pose::{between, compose, wrap, Pose};
@@ -73,6 +75,8 @@ pub struct ClamConfig {
     pub mapping_model: SensorModel,
     pub weight_model: SensorModel,
     pub scan_update: ScanUpdateMode,
+    /// How batch scans compute each beam (the results agree to rounding).
+    pub batch_kernel: BatchKernel,
     /// Beams used for the weights (every n-th; the paper: 1).
     pub weight_stride: usize,
     /// Beams used for the map update (every n-th; the paper: 1).
@@ -109,6 +113,7 @@ impl ClamConfig {
             ),
             crm,
             scan_update: ScanUpdateMode::Batch,
+            batch_kernel: BatchKernel::Windowed,
             weight_stride: 1,
             map_stride: 1,
             tempering: 1.0,
@@ -188,9 +193,10 @@ pub struct RbpfClam {
     paths: PathTree,
 }
 
-fn scan_opts(mode: ScanUpdateMode, stride: usize) -> ScanOptions {
+fn scan_opts(cfg: &ClamConfig, stride: usize) -> ScanOptions {
     ScanOptions {
-        mode,
+        mode: cfg.scan_update,
+        kernel: cfg.batch_kernel,
         beam_stride: stride,
         ..ScanOptions::default()
     }
@@ -308,7 +314,7 @@ impl RbpfClam {
             .map(|(j, p)| {
                 with_thread_scratch(|sc| {
                     let mut rng = Rng::stream(cfg.seed, step, j as u64);
-                    let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+                    let opts = scan_opts(cfg, cfg.map_stride);
                     if cfg.proposal == ClamProposal::Odometry {
                         // Weight and map update share one walk of every beam (same pre-scan beliefs).
                         let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
@@ -423,7 +429,7 @@ fn update_map_at_pose(
     sc: &mut CrmScratch,
 ) -> Result<()> {
     let sensor = compose(p.pose, scan.laser_offset);
-    let opts = scan_opts(cfg.scan_update, cfg.map_stride);
+    let opts = scan_opts(cfg, cfg.map_stride);
     p.map.update_scan(
         sensor,
         scan.angles,
@@ -445,7 +451,7 @@ fn propose(
     rng: &mut Rng,
     sc: &mut CrmScratch,
 ) -> Result<(Pose, f64)> {
-    let weight_opts = scan_opts(cfg.scan_update, cfg.weight_stride);
+    let weight_opts = scan_opts(cfg, cfg.weight_stride);
     let loglik = |pose: Pose, opts: &ScanOptions, sc: &mut CrmScratch| -> Result<f64> {
         let sensor = compose(pose, scan.laser_offset);
         let (ll, _) = p.map.scan_log_likelihood(
@@ -469,7 +475,7 @@ fn propose(
             match_stride,
             pose: pose_rule,
         } => {
-            let match_opts = scan_opts(cfg.scan_update, match_stride);
+            let match_opts = scan_opts(cfg, match_stride);
             // With `Match` nothing is drawn after the climb, so the climb must start from a
             // motion-model sample (as in GMapping): from the odometry guess, the children of one
             // parent (same pose, same map) would stay identical copies for ever.
