@@ -5,6 +5,7 @@ mod forward;
 pub mod levels;
 pub mod map;
 mod mean_cache;
+mod scan;
 mod scan_cells;
 pub mod update;
 mod windowed;
