@@ -73,6 +73,10 @@ def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.Capture
     assert main(["bench", "--quick", "--repeats", "1", "--json", str(tmp_path / "b.json")]) == 0
     figures = json.loads(capsys.readouterr().out)
     assert figures["crm_beam_updates_per_s"] > 0 and figures["raycast_cells_per_s"] > 0
+    # The windowed kernel's speed-up over the full sweep, both measured in this run.
+    assert figures["rbpf_clam_windowed_over_full_ray"] == pytest.approx(
+        figures["rbpf_clam_scans_per_s_1079x100"] / figures["rbpf_clam_scans_per_s_1079x100_full_ray"], rel=0.02
+    )
     full = json.loads((tmp_path / "b.json").read_text())
     assert full["machine"]["cores"] >= 1 and full["threads"] == 1
 

@@ -47,6 +47,8 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
     BenchSpec("raycast_cells_per_s", size=2_000_000, quick_size=100_000),
     # Issue 3 targets: >= 37 scans/s (the sensor's rate) for 100 particles x 1079 beams.
     BenchSpec("rbpf_clam_scans_per_s_1079x100", size=20, quick_size=2, target_per_s=37.0),
+    # The same run with the reference kernel (every cell swept): the baseline of the ratio below.
+    BenchSpec("rbpf_clam_scans_per_s_1079x100_full_ray", size=10, quick_size=2),
     BenchSpec("rbpf_clam_scans_per_s_180x30", size=100, quick_size=5),
     BenchSpec("rbpf_ogm_scans_per_s_180x30", size=100, quick_size=5),
     # Issue 4: information functions, 10 beams over 360 deg, 5 m, 0.2 m grid, one thread.
@@ -134,6 +136,11 @@ def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repea
         # Cost of a CRM beam update relative to just walking its cells.
         figures["crm_update_over_traversal_cost"] = round(
             figures["raycast_cells_per_s"] / cells / figures["crm_beam_updates_per_s"], 2
+        )
+    if "rbpf_clam_scans_per_s_1079x100" in figures and "rbpf_clam_scans_per_s_1079x100_full_ray" in figures:
+        # Speed of the default windowed batch kernel over the full sweep, measured in this run.
+        figures["rbpf_clam_windowed_over_full_ray"] = round(
+            figures["rbpf_clam_scans_per_s_1079x100"] / figures["rbpf_clam_scans_per_s_1079x100_full_ray"], 2
         )
     return {
         "figures": figures,

@@ -2,7 +2,7 @@
 
 use std::time::Instant;
 
-use crate::crm::{CrmConfig, CrmMap, CrmScratch, ScanOptions};
+use crate::crm::{BatchKernel, CrmConfig, CrmMap, CrmScratch, ScanOptions};
 use crate::error::Result;
 use crate::grid::GridGeometry;
 use crate::raycast::traverse_with;
@@ -240,16 +240,28 @@ fn filter_figure(name: &'static str, unit: &'static str, n_scans: usize, secs: f
 
 /// RBPF-CLAM scans per second on one thread (paper settings: every beam, odometry proposal).
 pub fn rbpf_clam_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<BenchFigure> {
+    rbpf_clam_scans_with(n_scans, n_particles, n_beams, BatchKernel::Windowed)
+}
+
+/// [`rbpf_clam_scans`] with a given batch kernel (the full sweep is the same run's baseline).
+pub fn rbpf_clam_scans_with(
+    n_scans: usize,
+    n_particles: usize,
+    n_beams: usize,
+    kernel: BatchKernel,
+) -> Result<BenchFigure> {
     use crate::rbpf::{ClamConfig, RbpfClam};
     let fov = if n_beams == 1079 { 270.0 } else { 180.0 };
     let w = filter_workload(n_scans + 1, n_beams, fov, 8.0)?;
     let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), 8.0);
     cfg.n_particles = n_particles;
+    cfg.batch_kernel = kernel;
     let mut f = RbpfClam::new(cfg, w.odom[0])?;
     let secs = time_filter(&w, n_scans, |s| f.process(s))?;
-    let name = match (n_beams, n_particles) {
-        (1079, 100) => "rbpf_clam_scans_per_s_1079x100",
-        (180, 30) => "rbpf_clam_scans_per_s_180x30",
+    let name = match (n_beams, n_particles, kernel) {
+        (1079, 100, BatchKernel::Windowed) => "rbpf_clam_scans_per_s_1079x100",
+        (1079, 100, BatchKernel::FullRay) => "rbpf_clam_scans_per_s_1079x100_full_ray",
+        (180, 30, _) => "rbpf_clam_scans_per_s_180x30",
         _ => "rbpf_clam_scans_per_s",
     };
     Ok(filter_figure(

@@ -40,6 +40,12 @@ pub fn run_benchmark<'py>(
             }
             "raycast_cells_per_s" => Some(bench::raycast_cells(size)),
             "rbpf_clam_scans_per_s_1079x100" => Some(bench::rbpf_clam_scans(size, 100, 1079)),
+            "rbpf_clam_scans_per_s_1079x100_full_ray" => Some(bench::rbpf_clam_scans_with(
+                size,
+                100,
+                1079,
+                crlam_core::crm::BatchKernel::FullRay,
+            )),
             "rbpf_clam_scans_per_s_180x30" => Some(bench::rbpf_clam_scans(size, 30, 180)),
             "rbpf_ogm_scans_per_s_180x30" => Some(bench::rbpf_ogm_scans(size, 30)),
             _ => None,
