@@ -311,6 +311,7 @@ filter_pymethods!(ClamFilter {
             init_sigma: [init_sigma.0, init_sigma.1, init_sigma.2],
             proposal,
             seed,
+            defer_map_updates: true,
         };
         Ok(Self {
             inner: RbpfClam::new(cfg, pose3(&initial_pose)?).py_err()?,

@@ -53,6 +53,33 @@ pub struct CrmScratch {
     pub(super) ids: Vec<usize>,
     /// Buffers of the windowed batch kernel.
     pub(super) window: WindowScratch,
+    /// (cos, sin) of the beam angles of the last scan layout seen.
+    pub(super) directions: BeamDirections,
+}
+
+/// The (cos, sin) of a scan's beam angles, kept while the angles stay the same (a filter's
+/// particles all walk the same scan).
+#[derive(Debug, Default)]
+pub(crate) struct BeamDirections {
+    angles: Vec<f64>,
+    cos_sin: Vec<[f64; 2]>,
+}
+
+impl BeamDirections {
+    /// Makes the table match `angles`.
+    pub(crate) fn prepare(&mut self, angles: &[f64]) {
+        if self.angles != angles {
+            self.angles = angles.to_vec();
+            self.cos_sin = angles.iter().map(|a| [a.cos(), a.sin()]).collect();
+        }
+    }
+
+    /// The unit vector of beam `b` turned by the heading whose cosine and sine are `c0`, `s0`.
+    #[inline]
+    pub(crate) fn rotated(&self, b: usize, c0: f64, s0: f64) -> [f64; 2] {
+        let [c, s] = self.cos_sin[b];
+        [c0 * c - s0 * s, s0 * c + c0 * s]
+    }
 }
 
 /// Runs `f` with this thread's reusable [`CrmScratch`] (a fresh one if it is already in use

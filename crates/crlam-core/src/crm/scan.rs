@@ -240,12 +240,52 @@ impl CrmMap {
             mapping_model,
             opts,
             sc,
+            true,
         )
+    }
+
+    /// The weight of [`Self::weigh_and_update_scan`] with the same arguments, bit for bit,
+    /// without updating the map: (Σ log η, beams weighed). A particle filter weighs every
+    /// particle this way and updates only the maps that resampling keeps (most of them are
+    /// dropped when the weights are peaked). The map is not changed (its storage may grow to
+    /// cover the scan, which changes no belief).
+    #[allow(clippy::too_many_arguments)]
+    pub fn weigh_scan(
+        &mut self,
+        pose: [f64; 3],
+        angles: &[f64],
+        ranges: &[f64],
+        weight_model: &SensorModel,
+        weight_stride: usize,
+        mapping_model: &SensorModel,
+        opts: &ScanOptions,
+        sc: &mut CrmScratch,
+    ) -> Result<(f64, usize)> {
+        let wopts = ScanOptions {
+            beam_stride: weight_stride,
+            ..*opts
+        };
+        if opts.mode != ScanUpdateMode::Batch {
+            return self.scan_log_likelihood(pose, angles, ranges, weight_model, &wopts, sc);
+        }
+        check_scan(angles, ranges, weight_model, &wopts)?;
+        let (ll, used, _) = self.batch_scan(
+            pose,
+            angles,
+            ranges,
+            Some((weight_model, weight_stride)),
+            mapping_model,
+            opts,
+            sc,
+            false,
+        )?;
+        Ok((ll, used))
     }
 
     /// The batch scan (crm-spec 3.3) with an optional weight: every beam's coefficients from
     /// the pre-scan beliefs, one walk per beam for the weight and the update, factors multiplied
     /// per cell and written back once. `opts.kernel` picks the windowed kernel where it applies.
+    /// With `update = false` only the weight is computed (the same, bit for bit).
     #[allow(clippy::too_many_arguments)]
     fn batch_scan(
         &mut self,
@@ -256,6 +296,7 @@ impl CrmMap {
         mapping_model: &SensorModel,
         opts: &ScanOptions,
         sc: &mut CrmScratch,
+        update: bool,
     ) -> Result<(f64, usize, ScanStats)> {
         check_scan(angles, ranges, mapping_model, opts)?;
         let z_max = weight.map_or(mapping_model.z_max, |(w, _)| {
@@ -286,6 +327,10 @@ impl CrmMap {
                 })
             });
         sc.scan.begin(self.grid.geometry(), origin, z_max, means);
+        // Beam directions by the angle-sum rule from the scan's (cos, sin) table, which every
+        // particle of a filter shares: one sin/cos pair per beam and scan instead of per particle.
+        sc.directions.prepare(angles);
+        let (s0, c0) = pose[2].sin_cos();
         for b in 0..angles.len() {
             let angle = pose[2] + angles[b];
             let w_plan = match weight {
@@ -306,7 +351,7 @@ impl CrmMap {
             } else {
                 None
             };
-            if w_plan.is_none() && m_plan.is_none() {
+            if (w_plan.is_none() && m_plan.is_none()) || (!update && w_plan.is_none()) {
                 continue;
             }
             if let Some(k) = &windowed {
@@ -317,40 +362,60 @@ impl CrmMap {
                     &mut sc.window,
                     w_plan.as_ref(),
                     m_plan.as_ref(),
+                    sc.directions.rotated(b, c0, s0),
+                    update,
                     &mut st,
                 );
-                if let WindowedBeam::Done(log_eta) = out {
-                    if let Some(l) = log_eta {
-                        total += l;
-                        used += 1;
+                match out {
+                    WindowedBeam::Done(log_eta) => {
+                        if let Some(l) = log_eta {
+                            total += l;
+                            used += 1;
+                        }
+                        continue;
                     }
-                    continue;
+                    WindowedBeam::MapFullSweep(log_eta) => {
+                        if let Some(l) = log_eta {
+                            total += l;
+                            used += 1;
+                        }
+                        self.full_ray_beam(None, None, mapping_model, m_plan, 0.0, sc, &mut st);
+                        continue;
+                    }
+                    WindowedBeam::FullSweep => {}
                 }
             }
             let (ll, weighed) = self.full_ray_beam(
                 weight.map(|(w, _)| w),
                 w_plan,
                 mapping_model,
-                m_plan,
+                if update { m_plan } else { None },
+                m_plan.map_or(0.0, |p| p.length),
                 sc,
                 &mut st,
             );
             total += ll;
             used += usize::from(weighed);
         }
-        self.means.invalidate();
-        sc.scan.write_back(&mut self.grid, &self.mu, self.floor)?;
+        if update {
+            self.means.invalidate();
+            sc.scan.write_back(&mut self.grid, &self.mu, self.floor)?;
+        }
         Ok((total, used, st))
     }
 
     /// One beam of a batch scan by the full sweep ([`BatchKernel::FullRay`]): its weight (log η,
     /// and whether it was weighed) and its factors into the scan table.
+    /// `walk_at_least` (m) lengthens the gathered ray as an update would (so that a weight-only
+    /// call sees the cells the updating one sees).
+    #[allow(clippy::too_many_arguments)]
     fn full_ray_beam(
         &self,
         weight_model: Option<&SensorModel>,
         w_plan: Option<BeamPlan>,
         mapping_model: &SensorModel,
         m_plan: Option<BeamPlan>,
+        walk_at_least: f64,
         sc: &mut CrmScratch,
         st: &mut ScanStats,
     ) -> (f64, bool) {
@@ -359,7 +424,8 @@ impl CrmMap {
         };
         let length = w_plan
             .map_or(0.0, |p| p.length)
-            .max(m_plan.map_or(0.0, |p| p.length));
+            .max(m_plan.map_or(0.0, |p| p.length))
+            .max(walk_at_least);
         let end = self.gather_cells(any.origin, any.angle, length, sc, true);
         let (mut total, mut weighed) = (0.0, false);
         // The longer ray is evaluated first; the shorter one is then a prefix of it.
@@ -411,7 +477,7 @@ impl CrmMap {
     ) -> Result<ScanStats> {
         if opts.mode == ScanUpdateMode::Batch {
             return Ok(self
-                .batch_scan(pose, angles, ranges, None, model, opts, sc)?
+                .batch_scan(pose, angles, ranges, None, model, opts, sc, true)?
                 .2);
         }
         check_scan(angles, ranges, model, opts)?;

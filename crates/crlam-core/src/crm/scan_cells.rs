@@ -175,6 +175,26 @@ impl ScanCells {
         self.id(grid, mu, ix, iy)
     }
 
+    /// The pre-scan mean of a cell of the dense window (window index `index`) without
+    /// registering the cell: from the scan's mean table when it has one.
+    #[inline]
+    pub(crate) fn pre_scan_mean(
+        &mut self,
+        index: usize,
+        grid: &TiledGrid<f32>,
+        mu: &[f64],
+        ix: i64,
+        iy: i64,
+    ) -> f64 {
+        match &self.means {
+            Some(t) => t.get(ix, iy),
+            None => {
+                let id = self.id_at(index, grid, mu, ix, iy);
+                self.mean[id]
+            }
+        }
+    }
+
     /// Pre-scan mean m̂ of cell `id`.
     #[inline]
     pub(crate) fn mean(&self, id: usize) -> f64 {

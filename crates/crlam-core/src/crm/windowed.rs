@@ -75,6 +75,10 @@ struct WindowCell {
 pub(crate) struct WindowScratch {
     far: Vec<u32>,
     window: Vec<WindowCell>,
+    /// Past the mapping ray and the hit reach: each cause's probability π and −λd, whose short
+    /// terms are summed after the walk (exponentials a slice at a time).
+    tail_pi: Vec<f64>,
+    tail_x: Vec<f64>,
 }
 
 /// Per-scan constants of the windowed kernel; `None` from [`WindowedScan::new`] when the scan's
@@ -99,7 +103,10 @@ pub(crate) struct WindowedScan<'a> {
 pub(crate) enum WindowedBeam {
     /// Applied to the scan table; the weight's log η when the beam is weighed.
     Done(Option<f64>),
-    /// Nothing applied: the caller sweeps the whole ray.
+    /// The weight (log η, if weighed) is done, but the map update needs the full sweep; nothing
+    /// was applied.
+    MapFullSweep(Option<f64>),
+    /// Nothing applied: the caller sweeps the whole ray for the weight and the update.
     FullSweep,
 }
 
@@ -143,8 +150,11 @@ impl<'a> WindowedScan<'a> {
         })
     }
 
-    /// Weighs (`w_plan`) and updates (`m_plan`) one beam, both from the same reading; the map
-    /// has no fixed extent. Counters go to `st` only when the beam is done here.
+    /// Weighs (`w_plan`) and updates (`m_plan`) one beam, both from the same reading, walked
+    /// along the unit vector `dir` of the plans' angle; the map has no fixed extent. Counters go to `st` only when the beam is done here. The weight
+    /// does not depend on the update (only on `m_plan`'s length, where the tail check starts), so
+    /// with `update = false` it is the one the updating call gives, bit for bit, and none of
+    /// the update's work is done.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn beam(
         &self,
@@ -154,12 +164,14 @@ impl<'a> WindowedScan<'a> {
         ws: &mut WindowScratch,
         w_plan: Option<&BeamPlan>,
         m_plan: Option<&BeamPlan>,
+        dir: [f64; 2],
+        update: bool,
         st: &mut ScanStats,
     ) -> WindowedBeam {
         let Some(any) = w_plan.or(m_plan) else {
             return WindowedBeam::Done(None);
         };
-        let (origin, angle, z, no_return) = (any.origin, any.angle, any.z, any.no_return);
+        let (origin, z, no_return) = (any.origin, any.z, any.no_return);
         let reading = match (self.weight, w_plan) {
             (Some(w), Some(_)) => match MixtureReading::new(w, z) {
                 Some(r) => Some(r),
@@ -179,6 +191,10 @@ impl<'a> WindowedScan<'a> {
         let g: GridGeometry = *grid.geometry();
         ws.far.clear();
         ws.window.clear();
+        ws.tail_pi.clear();
+        ws.tail_x.clear();
+        // Σ π of the buffered tail: its floor part w_r/z_max · Σ π is known during the walk.
+        let mut tail_mass = 0.0f64;
         let (mut reach, mut bound, mut eta_w) = (1.0f64, 0.0f64, 0.0f64);
         let mut reach_far: Option<f64> = None;
         let mut past = 0u32;
@@ -193,14 +209,23 @@ impl<'a> WindowedScan<'a> {
         let Some(window) = scan.dense_window() else {
             return WindowedBeam::FullSweep;
         };
-        for wc in FastWalk::new(&g, origin, angle, length, window) {
+        let map_work = map_on && update;
+        for wc in FastWalk::along(&g, origin, dir, length, window) {
             let c = wc.cell;
-            let id = scan.id_at(wc.index as usize, grid, mu, c.ix, c.iy);
-            let m = scan.mean(id);
+            // Only an update needs the cell registered in the scan table.
+            let (id, m) = if update {
+                let id = scan.id_at(wc.index as usize, grid, mu, c.ix, c.iy);
+                (id, scan.mean(id))
+            } else {
+                (
+                    0,
+                    scan.pre_scan_mean(wc.index as usize, grid, mu, c.ix, c.iy),
+                )
+            };
             let in_map = map_on && c.t_in < m_len && m_len - c.t_in >= MIN_CHORD;
             let d = 0.5 * (c.t_in + c.t_out);
             if no_return || d < lo {
-                if in_map {
+                if in_map && update {
                     ws.far.push(id as u32);
                     // Beyond the table's last entry the hit density is 0 (and so is the bound).
                     if !no_return && d > bound_from {
@@ -214,14 +239,22 @@ impl<'a> WindowedScan<'a> {
             let r_far = *reach_far.get_or_insert(reach);
             let mut hit = f64::NAN;
             if let (Some(r), Some(w)) = (&reading, self.weight) {
-                hit = if (d - z).abs() <= self.weight_hit_reach {
-                    w.hit_density_fast(z, d)
+                if !in_map && map_on && d - z > self.weight_hit_reach {
+                    // Past the reading and the hit reach: floor + short term, summed later.
+                    let pi = reach * m;
+                    ws.tail_pi.push(pi);
+                    ws.tail_x.push(-w.lambda_short * d);
+                    tail_mass += pi;
                 } else {
-                    0.0
-                };
-                eta_w += reach * m * r.range_cell_fast(d, hit);
+                    hit = if (d - z).abs() <= self.weight_hit_reach {
+                        w.hit_density_fast(z, d)
+                    } else {
+                        0.0
+                    };
+                    eta_w += reach * m * r.range_cell_fast(d, hit);
+                }
             }
-            if in_map {
+            if in_map && update {
                 ws.window.push(WindowCell {
                     id: id as u32,
                     mhat: m,
@@ -240,7 +273,8 @@ impl<'a> WindowedScan<'a> {
                     break;
                 };
                 past += 1;
-                let total = (1.0 - r_far) * far_like + eta_w;
+                // A lower bound of η: the buffered short terms are left out.
+                let total = (1.0 - r_far) * far_like + eta_w + r.rand_floor() * tail_mass;
                 let stop = if map_on {
                     reach * sup_past <= total * TAIL_EPS
                 } else {
@@ -255,6 +289,18 @@ impl<'a> WindowedScan<'a> {
         }
         let r_far = reach_far.unwrap_or(reach);
 
+        if let Some(r) = &reading {
+            if !ws.tail_x.is_empty() {
+                crate::info::fastmath::exp_for_sums(&mut ws.tail_x);
+                let short: f64 = ws
+                    .tail_pi
+                    .iter()
+                    .zip(&ws.tail_x)
+                    .map(|(&pi, &e)| pi / (1.0 - e))
+                    .sum();
+                eta_w += r.rand_floor() * tail_mass + r.short_scale() * short;
+            }
+        }
         let log_eta_w = match &reading {
             Some(r) => {
                 let mut eta = (1.0 - r_far) * far_like + eta_w;
@@ -268,16 +314,16 @@ impl<'a> WindowedScan<'a> {
             }
             None => None,
         };
-        if !map_on {
+        if !map_work {
             return WindowedBeam::Done(log_eta_w);
         }
         if ws.far.is_empty() && ws.window.is_empty() {
-            return WindowedBeam::FullSweep;
+            return WindowedBeam::MapFullSweep(log_eta_w);
         }
         if no_return {
             // η = R_end under ijrr; an underflowed or zero η is left to the log-space sweep.
             if reach.is_nan() || reach < LINEAR_ETA_MIN {
-                return WindowedBeam::FullSweep;
+                return WindowedBeam::MapFullSweep(log_eta_w);
             }
             count_passes(scan, &ws.far, st);
             st.n_used += 1;
@@ -305,7 +351,7 @@ impl<'a> WindowedScan<'a> {
         }
         let eta = r_far * s;
         if !(eta >= LINEAR_ETA_MIN && eta.is_finite()) || bound > eta * TAIL_EPS {
-            return WindowedBeam::FullSweep;
+            return WindowedBeam::MapFullSweep(log_eta_w);
         }
         let inv = 1.0 / eta;
         for c in &ws.window {
@@ -372,9 +418,17 @@ mod tests {
             &mut sc.window,
             None,
             Some(&plan),
+            [1.0, 0.0],
+            true,
             &mut st,
         );
-        matches!(out, WindowedBeam::Done(_))
+        match out {
+            WindowedBeam::Done(_) => true,
+            WindowedBeam::MapFullSweep(_) => false,
+            WindowedBeam::FullSweep => {
+                panic!("the beam is not weighed: only the map can fall back")
+            }
+        }
     }
 
     #[test]

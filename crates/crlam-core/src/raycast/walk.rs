@@ -55,7 +55,18 @@ impl GridWalk {
         length: f64,
         window: (i64, i64, i64),
     ) -> Self {
-        let u = [angle.cos(), angle.sin()];
+        Self::along(g, origin, [angle.cos(), angle.sin()], length, window)
+    }
+
+    /// [`Self::new`] along the unit vector `u` (which need not be (cos θ, sin θ) of any θ bit
+    /// for bit).
+    pub fn along(
+        g: &GridGeometry,
+        origin: [f64; 2],
+        u: [f64; 2],
+        length: f64,
+        window: (i64, i64, i64),
+    ) -> Self {
         let t_end = length.max(0.0);
         let res = g.resolution;
         let inv_res = 1.0 / res;
@@ -199,7 +210,18 @@ impl FastWalk {
         length: f64,
         window: (i64, i64, i64),
     ) -> Self {
-        let w = GridWalk::new(g, origin, angle, length, window);
+        Self::along(g, origin, [angle.cos(), angle.sin()], length, window)
+    }
+
+    /// [`Self::new`] along the unit vector `u`.
+    pub fn along(
+        g: &GridGeometry,
+        origin: [f64; 2],
+        u: [f64; 2],
+        length: f64,
+        window: (i64, i64, i64),
+    ) -> Self {
+        let w = GridWalk::along(g, origin, u, length, window);
         let spacing = |inv: f64, flat: bool| {
             if flat {
                 f64::INFINITY

@@ -90,6 +90,13 @@ pub struct ClamConfig {
     pub init_sigma: [f64; 3],
     pub proposal: ClamProposal,
     pub seed: u64,
+    /// Update a particle's map only once resampling has kept it (every particle when there is no
+    /// resampling). Exact: the weights use the pre-update maps and the updates do not depend on
+    /// the weights, so the results are the same bit for bit; with peaked weights most particles
+    /// are dropped and their updates are saved. On by default; off for the paper's odometry
+    /// proposal it fuses weight and update into one walk of every beam, which is cheaper after a
+    /// step without resampling, so the filter defers only after a step that resampled.
+    pub defer_map_updates: bool,
 }
 
 impl ClamConfig {
@@ -121,6 +128,7 @@ impl ClamConfig {
             init_sigma: [0.0; 3],
             proposal: ClamProposal::Odometry,
             seed: 0,
+            defer_map_updates: true,
         }
     }
 
@@ -191,6 +199,19 @@ pub struct RbpfClam {
     n_resamples: usize,
     n_processed: usize,
     paths: PathTree,
+    /// The last processed step resampled (the odometry proposal then defers its map updates).
+    last_resampled: bool,
+}
+
+/// How the maps of a step are brought up to date once resampling has decided which to keep.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum PendingUpdate {
+    /// Every map was updated while weighing.
+    None,
+    /// The odometry proposal weighed without updating: update with the fused call.
+    Fused,
+    /// The likelihood-mode proposal: update with the mapping model at the proposed pose.
+    Mapping,
 }
 
 fn scan_opts(cfg: &ClamConfig, stride: usize) -> ScanOptions {
@@ -238,6 +259,7 @@ impl RbpfClam {
             n_resamples: 0,
             n_processed: 0,
             paths: PathTree::default(),
+            last_resampled: false,
         })
     }
 
@@ -307,6 +329,12 @@ impl RbpfClam {
         self.step += 1;
         let cfg = &self.cfg;
         let step = self.step;
+        let pending = match (cfg.defer_map_updates, cfg.proposal) {
+            (false, _) => PendingUpdate::None,
+            (true, ClamProposal::Odometry) if self.last_resampled => PendingUpdate::Fused,
+            (true, ClamProposal::Odometry) => PendingUpdate::None,
+            (true, _) => PendingUpdate::Mapping,
+        };
         let results: Vec<Result<()>> = self
             .particles
             .par_iter_mut()
@@ -316,19 +344,26 @@ impl RbpfClam {
                     let mut rng = Rng::stream(cfg.seed, step, j as u64);
                     let opts = scan_opts(cfg, cfg.map_stride);
                     if cfg.proposal == ClamProposal::Odometry {
-                        // Weight and map update share one walk of every beam (same pre-scan beliefs).
+                        // Weight and map update share one walk of every beam (same pre-scan
+                        // beliefs); a deferred update weighs alone, with the same weight.
                         let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
                         let sensor = compose(pose, scan.laser_offset);
-                        let (ll, _, _) = p.map.weigh_and_update_scan(
-                            sensor,
-                            scan.angles,
-                            scan.ranges,
-                            &cfg.weight_model,
-                            cfg.weight_stride,
-                            &cfg.mapping_model,
-                            &opts,
-                            sc,
-                        )?;
+                        let ll = if pending == PendingUpdate::Fused {
+                            p.map
+                                .weigh_scan(
+                                    sensor,
+                                    scan.angles,
+                                    scan.ranges,
+                                    &cfg.weight_model,
+                                    cfg.weight_stride,
+                                    &cfg.mapping_model,
+                                    &opts,
+                                    sc,
+                                )?
+                                .0
+                        } else {
+                            fused_update(cfg, &mut p.map, sensor, scan, sc)?
+                        };
                         p.pose = pose;
                         p.log_w += ll / cfg.tempering;
                         return Ok(());
@@ -336,14 +371,18 @@ impl RbpfClam {
                     let (pose, dlogw) = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
                     p.pose = pose;
                     p.log_w += dlogw;
-                    update_map_at_pose(cfg, p, scan, sc)
+                    if pending == PendingUpdate::None {
+                        update_map_at_pose(cfg, p, scan, sc)?;
+                    }
+                    Ok(())
                 })
             })
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
         self.paths
             .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
-        let step_out = self.reweight_and_resample();
+        let step_out = self.reweight_and_resample(pending, scan)?;
+        self.last_resampled = step_out.resampled;
         self.tracker.processed(scan.odom);
         self.estimate_odom = scan.odom;
         self.n_processed += 1;
@@ -373,7 +412,40 @@ impl RbpfClam {
         Ok(())
     }
 
-    fn reweight_and_resample(&mut self) -> FilterStep {
+    /// Updates the maps of the particles marked in `keep` that `pending` left behind.
+    fn update_kept_maps(
+        &mut self,
+        pending: PendingUpdate,
+        scan: &ScanInput,
+        keep: &[bool],
+    ) -> Result<()> {
+        if pending == PendingUpdate::None {
+            return Ok(());
+        }
+        let cfg = &self.cfg;
+        let results: Vec<Result<()>> = self
+            .particles
+            .par_iter_mut()
+            .zip(keep.par_iter())
+            .filter(|(_, &k)| k)
+            .map(|(p, _)| {
+                with_thread_scratch(|sc| match pending {
+                    PendingUpdate::Fused => {
+                        let sensor = compose(p.pose, scan.laser_offset);
+                        fused_update(cfg, &mut p.map, sensor, scan, sc).map(|_| ())
+                    }
+                    _ => update_map_at_pose(cfg, p, scan, sc),
+                })
+            })
+            .collect();
+        results.into_iter().collect()
+    }
+
+    fn reweight_and_resample(
+        &mut self,
+        pending: PendingUpdate,
+        scan: &ScanInput,
+    ) -> Result<FilterStep> {
         let logw: Vec<f64> = self.particles.iter().map(|p| p.log_w).collect();
         let w = normalize_log_weights(&logw);
         let neff = effective_sample_size(&w);
@@ -390,6 +462,11 @@ impl RbpfClam {
         if resampled {
             let u0 = Rng::stream(self.cfg.seed, self.step, u64::MAX).uniform();
             let idx = systematic_resample(&w, u0);
+            let mut keep = vec![false; n];
+            for &i in &idx {
+                keep[i] = true;
+            }
+            self.update_kept_maps(pending, scan, &keep)?;
             // Children are clones: their maps share every tile with the parent until written.
             let new: Vec<ClamParticle> = idx
                 .iter()
@@ -403,6 +480,7 @@ impl RbpfClam {
             self.particles = new;
             self.n_resamples += 1;
         } else {
+            self.update_kept_maps(pending, scan, &vec![true; n])?;
             for p in &mut self.particles {
                 p.log_w = if mx.is_finite() {
                     p.log_w - mx
@@ -412,13 +490,35 @@ impl RbpfClam {
             }
             self.best = best;
         }
-        FilterStep {
+        Ok(FilterStep {
             processed: true,
             estimate: self.estimate,
             neff,
             resampled,
-        }
+        })
     }
+}
+
+/// The odometry proposal's weight and map update in one walk; returns Σ log η.
+fn fused_update(
+    cfg: &ClamConfig,
+    map: &mut CrmMap,
+    sensor: Pose,
+    scan: &ScanInput,
+    sc: &mut CrmScratch,
+) -> Result<f64> {
+    let opts = scan_opts(cfg, cfg.map_stride);
+    let (ll, _, _) = map.weigh_and_update_scan(
+        sensor,
+        scan.angles,
+        scan.ranges,
+        &cfg.weight_model,
+        cfg.weight_stride,
+        &cfg.mapping_model,
+        &opts,
+        sc,
+    )?;
+    Ok(ll)
 }
 
 /// Updates the particle's map with the scan taken at its current pose (`mapping_model`).

@@ -83,6 +83,16 @@ impl<'a> MixtureReading<'a> {
         self.no_return
     }
 
+    /// w_short · λ e^{−λz}: a range cell's short term is this over 1 − e^{−λd} (d ≥ z).
+    pub fn short_scale(&self) -> f64 {
+        self.model.w_short * self.short_numerator
+    }
+
+    /// w_rand / z_max: the floor of every L_l of a range reading.
+    pub fn rand_floor(&self) -> f64 {
+        self.rand
+    }
+
     /// L_l of a cause far before the reading, where the hit term is negligible and the short
     /// term is 0: w_r/z_max for a range, w_max for a no-return (every on-ray cause's value).
     #[inline]
