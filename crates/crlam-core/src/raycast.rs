@@ -8,7 +8,7 @@
 use crate::grid::{CellRect, GridGeometry};
 
 mod walk;
-pub use walk::{FastWalk, GridWalk, WalkCell};
+pub use walk::{FastWalk, FastWalkParts, GridWalk, WalkCell};
 
 /// Chords shorter than this (m) are corner grazes and are not reported.
 pub const MIN_CHORD: f64 = 1e-9;

@@ -1,6 +1,7 @@
 //! The confidence-rich map: tiled f32 pmfs per cell, their means and derived layers (the scan
 //! updates and likelihoods are in `scan.rs`).
 
+use crate::crm::beam::BeamPlan;
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
 use crate::crm::mean_cache::{MeanCache, TileMeans};
 use crate::crm::scan_cells::ScanCells;
@@ -55,6 +56,16 @@ pub struct CrmScratch {
     pub(super) window: WindowScratch,
     /// (cos, sin) of the beam angles of the last scan layout seen.
     pub(super) directions: BeamDirections,
+    /// The beams of the current batch scan.
+    pub(super) jobs: Vec<BeamJob>,
+}
+
+/// A beam of a batch scan: its weight and map plans (either may be absent) and its direction.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BeamJob {
+    pub(crate) w_plan: Option<BeamPlan>,
+    pub(crate) m_plan: Option<BeamPlan>,
+    pub(crate) dir: [f64; 2],
 }
 
 /// The (cos, sin) of a scan's beam angles, kept while the angles stay the same (a filter's

@@ -1,6 +1,7 @@
 //! Confidence-rich maps: per-cell beliefs over occupancy levels and their beam update.
 
 pub mod beam;
+mod far_simd;
 mod forward;
 pub mod levels;
 pub mod map;

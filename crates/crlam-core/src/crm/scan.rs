@@ -5,7 +5,9 @@
 use crate::crm::beam::{
     check_scan, plan_beam, BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode,
 };
+use crate::crm::far_simd::{far_phase, LANES};
 use crate::crm::forward::mixture_log_eta_forward;
+use crate::crm::map::BeamJob;
 use crate::crm::map::{CrmMap, CrmScratch};
 use crate::crm::scan_cells::scan_window;
 use crate::crm::update::{apply_factor, cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
@@ -13,6 +15,7 @@ use crate::crm::windowed::{WindowedBeam, WindowedScan};
 use crate::error::Result;
 use crate::grid::check_pose;
 use crate::raycast::traverse_with;
+use crate::raycast::FastWalk;
 use crate::sensor::{MixtureReading, SensorModel, SensorModelKind};
 
 /// Scan windows up to this many cells (8 m at 0.05 m, 25 m at 0.2 m) get a mean table of their
@@ -306,7 +309,6 @@ impl CrmMap {
         let res = self.grid.geometry().resolution;
         let origin = [pose[0], pose[1]];
         let mut st = ScanStats::default();
-        let (mut total, mut used) = (0.0, 0);
         let windowed = if opts.kernel == BatchKernel::Windowed && self.grid.fixed_extent().is_none()
         {
             WindowedScan::new(mapping_model, weight.map(|(w, _)| w))
@@ -331,6 +333,8 @@ impl CrmMap {
         // particle of a filter shares: one sin/cos pair per beam and scan instead of per particle.
         sc.directions.prepare(angles);
         let (s0, c0) = pose[2].sin_cos();
+        let mut jobs = std::mem::take(&mut sc.jobs);
+        jobs.clear();
         for b in 0..angles.len() {
             let angle = pose[2] + angles[b];
             let w_plan = match weight {
@@ -354,54 +358,171 @@ impl CrmMap {
             if (w_plan.is_none() && m_plan.is_none()) || (!update && w_plan.is_none()) {
                 continue;
             }
-            if let Some(k) = &windowed {
-                let out = k.beam(
-                    &self.grid,
-                    &self.mu,
-                    &mut sc.scan,
-                    &mut sc.window,
-                    w_plan.as_ref(),
-                    m_plan.as_ref(),
-                    sc.directions.rotated(b, c0, s0),
-                    update,
-                    &mut st,
-                );
-                match out {
-                    WindowedBeam::Done(log_eta) => {
-                        if let Some(l) = log_eta {
-                            total += l;
-                            used += 1;
-                        }
-                        continue;
+            jobs.push(BeamJob {
+                w_plan,
+                m_plan,
+                dir: sc.directions.rotated(b, c0, s0),
+            });
+        }
+        let weight_model = weight.map(|(w, _)| w);
+        let mut sums = (0.0, 0);
+        match &windowed {
+            // Weighing only: the far phases of eight beams at a time, then each beam on its own.
+            Some(k) if !update && sc.scan.mean_table().is_some() => {
+                for group in jobs.chunks(LANES) {
+                    let starts = self.far_phases(k, group, sc);
+                    for (job, start) in group.iter().zip(starts) {
+                        self.finish_beam(
+                            Some(k),
+                            weight_model,
+                            mapping_model,
+                            job,
+                            start,
+                            update,
+                            sc,
+                            &mut st,
+                            &mut sums,
+                        );
                     }
-                    WindowedBeam::MapFullSweep(log_eta) => {
-                        if let Some(l) = log_eta {
-                            total += l;
-                            used += 1;
-                        }
-                        self.full_ray_beam(None, None, mapping_model, m_plan, 0.0, sc, &mut st);
-                        continue;
-                    }
-                    WindowedBeam::FullSweep => {}
                 }
             }
-            let (ll, weighed) = self.full_ray_beam(
-                weight.map(|(w, _)| w),
-                w_plan,
-                mapping_model,
-                if update { m_plan } else { None },
-                m_plan.map_or(0.0, |p| p.length),
-                sc,
-                &mut st,
-            );
-            total += ll;
-            used += usize::from(weighed);
+            k => {
+                for job in &jobs {
+                    self.finish_beam(
+                        k.as_ref(),
+                        weight_model,
+                        mapping_model,
+                        job,
+                        None,
+                        update,
+                        sc,
+                        &mut st,
+                        &mut sums,
+                    );
+                }
+            }
         }
+        sc.jobs = jobs;
+        let (total, used) = sums;
         if update {
             self.means.invalidate();
             sc.scan.write_back(&mut self.grid, &self.mu, self.floor)?;
         }
         Ok((total, used, st))
+    }
+
+    /// The far phases of a group of weighed beams, eight lanes wide ([`far_simd`]): for each
+    /// beam, the walk and reach where its far phase ended, or `None` (the kernel then walks the
+    /// beam alone) for a beam whose ray might leave the mean table, or on CPUs without AVX-512.
+    fn far_phases(
+        &self,
+        k: &WindowedScan,
+        group: &[BeamJob],
+        sc: &CrmScratch,
+    ) -> [Option<(FastWalk, f64)>; LANES] {
+        let mut out: [Option<(FastWalk, f64)>; LANES] = Default::default();
+        let Some(t) = sc.scan.mean_table() else {
+            return out;
+        };
+        let g = *self.grid.geometry();
+        let r = t.rect;
+        let mut walks = Vec::with_capacity(LANES);
+        let mut lanes = Vec::with_capacity(LANES);
+        let mut lo = Vec::with_capacity(LANES);
+        for (i, job) in group.iter().enumerate() {
+            let Some(w) = job.w_plan.as_ref() else {
+                continue;
+            };
+            let length = w.length.max(job.m_plan.map_or(0.0, |p| p.length));
+            // Every cell the ray can reach lies in the table (one cell of slack each side).
+            let (cx, cy) = g.cell_of(w.origin[0], w.origin[1]);
+            let reach_cells = (length / g.resolution).ceil() as i64 + 2;
+            let inside = cx - reach_cells >= r.ix0
+                && cy - reach_cells >= r.iy0
+                && cx + reach_cells < r.ix0 + r.nx
+                && cy + reach_cells < r.iy0 + r.ny;
+            if !inside {
+                continue;
+            }
+            walks.push(FastWalk::along(
+                &g,
+                w.origin,
+                job.dir,
+                length,
+                (r.ix0, r.iy0, r.nx),
+            ));
+            lo.push(k.far_end(w));
+            lanes.push(i);
+        }
+        let mut reach = vec![1.0; walks.len()];
+        if walks.is_empty() || !far_phase(&mut walks, &lo, &mut reach, &t.values) {
+            return out;
+        }
+        for ((i, w), r) in lanes.into_iter().zip(walks).zip(reach) {
+            out[i] = Some((w, r));
+        }
+        out
+    }
+
+    /// Weighs and (with `update`) updates one beam: the windowed kernel `k` where it can (from
+    /// the far phase's end when `start` is given), the full sweep where it cannot. Adds the
+    /// beam's log η and 1 to `sums` when it is weighed.
+    #[allow(clippy::too_many_arguments)]
+    fn finish_beam(
+        &self,
+        k: Option<&WindowedScan>,
+        weight_model: Option<&SensorModel>,
+        mapping_model: &SensorModel,
+        job: &BeamJob,
+        start: Option<(FastWalk, f64)>,
+        update: bool,
+        sc: &mut CrmScratch,
+        st: &mut ScanStats,
+        sums: &mut (f64, usize),
+    ) {
+        if let Some(k) = k {
+            let out = k.beam(
+                &self.grid,
+                &self.mu,
+                &mut sc.scan,
+                &mut sc.window,
+                job.w_plan.as_ref(),
+                job.m_plan.as_ref(),
+                job.dir,
+                update,
+                start,
+                st,
+            );
+            match out {
+                WindowedBeam::Done(log_eta) => {
+                    if let Some(l) = log_eta {
+                        sums.0 += l;
+                        sums.1 += 1;
+                    }
+                    return;
+                }
+                WindowedBeam::MapFullSweep(log_eta) => {
+                    if let Some(l) = log_eta {
+                        sums.0 += l;
+                        sums.1 += 1;
+                    }
+                    self.full_ray_beam(None, None, mapping_model, job.m_plan, 0.0, sc, st);
+                    return;
+                }
+                WindowedBeam::FullSweep => {}
+            }
+        }
+        let (ll, weighed) = self.full_ray_beam(
+            weight_model,
+            job.w_plan,
+            mapping_model,
+            if update { job.m_plan } else { None },
+            job.m_plan.map_or(0.0, |p| p.length),
+            sc,
+            st,
+        );
+        sums.0 += ll;
+        sums.1 += usize::from(weighed);
     }
 
     /// One beam of a batch scan by the full sweep ([`BatchKernel::FullRay`]): its weight (log η,

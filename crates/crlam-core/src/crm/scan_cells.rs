@@ -175,6 +175,11 @@ impl ScanCells {
         self.id(grid, mu, ix, iy)
     }
 
+    /// The scan's mean table, if it has one.
+    pub(crate) fn mean_table(&self) -> Option<&MeanTable> {
+        self.means.as_deref()
+    }
+
     /// The pre-scan mean of a cell of the dense window (window index `index`) without
     /// registering the cell: from the scan's mean table when it has one.
     #[inline]

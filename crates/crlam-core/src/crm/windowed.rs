@@ -150,6 +150,16 @@ impl<'a> WindowedScan<'a> {
         })
     }
 
+    /// Where the far phase of a weighed beam ends: cells with a chord midpoint below this
+    /// need only the reach (+∞ for a no-return: all of them).
+    pub(crate) fn far_end(&self, w_plan: &BeamPlan) -> f64 {
+        if w_plan.no_return {
+            f64::INFINITY
+        } else {
+            w_plan.z - self.below
+        }
+    }
+
     /// Weighs (`w_plan`) and updates (`m_plan`) one beam, both from the same reading, walked
     /// along the unit vector `dir` of the plans' angle; the map has no fixed extent. Counters go to `st` only when the beam is done here. The weight
     /// does not depend on the update (only on `m_plan`'s length, where the tail check starts), so
@@ -166,6 +176,7 @@ impl<'a> WindowedScan<'a> {
         m_plan: Option<&BeamPlan>,
         dir: [f64; 2],
         update: bool,
+        start: Option<(FastWalk, f64)>,
         st: &mut ScanStats,
     ) -> WindowedBeam {
         let Some(any) = w_plan.or(m_plan) else {
@@ -195,7 +206,7 @@ impl<'a> WindowedScan<'a> {
         ws.tail_x.clear();
         // Σ π of the buffered tail: its floor part w_r/z_max · Σ π is known during the walk.
         let mut tail_mass = 0.0f64;
-        let (mut reach, mut bound, mut eta_w) = (1.0f64, 0.0f64, 0.0f64);
+        let (mut bound, mut eta_w) = (0.0f64, 0.0f64);
         let mut reach_far: Option<f64> = None;
         let mut past = 0u32;
         let mut stopped = false;
@@ -210,7 +221,13 @@ impl<'a> WindowedScan<'a> {
             return WindowedBeam::FullSweep;
         };
         let map_work = map_on && update;
-        for wc in FastWalk::along(&g, origin, dir, length, window) {
+        // Weighing only, the far phase may have been walked already (eight beams at a time).
+        debug_assert!(start.is_none() || !update);
+        let (walk, mut reach) = match start {
+            Some(s) => s,
+            None => (FastWalk::along(&g, origin, dir, length, window), 1.0),
+        };
+        for wc in walk {
             let c = wc.cell;
             // Only an update needs the cell registered in the scan table.
             let (id, m) = if update {
@@ -420,6 +437,7 @@ mod tests {
             Some(&plan),
             [1.0, 0.0],
             true,
+            None,
             &mut st,
         );
         match out {

@@ -249,6 +249,59 @@ impl FastWalk {
     }
 }
 
+/// The state of a [`FastWalk`], for kernels that step several walks at once.
+#[derive(Clone, Copy, Debug)]
+pub struct FastWalkParts {
+    pub ix: i64,
+    pub iy: i64,
+    pub index: i64,
+    pub step_x: i64,
+    pub step_y: i64,
+    pub index_step_x: i64,
+    pub index_step_y: i64,
+    pub tx: f64,
+    pub ty: f64,
+    pub dtx: f64,
+    pub dty: f64,
+    pub t_in: f64,
+    pub t_end: f64,
+    pub steps_left: usize,
+    pub done: bool,
+}
+
+impl FastWalk {
+    /// The walk's state.
+    pub fn parts(&self) -> FastWalkParts {
+        FastWalkParts {
+            ix: self.ix,
+            iy: self.iy,
+            index: self.index,
+            step_x: self.step_x,
+            step_y: self.step_y,
+            index_step_x: self.index_step_x,
+            index_step_y: self.index_step_y,
+            tx: self.tx,
+            ty: self.ty,
+            dtx: self.dtx,
+            dty: self.dty,
+            t_in: self.t_in,
+            t_end: self.t_end,
+            steps_left: self.steps_left,
+            done: self.done,
+        }
+    }
+
+    /// Sets the state that changes as the walk goes: crossings `[tx, ty, t_in]`, cell
+    /// `[ix, iy, index]`, the steps left and whether the walk ended. A kernel that stepped the
+    /// walk itself (with the operations of `next`) hands it back this way.
+    pub fn resume(&mut self, t: [f64; 3], cell: [i64; 3], steps_left: usize, done: bool) {
+        [self.tx, self.ty, self.t_in] = t;
+        [self.ix, self.iy, self.index] = cell;
+        self.steps_left = steps_left;
+        self.done = done;
+    }
+}
+
 impl Iterator for FastWalk {
     type Item = WalkCell;
 

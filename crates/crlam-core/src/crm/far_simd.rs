@@ -1,0 +1,135 @@
+//! The far phase of up to eight weighed beams at once, eight AVX-512 lanes wide.
+//!
+//! A weight needs nothing from the cells far before a reading (or from any cell of a no-return)
+//! but the reach R = Π (1 − m̂) ([`super::windowed`]): a walk, a mean and a product per cell,
+//! which a scalar loop does at the speed of its walk's branch. Here each lane walks one beam
+//! (a [`FastWalk`], the same operations in the same order as its `next`), reads its cells' means
+//! by a gather from the scan's mean table and multiplies its reach, until the lane reaches a cell
+//! that is not far (left unconsumed, for the scalar kernel to take up), or its ray ends. Every
+//! lane ends in the state the scalar loop would have reached, bit for bit, so the kernel goes on
+//! from there as if it had walked alone.
+
+use crate::raycast::FastWalk;
+
+/// Lanes of the wide kernel.
+pub(crate) const LANES: usize = 8;
+
+/// Runs the far phase of `walks` (at most [`LANES`]): lane i consumes cells while their chord
+/// midpoint is below `lo[i]` (+∞ for a no-return), multiplying `reach[i]` by 1 − m̂ with m̂ read
+/// from `means` at the walk's window index. Every walk's cells must lie inside `means`' window.
+/// Returns false, touching nothing, where the CPU lacks AVX-512F.
+pub(crate) fn far_phase(
+    walks: &mut [FastWalk],
+    lo: &[f64],
+    reach: &mut [f64],
+    means: &[f64],
+) -> bool {
+    assert!(walks.len() <= LANES && lo.len() == walks.len() && reach.len() == walks.len());
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::info::fastlog::has_avx512() {
+            // SAFETY: the CPU has AVX-512F; the caller guarantees every index the walks reach
+            // lies in `means`.
+            unsafe { far_phase_avx512(walks, lo, reach, means) };
+            return true;
+        }
+    }
+    let _ = (walks, lo, reach, means);
+    false
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn far_phase_avx512(walks: &mut [FastWalk], lo: &[f64], reach: &mut [f64], means: &[f64]) {
+    use std::arch::x86_64::*;
+    let n = walks.len();
+    let mut f = [[0.0f64; LANES]; 8];
+    let mut k = [[0i64; LANES]; 8];
+    let mut live: u8 = 0;
+    for (i, w) in walks.iter().enumerate() {
+        let s = w.parts();
+        f[0][i] = s.tx;
+        f[1][i] = s.ty;
+        f[2][i] = s.dtx;
+        f[3][i] = s.dty;
+        f[4][i] = s.t_in;
+        f[5][i] = s.t_end;
+        f[6][i] = lo[i];
+        f[7][i] = reach[i];
+        k[0][i] = s.ix;
+        k[1][i] = s.iy;
+        k[2][i] = s.index;
+        k[3][i] = s.step_x;
+        k[4][i] = s.step_y;
+        k[5][i] = s.index_step_x;
+        k[6][i] = s.index_step_y;
+        k[7][i] = s.steps_left as i64;
+        if !s.done && s.steps_left > 0 {
+            live |= 1 << i;
+        }
+    }
+    let ld = |a: &[f64; LANES]| _mm512_loadu_pd(a.as_ptr());
+    let li = |a: &[i64; LANES]| _mm512_loadu_si512(a.as_ptr() as *const _);
+    let (mut tx, mut ty, dtx, dty) = (ld(&f[0]), ld(&f[1]), ld(&f[2]), ld(&f[3]));
+    let (mut t_in, t_end, lo_v, mut r) = (ld(&f[4]), ld(&f[5]), ld(&f[6]), ld(&f[7]));
+    let (mut ix, mut iy, mut index) = (li(&k[0]), li(&k[1]), li(&k[2]));
+    let (sx, sy, isx, isy, mut steps) = (li(&k[3]), li(&k[4]), li(&k[5]), li(&k[6]), li(&k[7]));
+    let (half, one, min_chord) = (
+        _mm512_set1_pd(0.5),
+        _mm512_set1_pd(1.0),
+        _mm512_set1_pd(crate::raycast::MIN_CHORD),
+    );
+    let (zero_i, one_i) = (_mm512_setzero_si512(), _mm512_set1_epi64(1));
+    let mut active: __mmask8 = live;
+    let mut ended: __mmask8 = 0;
+    while active != 0 {
+        // FastWalk::next: the nearer crossing, cut at the ray's end, never before t_in.
+        let along_x = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(tx, ty);
+        let near = _mm512_mask_blend_pd(along_x, ty, tx);
+        let near = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(t_end, near), near, t_end);
+        let t_out = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(near, t_in), near, t_in);
+        let chord_ok = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(_mm512_sub_pd(t_out, t_in), min_chord);
+        let d = _mm512_mul_pd(half, _mm512_add_pd(t_in, t_out));
+        let far = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(d, lo_v);
+        // A reported cell that is not far stays for the scalar kernel: its lane stops unmoved.
+        let stop = active & chord_ok & !far;
+        let adv = active & !stop;
+        let take = adv & chord_ok;
+        let m = _mm512_mask_i64gather_pd::<8>(one, take, index, means.as_ptr());
+        r = _mm512_mask_mul_pd(r, take, r, _mm512_sub_pd(one, m));
+        let done = adv & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(t_out, t_end);
+        let (ax, ay) = (adv & along_x, adv & !along_x);
+        tx = _mm512_mask_add_pd(tx, ax, tx, dtx);
+        ty = _mm512_mask_add_pd(ty, ay, ty, dty);
+        ix = _mm512_mask_add_epi64(ix, ax, ix, sx);
+        iy = _mm512_mask_add_epi64(iy, ay, iy, sy);
+        index = _mm512_mask_add_epi64(index, ax, index, isx);
+        index = _mm512_mask_add_epi64(index, ay, index, isy);
+        t_in = _mm512_mask_mov_pd(t_in, adv, t_out);
+        steps = _mm512_mask_sub_epi64(steps, adv, steps, one_i);
+        ended |= done;
+        active = adv & !done & _mm512_cmpgt_epi64_mask(steps, zero_i);
+    }
+    let st = |v: __m512d, a: &mut [f64; LANES]| _mm512_storeu_pd(a.as_mut_ptr(), v);
+    let sti = |v: __m512i, a: &mut [i64; LANES]| _mm512_storeu_si512(a.as_mut_ptr() as *mut _, v);
+    st(tx, &mut f[0]);
+    st(ty, &mut f[1]);
+    st(t_in, &mut f[4]);
+    st(r, &mut f[7]);
+    sti(ix, &mut k[0]);
+    sti(iy, &mut k[1]);
+    sti(index, &mut k[2]);
+    sti(steps, &mut k[7]);
+    for (i, w) in walks.iter_mut().enumerate().take(n) {
+        if live & (1 << i) == 0 {
+            continue;
+        }
+        w.resume(
+            [f[0][i], f[1][i], f[4][i]],
+            [k[0][i], k[1][i], k[2][i]],
+            k[7][i] as usize,
+            ended & (1 << i) != 0,
+        );
+        reach[i] = f[7][i];
+    }
+}
