@@ -133,3 +133,108 @@ unsafe fn far_phase_avx512(walks: &mut [FastWalk], lo: &[f64], reach: &mut [f64]
         reach[i] = f[7][i];
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid::GridGeometry;
+
+    /// The scalar far phase the lanes must reproduce: consume reported cells while their
+    /// midpoint is below `lo`, multiplying the reach; stop before the first that is not.
+    fn scalar(walk: &mut FastWalk, lo: f64, means: &[f64]) -> f64 {
+        let mut reach = 1.0;
+        loop {
+            let before = walk.clone();
+            let Some(c) = walk.next() else {
+                return reach;
+            };
+            if 0.5 * (c.cell.t_in + c.cell.t_out) >= lo {
+                *walk = before;
+                return reach;
+            }
+            reach *= 1.0 - means[c.index as usize];
+        }
+    }
+
+    #[test]
+    fn lanes_equal_the_scalar_far_phase_bit_for_bit() {
+        if !crate::info::fastlog::has_avx512() {
+            eprintln!("skipped: this CPU has no AVX-512F (the scalar kernel runs instead)");
+            return;
+        }
+        let g = GridGeometry::new([0.013, -0.027], 0.2).unwrap();
+        let (ix0, iy0, nx) = (-60i64, -60i64, 121i64);
+        let mut state = 3u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let means: Vec<f64> = (0..nx * nx).map(|_| 0.05 + 0.9 * next()).collect();
+        for round in 0..400 {
+            let n = 1 + round % LANES;
+            let mut walks = Vec::new();
+            let mut lo = Vec::new();
+            for i in 0..n {
+                let angle = if round % 7 == 0 {
+                    (i as f64) * std::f64::consts::FRAC_PI_4
+                } else {
+                    7.0 * next() - 3.5
+                };
+                let origin = [2.0 * next() - 1.0, 2.0 * next() - 1.0];
+                let length = if i == 3 { 0.0 } else { 8.0 * next() };
+                walks.push(FastWalk::new(&g, origin, angle, length, (ix0, iy0, nx)));
+                lo.push(if i % 3 == 0 {
+                    f64::INFINITY
+                } else {
+                    9.0 * next()
+                });
+            }
+            let mut want = walks.clone();
+            let want_reach: Vec<f64> = want
+                .iter_mut()
+                .zip(&lo)
+                .map(|(w, &l)| scalar(w, l, &means))
+                .collect();
+            let mut reach = vec![1.0; n];
+            assert!(far_phase(&mut walks, &lo, &mut reach, &means));
+            for i in 0..n {
+                assert_eq!(
+                    reach[i].to_bits(),
+                    want_reach[i].to_bits(),
+                    "round {round} lane {i}"
+                );
+                let (a, b) = (walks[i].parts(), want[i].parts());
+                assert_eq!(
+                    (
+                        a.ix,
+                        a.iy,
+                        a.index,
+                        a.steps_left,
+                        a.done,
+                        a.tx.to_bits(),
+                        a.ty.to_bits(),
+                        a.t_in.to_bits()
+                    ),
+                    (
+                        b.ix,
+                        b.iy,
+                        b.index,
+                        b.steps_left,
+                        b.done,
+                        b.tx.to_bits(),
+                        b.ty.to_bits(),
+                        b.t_in.to_bits()
+                    ),
+                    "round {round} lane {i}"
+                );
+                // And the rest of the walk is the same.
+                assert_eq!(
+                    walks[i].clone().collect::<Vec<_>>(),
+                    want[i].clone().collect::<Vec<_>>()
+                );
+            }
+        }
+    }
+}
