@@ -1,5 +1,6 @@
 //! Confidence-rich maps: per-cell beliefs over occupancy levels and their beam update.
 
+mod batch;
 pub mod beam;
 mod far_simd;
 mod forward;

@@ -1,32 +1,21 @@
-//! Walking scans through a [`CrmMap`]: the predictive likelihood of a scan (crm-spec 4.1), the
-//! batch update with an optional fused weight (3.3, 4.3) through the windowed kernel or the
-//! full sweep, and the sequential update.
+//! Walking scans through a [`CrmMap`]: one ray's cells and coefficients, the predictive
+//! likelihood of a scan (crm-spec 4.1) and the sequential update (the batch scan is in
+//! `batch.rs`).
 
-use crate::crm::beam::{
-    check_scan, plan_beam, BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode,
-};
-use crate::crm::far_simd::{far_phase, LANES};
+use crate::crm::beam::{check_scan, plan_beam, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};
 use crate::crm::forward::mixture_log_eta_forward;
-use crate::crm::map::BeamJob;
 use crate::crm::map::{CrmMap, CrmScratch};
-use crate::crm::scan_cells::scan_window;
 use crate::crm::update::{apply_factor, cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
-use crate::crm::windowed::{WindowedBeam, WindowedScan};
 use crate::error::Result;
 use crate::grid::check_pose;
 use crate::raycast::traverse_with;
-use crate::raycast::FastWalk;
 use crate::sensor::{MixtureReading, SensorModel, SensorModelKind};
-
-/// Scan windows up to this many cells (8 m at 0.05 m, 25 m at 0.2 m) get a mean table of their
-/// own even when the map is not shared.
-const SMALL_WINDOW_CELLS: usize = 1 << 17;
 
 impl CrmMap {
     /// Traverses the ray of `plan`, filling `sc.cells` and `sc.mhat` (and `sc.ids` if
     /// `batch`, see [`Self::gather_cells`]). A fixed extent truncates the ray; a hit beyond the
     /// truncation becomes a no-return over the truncated ray (2.1).
-    fn gather_ray(&self, plan: &mut BeamPlan, sc: &mut CrmScratch, batch: bool) {
+    pub(super) fn gather_ray(&self, plan: &mut BeamPlan, sc: &mut CrmScratch, batch: bool) {
         let end = self.gather_cells(plan.origin, plan.angle, plan.length, sc, batch);
         self.truncation_to_no_return(plan, end);
     }
@@ -34,7 +23,7 @@ impl CrmMap {
     /// Traverses a ray of `length` (clipped to a fixed extent) into `sc.cells` / `sc.mhat`;
     /// returns where the traversal ended. With `batch`, the means come from the scan's cell
     /// table (each cell read once per scan) and `sc.ids` holds the cells' ids there.
-    fn gather_cells(
+    pub(super) fn gather_cells(
         &self,
         origin: [f64; 2],
         angle: f64,
@@ -67,14 +56,14 @@ impl CrmMap {
     }
 
     /// A hit beyond where a fixed extent cut the ray is a no-return over the cut ray (2.1).
-    fn truncation_to_no_return(&self, plan: &mut BeamPlan, end: f64) {
+    pub(super) fn truncation_to_no_return(&self, plan: &mut BeamPlan, end: f64) {
         if self.grid.fixed_extent().is_some() && !plan.no_return && end + 1e-9 < plan.z {
             plan.no_return = true;
         }
     }
 
     /// Computes α for the gathered ray into `sc.alpha` and returns log η (−∞ if unexplained).
-    fn beam_alpha(
+    pub(super) fn beam_alpha(
         &self,
         model: &SensorModel,
         plan: &BeamPlan,
@@ -120,7 +109,12 @@ impl CrmMap {
 
     /// The authors' MATLAB update restated (crm-spec 3.4): reach scaled by (1 − Δ·m̂), grid-index
     /// distances, no ∞ cause for hits. Returns log η and the equivalent α per cell.
-    fn authors_alpha(&self, model: &SensorModel, plan: &BeamPlan, sc: &mut CrmScratch) -> f64 {
+    pub(super) fn authors_alpha(
+        &self,
+        model: &SensorModel,
+        plan: &BeamPlan,
+        sc: &mut CrmScratch,
+    ) -> f64 {
         let g = self.grid.geometry();
         let res = g.resolution;
         let (rx, ry) = g.cell_of(plan.origin[0], plan.origin[1]);
@@ -206,385 +200,6 @@ impl CrmMap {
         Ok((total, used))
     }
 
-    /// Weighs a scan under the pre-update beliefs (Σ log η with `weight_model` over every
-    /// `weight_stride`-th beam, crm-spec 4.1) and then updates the map with `mapping_model`
-    /// (`opts`), walking each beam once. The result equals [`Self::scan_log_likelihood`] followed
-    /// by [`Self::update_scan`]; in batch mode both use the pre-scan beliefs, so one traversal
-    /// serves both (sequential mode falls back to the two calls). Returns (Σ log η, beams
-    /// weighed, update counters).
-    #[allow(clippy::too_many_arguments)]
-    pub fn weigh_and_update_scan(
-        &mut self,
-        pose: [f64; 3],
-        angles: &[f64],
-        ranges: &[f64],
-        weight_model: &SensorModel,
-        weight_stride: usize,
-        mapping_model: &SensorModel,
-        opts: &ScanOptions,
-        sc: &mut CrmScratch,
-    ) -> Result<(f64, usize, ScanStats)> {
-        let wopts = ScanOptions {
-            beam_stride: weight_stride,
-            ..*opts
-        };
-        if opts.mode != ScanUpdateMode::Batch {
-            let (ll, used) =
-                self.scan_log_likelihood(pose, angles, ranges, weight_model, &wopts, sc)?;
-            let st = self.update_scan(pose, angles, ranges, mapping_model, opts, sc)?;
-            return Ok((ll, used, st));
-        }
-        check_scan(angles, ranges, weight_model, &wopts)?;
-        self.batch_scan(
-            pose,
-            angles,
-            ranges,
-            Some((weight_model, weight_stride)),
-            mapping_model,
-            opts,
-            sc,
-            true,
-        )
-    }
-
-    /// The weight of [`Self::weigh_and_update_scan`] with the same arguments, bit for bit,
-    /// without updating the map: (Σ log η, beams weighed). A particle filter weighs every
-    /// particle this way and updates only the maps that resampling keeps (most of them are
-    /// dropped when the weights are peaked). The map is not changed (its storage may grow to
-    /// cover the scan, which changes no belief).
-    #[allow(clippy::too_many_arguments)]
-    pub fn weigh_scan(
-        &mut self,
-        pose: [f64; 3],
-        angles: &[f64],
-        ranges: &[f64],
-        weight_model: &SensorModel,
-        weight_stride: usize,
-        mapping_model: &SensorModel,
-        opts: &ScanOptions,
-        sc: &mut CrmScratch,
-    ) -> Result<(f64, usize)> {
-        let wopts = ScanOptions {
-            beam_stride: weight_stride,
-            ..*opts
-        };
-        if opts.mode != ScanUpdateMode::Batch {
-            return self.scan_log_likelihood(pose, angles, ranges, weight_model, &wopts, sc);
-        }
-        check_scan(angles, ranges, weight_model, &wopts)?;
-        let (ll, used, _) = self.batch_scan(
-            pose,
-            angles,
-            ranges,
-            Some((weight_model, weight_stride)),
-            mapping_model,
-            opts,
-            sc,
-            false,
-        )?;
-        Ok((ll, used))
-    }
-
-    /// The batch scan (crm-spec 3.3) with an optional weight: every beam's coefficients from
-    /// the pre-scan beliefs, one walk per beam for the weight and the update, factors multiplied
-    /// per cell and written back once. `opts.kernel` picks the windowed kernel where it applies.
-    /// With `update = false` only the weight is computed (the same, bit for bit).
-    #[allow(clippy::too_many_arguments)]
-    fn batch_scan(
-        &mut self,
-        pose: [f64; 3],
-        angles: &[f64],
-        ranges: &[f64],
-        weight: Option<(&SensorModel, usize)>,
-        mapping_model: &SensorModel,
-        opts: &ScanOptions,
-        sc: &mut CrmScratch,
-        update: bool,
-    ) -> Result<(f64, usize, ScanStats)> {
-        check_scan(angles, ranges, mapping_model, opts)?;
-        let z_max = weight.map_or(mapping_model.z_max, |(w, _)| {
-            w.z_max.max(mapping_model.z_max)
-        });
-        self.grid.prepare_scan(pose, z_max)?;
-        let res = self.grid.geometry().resolution;
-        let origin = [pose[0], pose[1]];
-        let mut st = ScanStats::default();
-        let windowed = if opts.kernel == BatchKernel::Windowed && self.grid.fixed_extent().is_none()
-        {
-            WindowedScan::new(mapping_model, weight.map(|(w, _)| w))
-        } else {
-            None
-        };
-        // The window's means in one table: read row by row, they cost less than the cells' first
-        // reads from the tiles (scattered along the beams) unless the window is much larger
-        // than what the scan touches (long ranges on fine grids); there only a table other
-        // copies of the map share pays for itself.
-        let window = scan_window(self.grid.geometry(), origin, z_max);
-        let small = window.n_cells() <= SMALL_WINDOW_CELLS;
-        let means = (windowed.is_some() && window.nx > 0 && (small || self.means.is_shared()))
-            .then(|| {
-                self.means.table(window, |rect, out| {
-                    // The rectangle is valid and `out` sized for it, so this cannot fail.
-                    let _ = self.means_into(rect, out);
-                })
-            });
-        sc.scan.begin(self.grid.geometry(), origin, z_max, means);
-        // Beam directions by the angle-sum rule from the scan's (cos, sin) table, which every
-        // particle of a filter shares: one sin/cos pair per beam and scan instead of per particle.
-        sc.directions.prepare(angles);
-        let (s0, c0) = pose[2].sin_cos();
-        let mut jobs = std::mem::take(&mut sc.jobs);
-        jobs.clear();
-        for b in 0..angles.len() {
-            let angle = pose[2] + angles[b];
-            let w_plan = match weight {
-                Some((w, stride)) if b % stride == 0 => {
-                    let wopts = ScanOptions {
-                        beam_stride: stride,
-                        ..*opts
-                    };
-                    plan_beam(w, &wopts, res, origin, angle, ranges[b]).ok()
-                }
-                _ => None,
-            };
-            let m_plan = if b % opts.beam_stride == 0 {
-                st.n_beams += 1;
-                let p = plan_beam(mapping_model, opts, res, origin, angle, ranges[b]).ok();
-                st.n_dropped_short += usize::from(p.is_none());
-                p
-            } else {
-                None
-            };
-            if (w_plan.is_none() && m_plan.is_none()) || (!update && w_plan.is_none()) {
-                continue;
-            }
-            jobs.push(BeamJob {
-                w_plan,
-                m_plan,
-                dir: sc.directions.rotated(b, c0, s0),
-            });
-        }
-        let weight_model = weight.map(|(w, _)| w);
-        let mut sums = (0.0, 0);
-        match &windowed {
-            // Weighing only: the far phases of eight beams at a time, then each beam on its own.
-            Some(k) if !update && sc.scan.mean_table().is_some() => {
-                for group in jobs.chunks(LANES) {
-                    let starts = self.far_phases(k, group, sc);
-                    for (job, start) in group.iter().zip(starts) {
-                        self.finish_beam(
-                            Some(k),
-                            weight_model,
-                            mapping_model,
-                            job,
-                            start,
-                            update,
-                            sc,
-                            &mut st,
-                            &mut sums,
-                        );
-                    }
-                }
-            }
-            k => {
-                for job in &jobs {
-                    self.finish_beam(
-                        k.as_ref(),
-                        weight_model,
-                        mapping_model,
-                        job,
-                        None,
-                        update,
-                        sc,
-                        &mut st,
-                        &mut sums,
-                    );
-                }
-            }
-        }
-        sc.jobs = jobs;
-        let (total, used) = sums;
-        if update {
-            self.means.invalidate();
-            sc.scan.write_back(&mut self.grid, &self.mu, self.floor)?;
-        }
-        Ok((total, used, st))
-    }
-
-    /// The far phases of a group of weighed beams, eight lanes wide ([`far_simd`]): for each
-    /// beam, the walk and reach where its far phase ended, or `None` (the kernel then walks the
-    /// beam alone) for a beam whose ray might leave the mean table, or on CPUs without AVX-512.
-    fn far_phases(
-        &self,
-        k: &WindowedScan,
-        group: &[BeamJob],
-        sc: &CrmScratch,
-    ) -> [Option<(FastWalk, f64)>; LANES] {
-        let mut out: [Option<(FastWalk, f64)>; LANES] = Default::default();
-        let Some(t) = sc.scan.mean_table() else {
-            return out;
-        };
-        let g = *self.grid.geometry();
-        let r = t.rect;
-        let mut walks = Vec::with_capacity(LANES);
-        let mut lanes = Vec::with_capacity(LANES);
-        let mut lo = Vec::with_capacity(LANES);
-        for (i, job) in group.iter().enumerate() {
-            let Some(w) = job.w_plan.as_ref() else {
-                continue;
-            };
-            let length = w.length.max(job.m_plan.map_or(0.0, |p| p.length));
-            // Every cell the ray can reach lies in the table (one cell of slack each side).
-            let (cx, cy) = g.cell_of(w.origin[0], w.origin[1]);
-            let reach_cells = (length / g.resolution).ceil() as i64 + 2;
-            let inside = cx - reach_cells >= r.ix0
-                && cy - reach_cells >= r.iy0
-                && cx + reach_cells < r.ix0 + r.nx
-                && cy + reach_cells < r.iy0 + r.ny;
-            if !inside {
-                continue;
-            }
-            walks.push(FastWalk::along(
-                &g,
-                w.origin,
-                job.dir,
-                length,
-                (r.ix0, r.iy0, r.nx),
-            ));
-            lo.push(k.far_end(w));
-            lanes.push(i);
-        }
-        let mut reach = vec![1.0; walks.len()];
-        if walks.is_empty() || !far_phase(&mut walks, &lo, &mut reach, &t.values) {
-            return out;
-        }
-        for ((i, w), r) in lanes.into_iter().zip(walks).zip(reach) {
-            out[i] = Some((w, r));
-        }
-        out
-    }
-
-    /// Weighs and (with `update`) updates one beam: the windowed kernel `k` where it can (from
-    /// the far phase's end when `start` is given), the full sweep where it cannot. Adds the
-    /// beam's log η and 1 to `sums` when it is weighed.
-    #[allow(clippy::too_many_arguments)]
-    fn finish_beam(
-        &self,
-        k: Option<&WindowedScan>,
-        weight_model: Option<&SensorModel>,
-        mapping_model: &SensorModel,
-        job: &BeamJob,
-        start: Option<(FastWalk, f64)>,
-        update: bool,
-        sc: &mut CrmScratch,
-        st: &mut ScanStats,
-        sums: &mut (f64, usize),
-    ) {
-        if let Some(k) = k {
-            let out = k.beam(
-                &self.grid,
-                &self.mu,
-                &mut sc.scan,
-                &mut sc.window,
-                job.w_plan.as_ref(),
-                job.m_plan.as_ref(),
-                job.dir,
-                update,
-                start,
-                st,
-            );
-            match out {
-                WindowedBeam::Done(log_eta) => {
-                    if let Some(l) = log_eta {
-                        sums.0 += l;
-                        sums.1 += 1;
-                    }
-                    return;
-                }
-                WindowedBeam::MapFullSweep(log_eta) => {
-                    if let Some(l) = log_eta {
-                        sums.0 += l;
-                        sums.1 += 1;
-                    }
-                    self.full_ray_beam(None, None, mapping_model, job.m_plan, 0.0, sc, st);
-                    return;
-                }
-                WindowedBeam::FullSweep => {}
-            }
-        }
-        let (ll, weighed) = self.full_ray_beam(
-            weight_model,
-            job.w_plan,
-            mapping_model,
-            if update { job.m_plan } else { None },
-            job.m_plan.map_or(0.0, |p| p.length),
-            sc,
-            st,
-        );
-        sums.0 += ll;
-        sums.1 += usize::from(weighed);
-    }
-
-    /// One beam of a batch scan by the full sweep ([`BatchKernel::FullRay`]): its weight (log η,
-    /// and whether it was weighed) and its factors into the scan table.
-    /// `walk_at_least` (m) lengthens the gathered ray as an update would (so that a weight-only
-    /// call sees the cells the updating one sees).
-    #[allow(clippy::too_many_arguments)]
-    fn full_ray_beam(
-        &self,
-        weight_model: Option<&SensorModel>,
-        w_plan: Option<BeamPlan>,
-        mapping_model: &SensorModel,
-        m_plan: Option<BeamPlan>,
-        walk_at_least: f64,
-        sc: &mut CrmScratch,
-        st: &mut ScanStats,
-    ) -> (f64, bool) {
-        let Some(any) = w_plan.or(m_plan) else {
-            return (0.0, false);
-        };
-        let length = w_plan
-            .map_or(0.0, |p| p.length)
-            .max(m_plan.map_or(0.0, |p| p.length))
-            .max(walk_at_least);
-        let end = self.gather_cells(any.origin, any.angle, length, sc, true);
-        let (mut total, mut weighed) = (0.0, false);
-        // The longer ray is evaluated first; the shorter one is then a prefix of it.
-        let weight_first = w_plan.map_or(0.0, |p| p.length) >= m_plan.map_or(0.0, |p| p.length);
-        for stage in 0..2 {
-            let is_weight = (stage == 0) == weight_first;
-            let Some(mut plan) = (if is_weight { w_plan } else { m_plan }) else {
-                continue;
-            };
-            truncate_ray(sc, plan.length);
-            let cut = end.min(plan.length);
-            self.truncation_to_no_return(&mut plan, cut);
-            if is_weight {
-                if let Some(w) = weight_model {
-                    total += self.beam_alpha(w, &plan, sc, false);
-                    weighed = true;
-                }
-                continue;
-            }
-            if sc.cells.is_empty() {
-                st.n_empty_ray += 1;
-                continue;
-            }
-            let log_eta = self.beam_alpha(mapping_model, &plan, sc, true);
-            if !log_eta.is_finite() {
-                st.n_skipped_eta += 1;
-                continue;
-            }
-            st.n_used += 1;
-            st.n_no_return += usize::from(plan.no_return);
-            for l in 0..sc.cells.len() {
-                sc.scan
-                    .apply(&self.grid, sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, st);
-            }
-        }
-        (total, weighed)
-    }
-
     /// Updates the map with one scan taken from the sensor pose `pose` (x, y, θ); beam b points
     /// at θ + angles[b] and read ranges[b] (crm-spec 3.1, 3.3).
     pub fn update_scan(
@@ -643,7 +258,13 @@ impl CrmMap {
         Ok(st)
     }
 
-    fn apply_to_cell(&mut self, ix: i64, iy: i64, alpha: f64, mhat: f64) -> Result<bool> {
+    pub(super) fn apply_to_cell(
+        &mut self,
+        ix: i64,
+        iy: i64,
+        alpha: f64,
+        mhat: f64,
+    ) -> Result<bool> {
         let k = self.mu.len();
         let mut p = [0.0f64; 65];
         let stored = self.grid.get(ix, iy);
@@ -664,21 +285,5 @@ impl CrmMap {
             dst[i] = p[i] as f32;
         }
         Ok(true)
-    }
-}
-
-/// Cuts a gathered ray to `length`: drops cells that start at or beyond it and ends the last
-/// chord there, exactly as a traversal of that length would have reported them.
-fn truncate_ray(sc: &mut CrmScratch, length: f64) {
-    let keep = sc
-        .cells
-        .iter()
-        .take_while(|c| c.t_in < length && length - c.t_in >= crate::raycast::MIN_CHORD)
-        .count();
-    sc.cells.truncate(keep);
-    sc.mhat.truncate(keep);
-    sc.ids.truncate(keep);
-    if let Some(last) = sc.cells.last_mut() {
-        last.t_out = last.t_out.min(length);
     }
 }

@@ -9,6 +9,7 @@ pub mod clam;
 pub mod common;
 pub mod lineage;
 pub mod ogm;
+mod proposal;
 pub mod scanmatch;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};

@@ -1,0 +1,213 @@
+//! RBPF-CLAM's likelihood-mode proposal (the CRM analogue of GMapping's improved proposal):
+//! hill-climb the predictive scan likelihood × motion density, evaluate it on a lattice around
+//! the mode, fit a Gaussian and draw from it (or keep the mode); the weight increment is the log
+//! of the lattice normaliser.
+
+use crate::crm::{CrmScratch, ScanOptions};
+use crate::error::Result;
+use crate::pose::{compose, wrap, Pose};
+use crate::rbpf::clam::{scan_opts, ClamConfig, ClamParticle, ClamProposal};
+use crate::rbpf::common::{ProposalPose, ScanInput};
+use crate::rng::Rng;
+
+/// Proposes the particle's new pose and the log-weight increment.
+pub(crate) fn propose(
+    cfg: &ClamConfig,
+    p: &ClamParticle,
+    u: Pose,
+    n_steps: usize,
+    scan: &ScanInput,
+    rng: &mut Rng,
+    sc: &mut CrmScratch,
+) -> Result<(Pose, f64)> {
+    let weight_opts = scan_opts(cfg, cfg.weight_stride);
+    let loglik = |pose: Pose, opts: &ScanOptions, sc: &mut CrmScratch| -> Result<f64> {
+        let sensor = compose(pose, scan.laser_offset);
+        let (ll, _) = p.map.scan_log_likelihood(
+            sensor,
+            scan.angles,
+            scan.ranges,
+            &cfg.weight_model,
+            opts,
+            sc,
+        )?;
+        Ok(ll)
+    };
+    match cfg.proposal {
+        ClamProposal::Odometry => {
+            let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
+            Ok((pose, loglik(pose, &weight_opts, sc)? / cfg.tempering))
+        }
+        ClamProposal::LikelihoodMode {
+            step,
+            iterations,
+            match_stride,
+            pose: pose_rule,
+        } => {
+            let match_opts = scan_opts(cfg, match_stride);
+            // With `Match` nothing is drawn after the climb, so the climb must start from a
+            // motion-model sample (as in GMapping): from the odometry guess, the children of one
+            // parent (same pose, same map) would stay identical copies for ever.
+            let guess = match pose_rule {
+                ProposalPose::Sample => compose(p.pose, u),
+                ProposalPose::Match => cfg.motion.sample(p.pose, u, n_steps, rng),
+            };
+            // The target is the proposal's own density, likelihood × motion prior: the prior keeps
+            // the climb from sliding along corridors of a poorly converged map.
+            let prior = |x: Pose| cfg.motion.log_density(p.pose, x, u, n_steps);
+            let mode = hill_climb(guess, step, iterations, |x| {
+                Ok(loglik(x, &match_opts, sc)? + prior(x))
+            })?;
+            // Lattice around the mode, at half the initial step: likelihood × motion density.
+            let fine = [step[0] / 2.0, step[1] / 2.0, step[2] / 2.0];
+            let mut pts = Vec::with_capacity(27);
+            let mut lw = Vec::with_capacity(27);
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dt in -1..=1 {
+                        let x = [
+                            mode[0] + dx as f64 * fine[0],
+                            mode[1] + dy as f64 * fine[1],
+                            wrap(mode[2] + dt as f64 * fine[2]),
+                        ];
+                        let l = loglik(x, &weight_opts, sc)? + prior(x);
+                        pts.push(x);
+                        lw.push(l);
+                    }
+                }
+            }
+            let m = lw.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            if !m.is_finite() {
+                // No lattice point is plausible under the motion model: fall back to odometry.
+                let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
+                return Ok((pose, loglik(pose, &weight_opts, sc)? / cfg.tempering));
+            }
+            let w: Vec<f64> = lw.iter().map(|l| (l - m).exp()).collect();
+            let s: f64 = w.iter().sum();
+            let log_norm = m + s.ln();
+            let pose = match pose_rule {
+                ProposalPose::Sample => sample_fitted_gaussian(&pts, &w, s, fine, rng),
+                ProposalPose::Match => mode,
+            };
+            Ok((pose, log_norm / cfg.tempering))
+        }
+    }
+}
+
+/// Coordinate hill climbing with step halving (GMapping's `optimize`, on any objective).
+fn hill_climb<F: FnMut(Pose) -> Result<f64>>(
+    start: Pose,
+    step: [f64; 3],
+    iterations: usize,
+    mut f: F,
+) -> Result<Pose> {
+    let mut best = start;
+    let mut best_v = f(start)?;
+    let mut st = step;
+    for _ in 0..=iterations {
+        let mut improved = true;
+        let mut guard = 0;
+        while improved && guard < 20 {
+            improved = false;
+            guard += 1;
+            for k in 0..6 {
+                let mut x = best;
+                let sign = if k % 2 == 0 { 1.0 } else { -1.0 };
+                x[k / 2] += sign * st[k / 2];
+                x[2] = wrap(x[2]);
+                let v = f(x)?;
+                if v > best_v {
+                    best_v = v;
+                    best = x;
+                    improved = true;
+                }
+            }
+        }
+        st = [st[0] / 2.0, st[1] / 2.0, st[2] / 2.0];
+    }
+    Ok(best)
+}
+
+/// Samples from the Gaussian fitted to weighted lattice points (circular in θ), with the
+/// covariance floored at a tenth of the lattice spacing so it stays positive definite.
+fn sample_fitted_gaussian(pts: &[Pose], w: &[f64], s: f64, fine: [f64; 3], rng: &mut Rng) -> Pose {
+    let (mut mx, mut my, mut ss, mut cc) = (0.0, 0.0, 0.0, 0.0);
+    for (p, &wi) in pts.iter().zip(w) {
+        mx += wi * p[0];
+        my += wi * p[1];
+        ss += wi * p[2].sin();
+        cc += wi * p[2].cos();
+    }
+    let mean = [mx / s, my / s, ss.atan2(cc)];
+    let mut cov = [[0.0f64; 3]; 3];
+    for (p, &wi) in pts.iter().zip(w) {
+        let d = [p[0] - mean[0], p[1] - mean[1], wrap(p[2] - mean[2])];
+        for a in 0..3 {
+            for b in 0..3 {
+                cov[a][b] += wi * d[a] * d[b] / s;
+            }
+        }
+    }
+    for a in 0..3 {
+        cov[a][a] += (0.1 * fine[a]).powi(2);
+    }
+    let l = cholesky3(cov);
+    let z = [rng.normal(), rng.normal(), rng.normal()];
+    [
+        mean[0] + l[0][0] * z[0],
+        mean[1] + l[1][0] * z[0] + l[1][1] * z[1],
+        wrap(mean[2] + l[2][0] * z[0] + l[2][1] * z[1] + l[2][2] * z[2]),
+    ]
+}
+
+/// Lower Cholesky factor of a symmetric positive (semi-)definite 3×3 matrix (non-positive
+/// pivots clamp to 0, so a degenerate direction gets no noise rather than NaN).
+fn cholesky3(a: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let mut l = [[0.0f64; 3]; 3];
+    for i in 0..3 {
+        for j in 0..=i {
+            let s: f64 = (0..j).map(|k| l[i][k] * l[j][k]).sum();
+            if i == j {
+                l[i][j] = (a[i][i] - s).max(0.0).sqrt();
+            } else {
+                l[i][j] = if l[j][j] > 0.0 {
+                    (a[i][j] - s) / l[j][j]
+                } else {
+                    0.0
+                };
+            }
+        }
+    }
+    l
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cholesky_reconstructs() {
+        let a = [[4.0, 2.0, 0.4], [2.0, 3.0, 0.1], [0.4, 0.1, 1.0]];
+        let l = cholesky3(a);
+        for i in 0..3 {
+            for j in 0..3 {
+                let v: f64 = (0..3).map(|k| l[i][k] * l[j][k]).sum();
+                assert!((v - a[i][j]).abs() < 1e-12);
+            }
+        }
+    }
+
+    #[test]
+    fn hill_climb_finds_a_quadratic_peak() {
+        let target = [0.23, -0.11, 0.07];
+        let best = hill_climb([0.0; 3], [0.1, 0.1, 0.05], 6, |x| {
+            Ok(-((x[0] - target[0]).powi(2)
+                + (x[1] - target[1]).powi(2)
+                + (x[2] - target[2]).powi(2)))
+        })
+        .unwrap();
+        for i in 0..3 {
+            assert!((best[i] - target[i]).abs() < 5e-3, "{best:?}");
+        }
+    }
+}
