@@ -22,7 +22,14 @@
 //! and W is chosen per scan so that the hit terms of the far cells are below 2^-60 of that floor.
 //! The far cells then contribute (1 − R_a)·w_r/z_max (their cause probabilities sum to
 //! 1 − R_a; their short term is 0 before the reading), and the cells past the mapping ray are
-//! summed forward until the rest of the ray cannot change η ([`super::forward`]'s rule).
+//! summed forward until the rest of the ray cannot change η ([`super::forward`]'s rule); past
+//! the hit reach their short terms are buffered and summed after the walk, a slice of
+//! exponentials at a time.
+//!
+//! The weight never depends on the update (a beam whose map part needs the full sweep keeps its
+//! windowed weight), so a weight-only call (`update = false`, used by a filter that updates only
+//! the maps resampling keeps) does none of the update's work and gives the same weight bit for
+//! bit; its far phases may then be walked eight beams at a time ([`super::far_simd`]).
 //!
 //! [`BatchKernel::Windowed`]: super::beam::BatchKernel::Windowed
 //! [`BatchKernel::FullRay`]: super::beam::BatchKernel::FullRay
