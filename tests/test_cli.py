@@ -77,6 +77,9 @@ def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.Capture
     assert figures["rbpf_clam_windowed_over_full_ray"] == pytest.approx(
         figures["rbpf_clam_scans_per_s_1079x100"] / figures["rbpf_clam_scans_per_s_1079x100_full_ray"], rel=0.02
     )
+    assert figures["rbpf_clam_over_ogm_1079x100"] == pytest.approx(
+        figures["rbpf_clam_scans_per_s_1079x100"] / figures["rbpf_ogm_scans_per_s_1079x100"], rel=0.02
+    )
     full = json.loads((tmp_path / "b.json").read_text())
     assert full["machine"]["cores"] >= 1 and full["threads"] == 1
 

@@ -292,3 +292,27 @@ pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure>
         secs,
     ))
 }
+
+/// RBPF-OGM in the Table I setting: 100 particles, 1079 beams over 270°, 8 m, 0.2 m grid, one
+/// thread (the same workload as [`rbpf_clam_scans`] with 1079 beams).
+pub fn rbpf_ogm_scans_table1(n_scans: usize) -> Result<BenchFigure> {
+    use crate::rbpf::{OgmFilterConfig, RbpfOgm};
+    let w = filter_workload(n_scans + 1, 1079, 270.0, 8.0)?;
+    let defaults = OgmFilterConfig::default();
+    let mut f = RbpfOgm::new(
+        OgmFilterConfig {
+            n_particles: 100,
+            geometry: GridGeometry::new(defaults.geometry.origin, 0.2)?,
+            ..defaults
+        },
+        w.odom[0],
+    )?;
+    let secs = time_filter(&w, n_scans, |s| f.process(s))?;
+    let unit = "processed scan (all particles: scan matching, improved proposal, map update; 0.2 m grid, 8 m, one thread)";
+    Ok(filter_figure(
+        "rbpf_ogm_scans_per_s_1079x100",
+        unit,
+        n_scans,
+        secs,
+    ))
+}

@@ -10,8 +10,8 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::{LogOddsGrid, LogOddsParams};
 use crlam_core::pose::{between, compose, wrap, Pose};
 use crlam_core::rbpf::{
-    FilterStep, OgmFilterConfig, PreparedScan, ProposalPose, RbpfOgm, ScanInput, ScanMatcher,
-    UpdateTrigger,
+    FilterStep, MatchSurface, OgmFilterConfig, PreparedScan, ProposalPose, RbpfOgm, ScanInput,
+    ScanMatcher, UpdateTrigger,
 };
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
@@ -365,25 +365,63 @@ fn scan_matcher_recovers_a_known_offset() {
     let ranges = cast(&truth, &angles, &occ);
     let map = reference_map(&truth, &angles, &ranges);
     let matcher = ScanMatcher::new(Default::default()).unwrap();
+    let tiles = MatchSurface::tiles(&map);
     for k in [3usize, 17, 29] {
         let p = truth[k];
         let scan = PreparedScan::new(&angles, &ranges[k], LASER, Z_MAX - 0.5, 1).unwrap();
-        let at_truth = matcher.evaluate(&map, &scan, p).unwrap();
+        let at_truth = matcher.evaluate(&tiles, &scan, p).unwrap();
         assert!(at_truth.matched > scan.len() * 3 / 4);
         for off in [[0.1, 0.0, 0.05], [0.0, -0.1, -0.05], [-0.07, 0.07, 0.05]] {
             let start = [p[0] + off[0], p[1] + off[1], wrap(p[2] + off[2])];
-            let (found, score) = matcher.optimize(&map, &scan, start).unwrap();
-            let before = matcher.evaluate(&map, &scan, start).unwrap().score;
+            let (found, score) = matcher.optimize(&tiles, &scan, start).unwrap();
+            let before = matcher.evaluate(&tiles, &scan, start).unwrap().score;
             assert!(score > before);
             assert!(
                 position_error(found, p) < RES && wrap(found[2] - p[2]).abs() < 0.01,
                 "scan {k} offset {off:?}: found {found:?}, truth {p:?}"
             );
             // The likelihood peaks at the truth, not at the offset start.
-            let l_start = matcher.evaluate(&map, &scan, start).unwrap().log_likelihood;
+            let l_start = matcher
+                .evaluate(&tiles, &scan, start)
+                .unwrap()
+                .log_likelihood;
             assert!(at_truth.log_likelihood > l_start);
         }
     }
+}
+
+/// The dense patch of cell classes is only a faster way to read the grid: matches, scores and
+/// likelihoods are the same to the bit with and without it, also when the climb starts far
+/// enough off that some reads fall outside the patch.
+#[test]
+fn match_surface_patch_changes_no_result() {
+    let occ = world();
+    let angles = angles();
+    let truth = truth_on_ellipse(40, 1.0);
+    let ranges = cast(&truth, &angles, &occ);
+    let map = reference_map(&truth, &angles, &ranges);
+    let tiles = MatchSurface::tiles(&map);
+    let mut patched = 0;
+    for stride in [1usize, 3] {
+        let matcher = ScanMatcher::new(Default::default()).unwrap();
+        for k in [3usize, 17, 29] {
+            let p = truth[k];
+            let scan = PreparedScan::new(&angles, &ranges[k], LASER, Z_MAX - 0.5, stride).unwrap();
+            for off in [[0.1, 0.0, 0.05], [-0.6, 0.9, -0.2], [1.5, -1.2, 0.4]] {
+                let start = [p[0] + off[0], p[1] + off[1], wrap(p[2] + off[2])];
+                let near = MatchSurface::around_within(&map, &scan, p, 1, 10_000);
+                patched += usize::from(near.has_patch());
+                let a = matcher.optimize(&tiles, &scan, start).unwrap();
+                let b = matcher.optimize(&near, &scan, start).unwrap();
+                assert_eq!(a.0.map(f64::to_bits), b.0.map(f64::to_bits));
+                assert_eq!(a.1.to_bits(), b.1.to_bits());
+                let fa = matcher.evaluate(&tiles, &scan, start).unwrap();
+                let fb = matcher.evaluate(&near, &scan, start).unwrap();
+                assert_eq!(fa, fb);
+            }
+        }
+    }
+    assert!(patched > 0, "no patch was built: the test compares nothing");
 }
 
 fn field_of(e: CrlamError) -> &'static str {

@@ -8,6 +8,7 @@
 pub mod clam;
 pub mod common;
 pub mod lineage;
+pub mod match_surface;
 pub mod ogm;
 mod proposal;
 pub mod scanmatch;
@@ -18,5 +19,6 @@ pub use common::{
     UpdateTrigger,
 };
 pub use lineage::{NodeId, PathTree, NO_NODE};
+pub use match_surface::MatchSurface;
 pub use ogm::{OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
 pub use scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};

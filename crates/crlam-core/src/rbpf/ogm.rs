@@ -257,7 +257,8 @@ fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Res
     let mut rng = Rng::stream(ctx.cfg.seed, ctx.step, index as u64);
     let prev = p.pose;
     let start = ctx.cfg.motion.sample(prev, ctx.u, ctx.n_steps, &mut rng);
-    let (matched, score) = ctx.matcher.optimize(&p.map, ctx.prepared, start)?;
+    let surface = ctx.matcher.surface(&p.map, ctx.prepared, start);
+    let (matched, score) = ctx.matcher.optimize(&surface, ctx.prepared, start)?;
     let accepted = score > ctx.cfg.proposal.min_score;
     let (pose, delta_log_w) = if accepted {
         let prior = MotionPrior::new(
@@ -268,7 +269,7 @@ fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Res
             ctx.cfg.motion_floor,
         );
         let draw = ctx.matcher.improved_proposal(
-            &p.map,
+            &surface,
             ctx.prepared,
             matched,
             |x| prior.log_density(x),
@@ -281,7 +282,7 @@ fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Res
         };
         (pose, draw.log_normalizer)
     } else {
-        let fit = ctx.matcher.evaluate(&p.map, ctx.prepared, start)?;
+        let fit = ctx.matcher.evaluate(&surface, ctx.prepared, start)?;
         (start, fit.log_likelihood)
     };
     p.pose = pose;
