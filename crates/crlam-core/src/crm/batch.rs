@@ -1,14 +1,14 @@
 //! The batch scan (crm-spec 3.3, 4.3): weight and update of every beam from the pre-scan beliefs,
-//! one walk per beam, through the windowed kernel (eight far phases at a time when only weighing)
-//! or the full sweep, and the factors written back once.
+//! one walk per beam, through the windowed kernel (eight far phases and tails at a time when only
+//! weighing) or the full sweep, and the factors written back once.
 
 use crate::crm::beam::{
     check_scan, plan_beam, BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode,
 };
-use crate::crm::far_simd::{far_phase, LANES};
+use crate::crm::far_simd::{far_phase, tail_phase, LANES};
 use crate::crm::map::{BeamJob, CrmMap, CrmScratch};
 use crate::crm::scan_cells::scan_window;
-use crate::crm::windowed::{WindowedBeam, WindowedScan};
+use crate::crm::windowed::{TailLane, WindowedBeam, WindowedScan};
 use crate::error::Result;
 use crate::raycast::FastWalk;
 use crate::sensor::SensorModel;
@@ -16,6 +16,31 @@ use crate::sensor::SensorModel;
 /// Scan windows up to this many cells (8 m at 0.05 m, 25 m at 0.2 m) get a mean table of their
 /// own even when the map is not shared.
 const SMALL_WINDOW_CELLS: usize = 1 << 17;
+
+/// A beam's part of a scan's weight.
+#[derive(Clone, Copy, Debug)]
+enum BeamOutcome {
+    /// Weighed: its log η.
+    Weighed(f64),
+    Unweighed,
+}
+
+impl From<Option<f64>> for BeamOutcome {
+    fn from(log_eta: Option<f64>) -> Self {
+        log_eta.map_or(Self::Unweighed, Self::Weighed)
+    }
+}
+
+impl BeamOutcome {
+    /// The full sweep's (log η, weighed); its log η is 0 when not weighed.
+    fn from_full_ray(ll: f64, weighed: bool) -> Self {
+        if weighed {
+            Self::Weighed(ll)
+        } else {
+            Self::Unweighed
+        }
+    }
+}
 
 impl CrmMap {
     /// Weighs a scan under the pre-update beliefs (Σ log η with `weight_model` over every
@@ -178,13 +203,25 @@ impl CrmMap {
         }
         let weight_model = weight.map(|(w, _)| w);
         let mut sums = (0.0, 0);
-        match &windowed {
-            // Weighing only: the far phases of eight beams at a time, then each beam on its own.
-            Some(k) if !update && sc.scan.mean_table().is_some() => {
+        let mut add = |out: BeamOutcome| {
+            if let BeamOutcome::Weighed(l) = out {
+                sums.0 += l;
+                sums.1 += 1;
+            }
+        };
+        match (&windowed, weight_model) {
+            // Weighing only: the far phases and then the tails of eight beams at a time, each
+            // beam's window on its own in between; the weights are summed in beam order.
+            (Some(k), Some(w)) if !update && sc.scan.mean_table().is_some() => {
+                let (mut lanes, mut lane_of) =
+                    (Vec::with_capacity(LANES), Vec::with_capacity(LANES));
                 for group in jobs.chunks(LANES) {
                     let starts = self.far_phases(k, group, sc);
-                    for (job, start) in group.iter().zip(starts) {
-                        self.finish_beam(
+                    let mut outs = [BeamOutcome::Unweighed; LANES];
+                    lanes.clear();
+                    lane_of.clear();
+                    for (i, (job, start)) in group.iter().zip(starts).enumerate() {
+                        match self.finish_beam(
                             Some(k),
                             weight_model,
                             mapping_model,
@@ -193,14 +230,25 @@ impl CrmMap {
                             update,
                             sc,
                             &mut st,
-                            &mut sums,
-                        );
+                        ) {
+                            Ok(out) => outs[i] = out,
+                            Err(lane) => {
+                                lanes.push(lane);
+                                lane_of.push(i);
+                            }
+                        }
                     }
+                    if !lanes.is_empty() {
+                        let tails = (&mut lanes[..], &lane_of[..]);
+                        self.finish_tails(w, mapping_model, group, tails, &mut outs, sc, &mut st);
+                    }
+                    outs[..group.len()].iter().for_each(|&o| add(o));
                 }
             }
-            k => {
+            (k, _) => {
                 for job in &jobs {
-                    self.finish_beam(
+                    // Without a far phase from the lanes no beam pauses at its tail.
+                    let out = self.finish_beam(
                         k.as_ref(),
                         weight_model,
                         mapping_model,
@@ -209,8 +257,8 @@ impl CrmMap {
                         update,
                         sc,
                         &mut st,
-                        &mut sums,
                     );
+                    add(out.unwrap_or_else(|_| unreachable!("a beam paused without lanes")));
                 }
             }
         }
@@ -276,10 +324,49 @@ impl CrmMap {
         out
     }
 
-    /// Weighs and (with `update`) updates one beam: the windowed kernel `k` where it can (from
-    /// the far phase's end when `start` is given), the full sweep where it cannot. Adds the
-    /// beam's log η and 1 to `sums` when it is weighed.
+    /// The tails of a group's paused beams (`lanes`, of the beams `group[lane_of[j]]`) eight
+    /// lanes wide, then each beam's weight into `outs`; a beam whose η underflows goes to the
+    /// full sweep (as all would where the lanes cannot run, which the far phase has excluded).
     #[allow(clippy::too_many_arguments)]
+    fn finish_tails(
+        &self,
+        weight_model: &SensorModel,
+        mapping_model: &SensorModel,
+        group: &[BeamJob],
+        (lanes, lane_of): (&mut [TailLane], &[usize]),
+        outs: &mut [BeamOutcome; LANES],
+        sc: &mut CrmScratch,
+        st: &mut ScanStats,
+    ) {
+        let walked = sc
+            .scan
+            .mean_table()
+            .is_some_and(|t| tail_phase(lanes, &t.values, -weight_model.lambda_short));
+        for (lane, &i) in lanes.iter().zip(lane_of) {
+            outs[i] = match lane.finish().filter(|_| walked) {
+                Some(l) => BeamOutcome::Weighed(l),
+                None => {
+                    let job = &group[i];
+                    let (ll, weighed) = self.full_ray_beam(
+                        Some(weight_model),
+                        job.w_plan,
+                        mapping_model,
+                        None,
+                        job.m_plan.map_or(0.0, |p| p.length),
+                        sc,
+                        st,
+                    );
+                    BeamOutcome::from_full_ray(ll, weighed)
+                }
+            };
+        }
+    }
+
+    /// Weighs and (with `update`) updates one beam: the windowed kernel `k` where it can (from
+    /// the far phase's end when `start` is given), the full sweep where it cannot. A weighed
+    /// beam given a `start` may instead come back paused at its tail (`Err`), for the lanes.
+    // A paused lane moves once into the group's lanes; boxing it would allocate per beam.
+    #[allow(clippy::too_many_arguments, clippy::result_large_err)]
     fn finish_beam(
         &self,
         k: Option<&WindowedScan>,
@@ -290,8 +377,7 @@ impl CrmMap {
         update: bool,
         sc: &mut CrmScratch,
         st: &mut ScanStats,
-        sums: &mut (f64, usize),
-    ) {
+    ) -> std::result::Result<BeamOutcome, TailLane> {
         if let Some(k) = k {
             let out = k.beam(
                 &self.grid,
@@ -306,21 +392,12 @@ impl CrmMap {
                 st,
             );
             match out {
-                WindowedBeam::Done(log_eta) => {
-                    if let Some(l) = log_eta {
-                        sums.0 += l;
-                        sums.1 += 1;
-                    }
-                    return;
-                }
+                WindowedBeam::Done(log_eta) => return Ok(BeamOutcome::from(log_eta)),
                 WindowedBeam::MapFullSweep(log_eta) => {
-                    if let Some(l) = log_eta {
-                        sums.0 += l;
-                        sums.1 += 1;
-                    }
                     self.full_ray_beam(None, None, mapping_model, job.m_plan, 0.0, sc, st);
-                    return;
+                    return Ok(BeamOutcome::from(log_eta));
                 }
+                WindowedBeam::Tail(lane) => return Err(lane),
                 WindowedBeam::FullSweep => {}
             }
         }
@@ -333,8 +410,7 @@ impl CrmMap {
             sc,
             st,
         );
-        sums.0 += ll;
-        sums.1 += usize::from(weighed);
+        Ok(BeamOutcome::from_full_ray(ll, weighed))
     }
 
     /// One beam of a batch scan by the full sweep ([`BatchKernel::FullRay`]): its weight (log η,

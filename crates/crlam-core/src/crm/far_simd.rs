@@ -1,4 +1,4 @@
-//! The far phase of up to eight weighed beams at once, eight AVX-512 lanes wide.
+//! The far phase and the tail of up to eight weighed beams at once, eight AVX-512 lanes wide.
 //!
 //! A weight needs nothing from the cells far before a reading (or from any cell of a no-return)
 //! but the reach R = Π (1 − m̂) ([`super::windowed`]): a walk, a mean and a product per cell,
@@ -8,7 +8,18 @@
 //! that is not far (left unconsumed, for the scalar kernel to take up), or its ray ends. Every
 //! lane ends in the state the scalar loop would have reached, bit for bit, so the kernel goes on
 //! from there as if it had walked alone.
+//!
+//! The tail of a weighed beam, past the mapping ray and the weight's hit reach, is again a walk
+//! with a little arithmetic per cell: each cause's probability π = R·m̂ goes into Σ π and, with
+//! e^{−λd}, into Σ π/(1 − e^{−λd}), until the stop rule of [`super::windowed`] holds or the ray
+//! ends. [`tail_phase`] walks the tails of the beams the kernel paused there
+//! ([`TailLane`]), with the scalar loop's operations in its order (the exponential is
+//! [`exp_for_sums_avx512`], lane for lane the scalar one), so every lane ends as the scalar
+//! loop would, bit for bit.
 
+use crate::crm::windowed::{TailLane, TAIL_EPS};
+#[cfg(target_arch = "x86_64")]
+use crate::info::fastmath::exp_for_sums_avx512;
 use crate::raycast::FastWalk;
 
 /// Lanes of the wide kernel.
@@ -131,6 +142,141 @@ unsafe fn far_phase_avx512(walks: &mut [FastWalk], lo: &[f64], reach: &mut [f64]
             ended & (1 << i) != 0,
         );
         reach[i] = f[7][i];
+    }
+}
+
+/// Walks the tails of `lanes` (at most [`LANES`], each paused by the windowed kernel at its
+/// first tail cell), reading m̂ from `means` at the walk's window index; `neg_lambda` is −λ of
+/// the weight model. Every walk's cells must lie inside `means`' window. Returns false, touching
+/// nothing, where the CPU lacks AVX-512F.
+pub(crate) fn tail_phase(lanes: &mut [TailLane], means: &[f64], neg_lambda: f64) -> bool {
+    assert!(lanes.len() <= LANES);
+    #[cfg(target_arch = "x86_64")]
+    {
+        if crate::info::fastlog::has_avx512() {
+            // SAFETY: the CPU has AVX-512F; the caller guarantees every index the walks reach
+            // lies in `means`.
+            unsafe { tail_phase_avx512(lanes, means, neg_lambda) };
+            return true;
+        }
+    }
+    let _ = (lanes, means, neg_lambda);
+    false
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn tail_phase_avx512(lanes: &mut [TailLane], means: &[f64], neg_lambda: f64) {
+    use std::arch::x86_64::*;
+    let mut f = [[0.0f64; LANES]; 12];
+    let mut k = [[0i64; LANES]; 8];
+    let mut live: u8 = 0;
+    for (i, l) in lanes.iter().enumerate() {
+        let s = l.walk.parts();
+        f[0][i] = s.tx;
+        f[1][i] = s.ty;
+        f[2][i] = s.dtx;
+        f[3][i] = s.dty;
+        f[4][i] = s.t_in;
+        f[5][i] = s.t_end;
+        f[6][i] = l.reach;
+        f[7][i] = l.mass;
+        f[8][i] = l.short;
+        f[9][i] = l.base;
+        f[10][i] = l.floor;
+        f[11][i] = l.sup_past;
+        k[0][i] = s.ix;
+        k[1][i] = s.iy;
+        k[2][i] = s.index;
+        k[3][i] = s.step_x;
+        k[4][i] = s.step_y;
+        k[5][i] = s.index_step_x;
+        k[6][i] = s.index_step_y;
+        k[7][i] = s.steps_left as i64;
+        if !s.done && s.steps_left > 0 {
+            live |= 1 << i;
+        }
+    }
+    let ld = |a: &[f64; LANES]| _mm512_loadu_pd(a.as_ptr());
+    let li = |a: &[i64; LANES]| _mm512_loadu_si512(a.as_ptr() as *const _);
+    let (mut tx, mut ty, dtx, dty) = (ld(&f[0]), ld(&f[1]), ld(&f[2]), ld(&f[3]));
+    let (mut t_in, t_end, mut reach) = (ld(&f[4]), ld(&f[5]), ld(&f[6]));
+    let (mut mass, mut short, base) = (ld(&f[7]), ld(&f[8]), ld(&f[9]));
+    let (floor, sup_past) = (ld(&f[10]), ld(&f[11]));
+    let (mut ix, mut iy, mut index) = (li(&k[0]), li(&k[1]), li(&k[2]));
+    let (sx, sy, isx, isy, mut steps) = (li(&k[3]), li(&k[4]), li(&k[5]), li(&k[6]), li(&k[7]));
+    let (half, one, min_chord) = (
+        _mm512_set1_pd(0.5),
+        _mm512_set1_pd(1.0),
+        _mm512_set1_pd(crate::raycast::MIN_CHORD),
+    );
+    let (neg_l, eps) = (_mm512_set1_pd(neg_lambda), _mm512_set1_pd(TAIL_EPS));
+    let (zero_i, one_i) = (_mm512_setzero_si512(), _mm512_set1_epi64(1));
+    let mut active: __mmask8 = live;
+    let mut ended: __mmask8 = 0;
+    let mut stopped: __mmask8 = 0;
+    while active != 0 {
+        // FastWalk::next, as in the far phase; every reported cell is a tail cell.
+        let along_x = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(tx, ty);
+        let near = _mm512_mask_blend_pd(along_x, ty, tx);
+        let near = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(t_end, near), near, t_end);
+        let t_out = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(near, t_in), near, t_in);
+        let take = active & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(_mm512_sub_pd(t_out, t_in), min_chord);
+        let d = _mm512_mul_pd(half, _mm512_add_pd(t_in, t_out));
+        let m = _mm512_mask_i64gather_pd::<8>(one, take, index, means.as_ptr());
+        // π = R m̂; Σ π; Σ π/(1 − e^{−λd}); R ← R (1 − m̂); the stop rule on the new R.
+        let pi = _mm512_mul_pd(reach, m);
+        let e = exp_for_sums_avx512(_mm512_mul_pd(neg_l, d));
+        let term = _mm512_div_pd(pi, _mm512_sub_pd(one, e));
+        short = _mm512_mask_add_pd(short, take, short, term);
+        mass = _mm512_mask_add_pd(mass, take, mass, pi);
+        reach = _mm512_mask_mul_pd(reach, take, reach, _mm512_sub_pd(one, m));
+        let total = _mm512_add_pd(base, _mm512_mul_pd(floor, mass));
+        let stop = take
+            & _mm512_cmp_pd_mask::<_CMP_LE_OQ>(
+                _mm512_mul_pd(reach, sup_past),
+                _mm512_mul_pd(total, eps),
+            );
+        stopped |= stop;
+        let done = active & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(t_out, t_end);
+        let (ax, ay) = (active & along_x, active & !along_x);
+        tx = _mm512_mask_add_pd(tx, ax, tx, dtx);
+        ty = _mm512_mask_add_pd(ty, ay, ty, dty);
+        ix = _mm512_mask_add_epi64(ix, ax, ix, sx);
+        iy = _mm512_mask_add_epi64(iy, ay, iy, sy);
+        index = _mm512_mask_add_epi64(index, ax, index, isx);
+        index = _mm512_mask_add_epi64(index, ay, index, isy);
+        t_in = _mm512_mask_mov_pd(t_in, active, t_out);
+        steps = _mm512_mask_sub_epi64(steps, active, steps, one_i);
+        ended |= done;
+        active = active & !done & !stop & _mm512_cmpgt_epi64_mask(steps, zero_i);
+    }
+    let st = |v: __m512d, a: &mut [f64; LANES]| _mm512_storeu_pd(a.as_mut_ptr(), v);
+    let sti = |v: __m512i, a: &mut [i64; LANES]| _mm512_storeu_si512(a.as_mut_ptr() as *mut _, v);
+    st(tx, &mut f[0]);
+    st(ty, &mut f[1]);
+    st(t_in, &mut f[4]);
+    st(reach, &mut f[6]);
+    st(mass, &mut f[7]);
+    st(short, &mut f[8]);
+    sti(ix, &mut k[0]);
+    sti(iy, &mut k[1]);
+    sti(index, &mut k[2]);
+    sti(steps, &mut k[7]);
+    for (i, l) in lanes.iter_mut().enumerate() {
+        if live & (1 << i) == 0 {
+            continue;
+        }
+        l.walk.resume(
+            [f[0][i], f[1][i], f[4][i]],
+            [k[0][i], k[1][i], k[2][i]],
+            k[7][i] as usize,
+            ended & (1 << i) != 0,
+        );
+        l.reach = f[6][i];
+        l.mass = f[7][i];
+        l.short = f[8][i];
+        l.stopped = stopped & (1 << i) != 0;
     }
 }
 

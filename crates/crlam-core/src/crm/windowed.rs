@@ -29,7 +29,8 @@
 //! The weight never depends on the update (a beam whose map part needs the full sweep keeps its
 //! windowed weight), so a weight-only call (`update = false`, used by a filter that updates only
 //! the maps resampling keeps) does none of the update's work and gives the same weight bit for
-//! bit; its far phases may then be walked eight beams at a time ([`super::far_simd`]).
+//! bit; its far phases and its tails may then be walked eight beams at a time
+//! ([`super::far_simd`]; the kernel pauses such a beam at its first tail cell, [`TailLane`]).
 //!
 //! [`BatchKernel::Windowed`]: super::beam::BatchKernel::Windowed
 //! [`BatchKernel::FullRay`]: super::beam::BatchKernel::FullRay
@@ -44,7 +45,7 @@ use crate::sensor::{
 };
 
 /// Relative size of what the window may ignore: far below half an ulp (2^-53).
-const TAIL_EPS: f64 = 1.0 / (1u64 << 60) as f64;
+pub(crate) const TAIL_EPS: f64 = 1.0 / (1u64 << 60) as f64;
 
 /// A factor within this of 1 (|α| small) is skipped; one within this of the pass shape
 /// (|α (1 − m̂) + 1| small) is counted as a pass. Both differ from the swept factor by less than
@@ -88,6 +89,18 @@ pub(crate) struct WindowScratch {
     tail_x: Vec<f64>,
 }
 
+impl WindowScratch {
+    /// Σ π / (1 − e^{−λd}) over the buffered tail, in walk order (consumes the exponents).
+    fn tail_short(&mut self) -> f64 {
+        crate::info::fastmath::exp_for_sums(&mut self.tail_x);
+        self.tail_pi
+            .iter()
+            .zip(&self.tail_x)
+            .map(|(&pi, &e)| pi / (1.0 - e))
+            .sum()
+    }
+}
+
 /// Per-scan constants of the windowed kernel; `None` from [`WindowedScan::new`] when the scan's
 /// models are not the ones it handles (the full sweep then does every beam).
 #[derive(Clone, Debug)]
@@ -106,6 +119,45 @@ pub(crate) struct WindowedScan<'a> {
     shared_hit: bool,
 }
 
+/// A weighed beam paused at its first buffered tail cell (past the mapping ray and the hit
+/// reach), for [`super::far_simd::tail_phase`] to walk the rest of its tail eight beams at a
+/// time and [`TailLane::finish`] to complete its weight: the state the scalar loop would carry.
+#[derive(Clone, Debug)]
+pub(crate) struct TailLane {
+    pub(crate) walk: FastWalk,
+    pub(crate) reach: f64,
+    /// Σ π over the tail so far.
+    pub(crate) mass: f64,
+    /// Σ π / (1 − e^{−λd}) over the tail so far, in walk order.
+    pub(crate) short: f64,
+    /// (1 − R_far)·far_like + η_w: the part of the stop rule's lower bound of η that the tail
+    /// does not change.
+    pub(crate) base: f64,
+    /// The mixture's floor w_r/z_max.
+    pub(crate) floor: f64,
+    /// Bound of every cause's likelihood past the mapping ray.
+    pub(crate) sup_past: f64,
+    /// The stop rule ended the walk (else the ray did).
+    pub(crate) stopped: bool,
+    far_term: f64,
+    eta_w: f64,
+    short_scale: f64,
+    infinity: f64,
+}
+
+impl TailLane {
+    /// The beam's log η, as the scalar loop completes it; `None` when η underflows (the caller
+    /// then sweeps the whole ray).
+    pub(crate) fn finish(&self) -> Option<f64> {
+        let eta_w = self.eta_w + (self.floor * self.mass + self.short_scale * self.short);
+        let mut eta = self.far_term + eta_w;
+        if !self.stopped {
+            eta += self.reach * self.infinity;
+        }
+        (eta >= LINEAR_ETA_MIN && eta.is_finite()).then(|| eta.ln())
+    }
+}
+
 /// What became of a beam.
 pub(crate) enum WindowedBeam {
     /// Applied to the scan table; the weight's log η when the beam is weighed.
@@ -115,6 +167,9 @@ pub(crate) enum WindowedBeam {
     MapFullSweep(Option<f64>),
     /// Nothing applied: the caller sweeps the whole ray for the weight and the update.
     FullSweep,
+    /// A weighed beam (weight only) paused at its tail (only when its far phase came from the
+    /// lanes, `start` given).
+    Tail(TailLane),
 }
 
 impl<'a> WindowedScan<'a> {
@@ -230,11 +285,13 @@ impl<'a> WindowedScan<'a> {
         let map_work = map_on && update;
         // Weighing only, the far phase may have been walked already (eight beams at a time).
         debug_assert!(start.is_none() || !update);
-        let (walk, mut reach) = match start {
+        // A beam whose far phase the lanes walked also leaves its tail to them.
+        let pause_at_tail = start.is_some();
+        let (mut walk, mut reach) = match start {
             Some(s) => s,
             None => (FastWalk::along(&g, origin, dir, length, window), 1.0),
         };
-        for wc in walk {
+        while let Some(wc) = walk.next() {
             let c = wc.cell;
             // Only an update needs the cell registered in the scan table.
             let (id, m) = if update {
@@ -262,6 +319,7 @@ impl<'a> WindowedScan<'a> {
             }
             let r_far = *reach_far.get_or_insert(reach);
             let mut hit = f64::NAN;
+            let mut in_tail = false;
             if let (Some(r), Some(w)) = (&reading, self.weight) {
                 if !in_map && map_on && d - z > self.weight_hit_reach {
                     // Past the reading and the hit reach: floor + short term, summed later.
@@ -269,6 +327,7 @@ impl<'a> WindowedScan<'a> {
                     ws.tail_pi.push(pi);
                     ws.tail_x.push(-w.lambda_short * d);
                     tail_mass += pi;
+                    in_tail = true;
                 } else {
                     hit = if (d - z).abs() <= self.weight_hit_reach {
                         w.hit_density_fast(z, d)
@@ -309,20 +368,30 @@ impl<'a> WindowedScan<'a> {
                     stopped = true;
                     break;
                 }
+                // Every later cell is a tail cell too (d and t_in only grow).
+                if in_tail && pause_at_tail {
+                    return WindowedBeam::Tail(TailLane {
+                        walk,
+                        reach,
+                        mass: tail_mass,
+                        short: ws.tail_short(),
+                        base: (1.0 - r_far) * far_like + eta_w,
+                        floor: r.rand_floor(),
+                        sup_past,
+                        stopped: false,
+                        far_term: (1.0 - r_far) * far_like,
+                        eta_w,
+                        short_scale: r.short_scale(),
+                        infinity: r.infinity(),
+                    });
+                }
             }
         }
         let r_far = reach_far.unwrap_or(reach);
 
         if let Some(r) = &reading {
             if !ws.tail_x.is_empty() {
-                crate::info::fastmath::exp_for_sums(&mut ws.tail_x);
-                let short: f64 = ws
-                    .tail_pi
-                    .iter()
-                    .zip(&ws.tail_x)
-                    .map(|(&pi, &e)| pi / (1.0 - e))
-                    .sum();
-                eta_w += r.rand_floor() * tail_mass + r.short_scale() * short;
+                eta_w += r.rand_floor() * tail_mass + r.short_scale() * ws.tail_short();
             }
         }
         let log_eta_w = match &reading {
@@ -450,8 +519,8 @@ mod tests {
         match out {
             WindowedBeam::Done(_) => true,
             WindowedBeam::MapFullSweep(_) => false,
-            WindowedBeam::FullSweep => {
-                panic!("the beam is not weighed: only the map can fall back")
+            WindowedBeam::FullSweep | WindowedBeam::Tail(_) => {
+                panic!("the beam is not weighed: only the map can fall back, nothing pauses")
             }
         }
     }

@@ -575,6 +575,60 @@ fn exp_for_sums_body(xs: &mut [f64]) {
     }
 }
 
+/// Eight lanes of [`exp_for_sums`]'s map, x ↦ `exp_in_range(x)` for x ≥ −708.3 and 0 below:
+/// the scalar operations, one for one and in the same order (no fused multiply-adds), so each
+/// lane equals the scalar result bit for bit. Inputs must not be NaN.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+pub(crate) unsafe fn exp_for_sums_avx512(
+    x: std::arch::x86_64::__m512d,
+) -> std::arch::x86_64::__m512d {
+    use std::arch::x86_64::*;
+    const LOG2E: f64 = std::f64::consts::LOG2_E;
+    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
+    const SHIFTER: f64 = 6_755_399_441_055_744.0;
+    let set = |v: f64| _mm512_set1_pd(v);
+    let (add, sub, mul) = (_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd);
+    // `clamp`: below the minimum the minimum, above the maximum the maximum.
+    let xc = _mm512_min_pd(_mm512_max_pd(x, set(EXP_MIN)), set(EXP_MAX));
+    let k = add(mul(xc, set(LOG2E)), set(SHIFTER));
+    let n = sub(k, set(SHIFTER));
+    let r = sub(sub(xc, mul(n, set(LN2_HI))), mul(n, set(LN2_LO)));
+    let r2 = mul(r, r);
+    let r4 = mul(r2, r2);
+    let r8 = mul(r4, r4);
+    let pair = |a: f64, b: f64| add(set(a), mul(r, set(b)));
+    let c01 = add(set(1.0), r);
+    let c23 = pair(1.0 / 2.0, 1.0 / 6.0);
+    let c45 = pair(1.0 / 24.0, 1.0 / 120.0);
+    let c67 = pair(1.0 / 720.0, 1.0 / 5_040.0);
+    let c89 = pair(1.0 / 40_320.0, 1.0 / 362_880.0);
+    let c1011 = pair(1.0 / 3_628_800.0, 1.0 / 39_916_800.0);
+    let c1213 = pair(1.0 / 479_001_600.0, 1.0 / 6_227_020_800.0);
+    let q0 = add(c01, mul(r2, c23));
+    let q1 = add(c45, mul(r2, c67));
+    let q2 = add(c89, mul(r2, c1011));
+    let poly = add(add(q0, mul(r4, q1)), mul(r8, add(q2, mul(r4, c1213))));
+    let ni = _mm512_sub_epi64(
+        _mm512_castpd_si512(k),
+        _mm512_set1_epi64(SHIFTER.to_bits() as i64),
+    );
+    let half = _mm512_srai_epi64::<1>(ni);
+    let bias = _mm512_set1_epi64(1023);
+    let s1 = _mm512_castsi512_pd(_mm512_slli_epi64::<52>(_mm512_add_epi64(half, bias)));
+    let s2 = _mm512_castsi512_pd(_mm512_slli_epi64::<52>(_mm512_add_epi64(
+        _mm512_sub_epi64(ni, half),
+        bias,
+    )));
+    let e = mul(mul(poly, s1), s2);
+    let below = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(x, set(EXP_MIN));
+    _mm512_mask_blend_pd(below, e, _mm512_setzero_pd())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -649,6 +703,41 @@ mod tests {
         for (x, o) in xs.iter().zip(&out) {
             let want = if *x < -708.3 { 0.0 } else { exp_in_range(*x) };
             assert_eq!(o.to_bits(), want.to_bits(), "{x}");
+        }
+    }
+
+    #[test]
+    fn eight_lane_exp_equals_the_slice_exp_bit_for_bit() {
+        #[cfg(target_arch = "x86_64")]
+        if crate::info::fastlog::has_avx512() {
+            let mut rng = crate::rng::Rng::new(5);
+            let xs: Vec<f64> = (0..4096)
+                .map(|i| match i % 13 {
+                    0 => f64::NEG_INFINITY,
+                    1 => -708.4,
+                    2 => -708.3,
+                    3 => 0.0,
+                    4 => -0.0,
+                    5 => 709.7,
+                    6 => -rng.uniform() * 720.0,
+                    7 => (rng.uniform() - 0.5) * 1400.0,
+                    _ => -rng.uniform() * 3.0,
+                })
+                .collect();
+            let mut want = xs.clone();
+            exp_for_sums(&mut want);
+            for (chunk, w) in xs.chunks(8).zip(want.chunks(8)) {
+                let mut got = [0.0; 8];
+                // SAFETY: the CPU supports AVX-512F, checked above.
+                unsafe {
+                    use std::arch::x86_64::*;
+                    let v = exp_for_sums_avx512(_mm512_loadu_pd(chunk.as_ptr()));
+                    _mm512_storeu_pd(got.as_mut_ptr(), v);
+                }
+                for (i, (g, w)) in got.iter().zip(w).enumerate() {
+                    assert_eq!(g.to_bits(), w.to_bits(), "{}", chunk[i]);
+                }
+            }
         }
     }
 
