@@ -209,10 +209,10 @@ pub struct RbpfClam {
 enum PendingUpdate {
     /// Every map was updated while weighing.
     None,
-    /// The odometry proposal weighed without updating: update with the fused call.
-    Fused,
-    /// The likelihood-mode proposal: update with the mapping model at the proposed pose.
-    Mapping,
+    /// The particles were only weighed: the maps resampling keeps are updated with the mapping
+    /// model at their poses (a map update does not depend on the weight, so this is the fused
+    /// call's update bit for bit, without walking the weight's part again).
+    Deferred,
 }
 
 pub(crate) fn scan_opts(cfg: &ClamConfig, stride: usize) -> ScanOptions {
@@ -332,9 +332,9 @@ impl RbpfClam {
         let step = self.step;
         let pending = match (cfg.defer_map_updates, cfg.proposal) {
             (false, _) => PendingUpdate::None,
-            (true, ClamProposal::Odometry) if self.last_resampled => PendingUpdate::Fused,
+            (true, ClamProposal::Odometry) if self.last_resampled => PendingUpdate::Deferred,
             (true, ClamProposal::Odometry) => PendingUpdate::None,
-            (true, _) => PendingUpdate::Mapping,
+            (true, _) => PendingUpdate::Deferred,
         };
         let results: Vec<Result<()>> = self
             .particles
@@ -349,7 +349,7 @@ impl RbpfClam {
                         // beliefs); a deferred update weighs alone, with the same weight.
                         let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
                         let sensor = compose(pose, scan.laser_offset);
-                        let ll = if pending == PendingUpdate::Fused {
+                        let ll = if pending == PendingUpdate::Deferred {
                             p.map
                                 .weigh_scan(
                                     sensor,
@@ -429,15 +429,7 @@ impl RbpfClam {
             .par_iter_mut()
             .zip(keep.par_iter())
             .filter(|(_, &k)| k)
-            .map(|(p, _)| {
-                with_thread_scratch(|sc| match pending {
-                    PendingUpdate::Fused => {
-                        let sensor = compose(p.pose, scan.laser_offset);
-                        fused_update(cfg, &mut p.map, sensor, scan, sc).map(|_| ())
-                    }
-                    _ => update_map_at_pose(cfg, p, scan, sc),
-                })
-            })
+            .map(|(p, _)| with_thread_scratch(|sc| update_map_at_pose(cfg, p, scan, sc)))
             .collect();
         results.into_iter().collect()
     }
