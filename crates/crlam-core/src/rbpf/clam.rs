@@ -94,9 +94,9 @@ pub struct ClamConfig {
     /// Update a particle's map only once resampling has kept it (every particle when there is no
     /// resampling). Exact: the weights use the pre-update maps and the updates do not depend on
     /// the weights, so the results are the same bit for bit; with peaked weights most particles
-    /// are dropped and their updates are saved. On by default; off for the paper's odometry
-    /// proposal it fuses weight and update into one walk of every beam, which is cheaper after a
-    /// step without resampling, so the filter defers only after a step that resampled.
+    /// are dropped and their updates are saved, and weighing alone walks eight beams at a time.
+    /// On by default; off, the odometry proposal fuses weight and update into one walk of each
+    /// beam (the reference the tests compare with).
     pub defer_map_updates: bool,
 }
 
@@ -200,8 +200,6 @@ pub struct RbpfClam {
     n_resamples: usize,
     n_processed: usize,
     paths: PathTree,
-    /// The last processed step resampled (the odometry proposal then defers its map updates).
-    last_resampled: bool,
 }
 
 /// How the maps of a step are brought up to date once resampling has decided which to keep.
@@ -260,7 +258,6 @@ impl RbpfClam {
             n_resamples: 0,
             n_processed: 0,
             paths: PathTree::default(),
-            last_resampled: false,
         })
     }
 
@@ -330,11 +327,10 @@ impl RbpfClam {
         self.step += 1;
         let cfg = &self.cfg;
         let step = self.step;
-        let pending = match (cfg.defer_map_updates, cfg.proposal) {
-            (false, _) => PendingUpdate::None,
-            (true, ClamProposal::Odometry) if self.last_resampled => PendingUpdate::Deferred,
-            (true, ClamProposal::Odometry) => PendingUpdate::None,
-            (true, _) => PendingUpdate::Deferred,
+        let pending = if cfg.defer_map_updates {
+            PendingUpdate::Deferred
+        } else {
+            PendingUpdate::None
         };
         let results: Vec<Result<()>> = self
             .particles
@@ -383,7 +379,6 @@ impl RbpfClam {
         self.paths
             .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
         let step_out = self.reweight_and_resample(pending, scan)?;
-        self.last_resampled = step_out.resampled;
         self.tracker.processed(scan.odom);
         self.estimate_odom = scan.odom;
         self.n_processed += 1;
