@@ -221,21 +221,20 @@ impl CrmMap {
                     lanes.clear();
                     lane_of.clear();
                     for (i, (job, start)) in group.iter().zip(starts).enumerate() {
+                        // A beam whose far phase the lanes walked leaves its tail to them too.
+                        let tails = start.is_some().then_some(&mut lanes);
                         match self.finish_beam(
                             Some(k),
                             weight_model,
                             mapping_model,
                             job,
-                            start,
+                            (start, tails),
                             update,
                             sc,
                             &mut st,
                         ) {
-                            Ok(out) => outs[i] = out,
-                            Err(lane) => {
-                                lanes.push(lane);
-                                lane_of.push(i);
-                            }
+                            Some(out) => outs[i] = out,
+                            None => lane_of.push(i),
                         }
                     }
                     if !lanes.is_empty() {
@@ -253,12 +252,12 @@ impl CrmMap {
                         weight_model,
                         mapping_model,
                         job,
-                        None,
+                        (None, None),
                         update,
                         sc,
                         &mut st,
                     );
-                    add(out.unwrap_or_else(|_| unreachable!("a beam paused without lanes")));
+                    add(out.unwrap_or_else(|| unreachable!("a beam paused without lanes")));
                 }
             }
         }
@@ -363,21 +362,21 @@ impl CrmMap {
     }
 
     /// Weighs and (with `update`) updates one beam: the windowed kernel `k` where it can (from
-    /// the far phase's end when `start` is given), the full sweep where it cannot. A weighed
-    /// beam given a `start` may instead come back paused at its tail (`Err`), for the lanes.
-    // A paused lane moves once into the group's lanes; boxing it would allocate per beam.
-    #[allow(clippy::too_many_arguments, clippy::result_large_err)]
+    /// the far phase's end when `start` is given), the full sweep where it cannot. Given
+    /// `tails`, a weighed beam may instead pause at its tail: its lane is pushed there for the
+    /// lanes to walk, and the result is `None`.
+    #[allow(clippy::too_many_arguments)]
     fn finish_beam(
         &self,
         k: Option<&WindowedScan>,
         weight_model: Option<&SensorModel>,
         mapping_model: &SensorModel,
         job: &BeamJob,
-        start: Option<(FastWalk, f64)>,
+        (start, tails): (Option<(FastWalk, f64)>, Option<&mut Vec<TailLane>>),
         update: bool,
         sc: &mut CrmScratch,
         st: &mut ScanStats,
-    ) -> std::result::Result<BeamOutcome, TailLane> {
+    ) -> Option<BeamOutcome> {
         if let Some(k) = k {
             let out = k.beam(
                 &self.grid,
@@ -389,15 +388,16 @@ impl CrmMap {
                 job.dir,
                 update,
                 start,
+                tails,
                 st,
             );
             match out {
-                WindowedBeam::Done(log_eta) => return Ok(BeamOutcome::from(log_eta)),
+                WindowedBeam::Done(log_eta) => return Some(BeamOutcome::from(log_eta)),
                 WindowedBeam::MapFullSweep(log_eta) => {
                     self.full_ray_beam(None, None, mapping_model, job.m_plan, 0.0, sc, st);
-                    return Ok(BeamOutcome::from(log_eta));
+                    return Some(BeamOutcome::from(log_eta));
                 }
-                WindowedBeam::Tail(lane) => return Err(lane),
+                WindowedBeam::Tail => return None,
                 WindowedBeam::FullSweep => {}
             }
         }
@@ -410,7 +410,7 @@ impl CrmMap {
             sc,
             st,
         );
-        Ok(BeamOutcome::from_full_ray(ll, weighed))
+        Some(BeamOutcome::from_full_ray(ll, weighed))
     }
 
     /// One beam of a batch scan by the full sweep ([`BatchKernel::FullRay`]): its weight (log η,

@@ -167,9 +167,9 @@ pub(crate) enum WindowedBeam {
     MapFullSweep(Option<f64>),
     /// Nothing applied: the caller sweeps the whole ray for the weight and the update.
     FullSweep,
-    /// A weighed beam (weight only) paused at its tail (only when its far phase came from the
-    /// lanes, `start` given).
-    Tail(TailLane),
+    /// A weighed beam (weight only) paused at its tail: its lane was pushed onto `tails` (only
+    /// when `tails` is given).
+    Tail,
 }
 
 impl<'a> WindowedScan<'a> {
@@ -239,6 +239,7 @@ impl<'a> WindowedScan<'a> {
         dir: [f64; 2],
         update: bool,
         start: Option<(FastWalk, f64)>,
+        mut tails: Option<&mut Vec<TailLane>>,
         st: &mut ScanStats,
     ) -> WindowedBeam {
         let Some(any) = w_plan.or(m_plan) else {
@@ -285,8 +286,6 @@ impl<'a> WindowedScan<'a> {
         let map_work = map_on && update;
         // Weighing only, the far phase may have been walked already (eight beams at a time).
         debug_assert!(start.is_none() || !update);
-        // A beam whose far phase the lanes walked also leaves its tail to them.
-        let pause_at_tail = start.is_some();
         let (mut walk, mut reach) = match start {
             Some(s) => s,
             None => (FastWalk::along(&g, origin, dir, length, window), 1.0),
@@ -369,8 +368,8 @@ impl<'a> WindowedScan<'a> {
                     break;
                 }
                 // Every later cell is a tail cell too (d and t_in only grow).
-                if in_tail && pause_at_tail {
-                    return WindowedBeam::Tail(TailLane {
+                if let (true, Some(tails)) = (in_tail, tails.as_deref_mut()) {
+                    tails.push(TailLane {
                         walk,
                         reach,
                         mass: tail_mass,
@@ -384,6 +383,7 @@ impl<'a> WindowedScan<'a> {
                         short_scale: r.short_scale(),
                         infinity: r.infinity(),
                     });
+                    return WindowedBeam::Tail;
                 }
             }
         }
@@ -514,12 +514,13 @@ mod tests {
             [1.0, 0.0],
             true,
             None,
+            None,
             &mut st,
         );
         match out {
             WindowedBeam::Done(_) => true,
             WindowedBeam::MapFullSweep(_) => false,
-            WindowedBeam::FullSweep | WindowedBeam::Tail(_) => {
+            WindowedBeam::FullSweep | WindowedBeam::Tail => {
                 panic!("the beam is not weighed: only the map can fall back, nothing pauses")
             }
         }
