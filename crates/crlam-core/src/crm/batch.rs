@@ -170,6 +170,19 @@ impl CrmMap {
         // particle of a filter shares: one sin/cos pair per beam and scan instead of per particle.
         sc.directions.prepare(angles);
         let (s0, c0) = pose[2].sin_cos();
+        // Likewise the readings' pose-independent constants, for the windowed kernel's weights.
+        let readings = match (&windowed, weight) {
+            (Some(_), Some((w, stride))) => {
+                let wopts = ScanOptions {
+                    beam_stride: stride,
+                    ..*opts
+                };
+                sc.readings
+                    .prepare(w, &wopts, mapping_model, opts, res, ranges);
+                Some(&sc.readings)
+            }
+            _ => None,
+        };
         let mut jobs = std::mem::take(&mut sc.jobs);
         jobs.clear();
         for b in 0..angles.len() {
@@ -199,6 +212,7 @@ impl CrmMap {
                 w_plan,
                 m_plan,
                 dir: sc.directions.rotated(b, c0, s0),
+                consts: readings.and_then(|t| t.get(b)),
             });
         }
         let weight_model = weight.map(|(w, _)| w);
@@ -383,9 +397,7 @@ impl CrmMap {
                 &self.mu,
                 &mut sc.scan,
                 &mut sc.window,
-                job.w_plan.as_ref(),
-                job.m_plan.as_ref(),
-                job.dir,
+                job,
                 update,
                 start,
                 tails,

@@ -7,6 +7,7 @@ mod forward;
 pub mod levels;
 pub mod map;
 mod mean_cache;
+mod reading_table;
 mod scan;
 mod scan_cells;
 pub mod update;

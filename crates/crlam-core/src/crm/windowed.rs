@@ -36,6 +36,7 @@
 //! [`BatchKernel::FullRay`]: super::beam::BatchKernel::FullRay
 
 use crate::crm::beam::{BeamPlan, ScanStats};
+use crate::crm::map::BeamJob;
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::update::LINEAR_ETA_MIN;
 use crate::grid::{GridGeometry, TiledGrid};
@@ -234,23 +235,28 @@ impl<'a> WindowedScan<'a> {
         mu: &[f64],
         scan: &mut ScanCells,
         ws: &mut WindowScratch,
-        w_plan: Option<&BeamPlan>,
-        m_plan: Option<&BeamPlan>,
-        dir: [f64; 2],
+        job: &BeamJob,
         update: bool,
         start: Option<(FastWalk, f64)>,
         mut tails: Option<&mut Vec<TailLane>>,
         st: &mut ScanStats,
     ) -> WindowedBeam {
+        let (w_plan, m_plan, dir) = (job.w_plan.as_ref(), job.m_plan.as_ref(), job.dir);
         let Some(any) = w_plan.or(m_plan) else {
             return WindowedBeam::Done(None);
         };
         let (origin, z, no_return) = (any.origin, any.z, any.no_return);
         let reading = match (self.weight, w_plan) {
-            (Some(w), Some(_)) => match MixtureReading::new(w, z) {
-                Some(r) => Some(r),
-                None => return WindowedBeam::FullSweep,
-            },
+            (Some(w), Some(_)) => {
+                let r = match job.consts {
+                    Some(c) => MixtureReading::with_short_numerator(w, z, c.short_numerator),
+                    None => MixtureReading::new(w, z),
+                };
+                match r {
+                    Some(r) => Some(r),
+                    None => return WindowedBeam::FullSweep,
+                }
+            }
             _ => None,
         };
         let m_len = m_plan.map_or(0.0, |p| p.length);
@@ -277,7 +283,9 @@ impl<'a> WindowedScan<'a> {
         // Past the mapping ray, every cause's L and L_∞ are below this (checked every cell); a
         // weight-only beam checks the bound at each cell's distance instead.
         let sup_past = match (&reading, map_on) {
-            (Some(r), true) => r.bound_beyond(m_len),
+            (Some(r), true) => job
+                .consts
+                .map_or_else(|| r.bound_beyond(m_len), |c| c.sup_past),
             _ => f64::INFINITY,
         };
         let Some(window) = scan.dense_window() else {
@@ -381,7 +389,7 @@ impl<'a> WindowedScan<'a> {
                         far_term: (1.0 - r_far) * far_like,
                         eta_w,
                         short_scale: r.short_scale(),
-                        infinity: r.infinity(),
+                        infinity: job.consts.map_or_else(|| r.infinity(), |c| c.infinity),
                     });
                     return WindowedBeam::Tail;
                 }
@@ -398,7 +406,7 @@ impl<'a> WindowedScan<'a> {
             Some(r) => {
                 let mut eta = (1.0 - r_far) * far_like + eta_w;
                 if !stopped {
-                    eta += reach * r.infinity();
+                    eta += reach * job.consts.map_or_else(|| r.infinity(), |c| c.infinity);
                 }
                 if !(eta >= LINEAR_ETA_MIN && eta.is_finite()) {
                     return WindowedBeam::FullSweep;
@@ -509,9 +517,12 @@ mod tests {
             map.levels(),
             &mut sc.scan,
             &mut sc.window,
-            None,
-            Some(&plan),
-            [1.0, 0.0],
+            &BeamJob {
+                w_plan: None,
+                m_plan: Some(plan),
+                dir: [1.0, 0.0],
+                consts: None,
+            },
             true,
             None,
             None,

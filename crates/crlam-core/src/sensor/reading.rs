@@ -18,18 +18,11 @@ pub struct MixtureReading<'a> {
 impl<'a> MixtureReading<'a> {
     /// The reading `z` (∞ or ≥ z_max: a no-return) under `model`; `None` unless it is the mixture.
     pub fn new(model: &'a SensorModel, z: f64) -> Option<Self> {
-        if model.kind != SensorModelKind::Mixture {
-            return None;
-        }
+        let mut r = Self::new_without_short(model, z)?;
         let l = model.lambda_short;
-        Some(Self {
-            model,
-            z,
-            no_return: model.is_no_return(z),
-            // The operations of `short_density` and `on_ray`, in their order.
-            short_numerator: l * (-l * z).exp(),
-            rand: model.w_rand / model.z_max,
-        })
+        // The operations of `short_density` and `on_ray`, in their order.
+        r.short_numerator = l * (-l * z).exp();
+        Some(r)
     }
 
     /// L_l for a cause occupying the chord [t_in, t_out].
@@ -71,6 +64,36 @@ impl<'a> MixtureReading<'a> {
     /// The model.
     pub fn model(&self) -> &SensorModel {
         self.model
+    }
+
+    /// [`Self::new`] with λ e^{−λz} already known (from an earlier `new` for the same model and
+    /// reading: [`Self::short_numerator`]), which is then not recomputed.
+    pub fn with_short_numerator(
+        model: &'a SensorModel,
+        z: f64,
+        short_numerator: f64,
+    ) -> Option<Self> {
+        let mut r = Self::new_without_short(model, z)?;
+        r.short_numerator = short_numerator;
+        Some(r)
+    }
+
+    fn new_without_short(model: &'a SensorModel, z: f64) -> Option<Self> {
+        if model.kind != SensorModelKind::Mixture {
+            return None;
+        }
+        Some(Self {
+            model,
+            z,
+            no_return: model.is_no_return(z),
+            short_numerator: f64::NAN,
+            rand: model.w_rand / model.z_max,
+        })
+    }
+
+    /// λ e^{−λz}, the numerator of the reading's short terms.
+    pub fn short_numerator(&self) -> f64 {
+        self.short_numerator
     }
 
     /// The reading (m; z_max or more for a no-return).
