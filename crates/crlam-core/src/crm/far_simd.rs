@@ -1,4 +1,5 @@
-//! The far phase and the tail of up to eight weighed beams at once, eight AVX-512 lanes wide.
+//! The far phase and the tail of up to sixteen weighed beams at once, in two sets of eight
+//! AVX-512 lanes.
 //!
 //! A weight needs nothing from the cells far before a reading (or from any cell of a no-return)
 //! but the reach R = Π (1 − m̂) ([`super::windowed`]): a walk, a mean and a product per cell,
@@ -16,14 +17,23 @@
 //! ([`TailLane`]), with the scalar loop's operations in its order (the exponential is
 //! [`exp_for_sums_avx512`], lane for lane the scalar one), so every lane ends as the scalar
 //! loop would, bit for bit.
+//!
+//! A lane's step is a chain of dependent operations (crossing, midpoint, compare, gather,
+//! product), so one set of eight lanes leaves the core waiting on latencies; two independent sets
+//! stepped in the same loop overlap their chains.
 
 use crate::crm::windowed::{TailLane, TAIL_EPS};
 #[cfg(target_arch = "x86_64")]
 use crate::info::fastmath::exp_for_sums_avx512;
 use crate::raycast::FastWalk;
+#[cfg(target_arch = "x86_64")]
+use std::arch::x86_64::*;
 
-/// Lanes of the wide kernel.
-pub(crate) const LANES: usize = 8;
+/// Lanes of one AVX-512 register of f64.
+const SET: usize = 8;
+
+/// Beams a call takes: two sets of lanes.
+pub(crate) const LANES: usize = 2 * SET;
 
 /// Runs the far phase of `walks` (at most [`LANES`]): lane i consumes cells while their chord
 /// midpoint is below `lo[i]` (+∞ for a no-return), multiplying `reach[i]` by 1 − m̂ with m̂ read
@@ -49,102 +59,6 @@ pub(crate) fn far_phase(
     false
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
-unsafe fn far_phase_avx512(walks: &mut [FastWalk], lo: &[f64], reach: &mut [f64], means: &[f64]) {
-    use std::arch::x86_64::*;
-    let n = walks.len();
-    let mut f = [[0.0f64; LANES]; 8];
-    let mut k = [[0i64; LANES]; 8];
-    let mut live: u8 = 0;
-    for (i, w) in walks.iter().enumerate() {
-        let s = w.parts();
-        f[0][i] = s.tx;
-        f[1][i] = s.ty;
-        f[2][i] = s.dtx;
-        f[3][i] = s.dty;
-        f[4][i] = s.t_in;
-        f[5][i] = s.t_end;
-        f[6][i] = lo[i];
-        f[7][i] = reach[i];
-        k[0][i] = s.ix;
-        k[1][i] = s.iy;
-        k[2][i] = s.index;
-        k[3][i] = s.step_x;
-        k[4][i] = s.step_y;
-        k[5][i] = s.index_step_x;
-        k[6][i] = s.index_step_y;
-        k[7][i] = s.steps_left as i64;
-        if !s.done && s.steps_left > 0 {
-            live |= 1 << i;
-        }
-    }
-    let ld = |a: &[f64; LANES]| _mm512_loadu_pd(a.as_ptr());
-    let li = |a: &[i64; LANES]| _mm512_loadu_si512(a.as_ptr() as *const _);
-    let (mut tx, mut ty, dtx, dty) = (ld(&f[0]), ld(&f[1]), ld(&f[2]), ld(&f[3]));
-    let (mut t_in, t_end, lo_v, mut r) = (ld(&f[4]), ld(&f[5]), ld(&f[6]), ld(&f[7]));
-    let (mut ix, mut iy, mut index) = (li(&k[0]), li(&k[1]), li(&k[2]));
-    let (sx, sy, isx, isy, mut steps) = (li(&k[3]), li(&k[4]), li(&k[5]), li(&k[6]), li(&k[7]));
-    let (half, one, min_chord) = (
-        _mm512_set1_pd(0.5),
-        _mm512_set1_pd(1.0),
-        _mm512_set1_pd(crate::raycast::MIN_CHORD),
-    );
-    let (zero_i, one_i) = (_mm512_setzero_si512(), _mm512_set1_epi64(1));
-    let mut active: __mmask8 = live;
-    let mut ended: __mmask8 = 0;
-    while active != 0 {
-        // FastWalk::next: the nearer crossing, cut at the ray's end, never before t_in.
-        let along_x = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(tx, ty);
-        let near = _mm512_mask_blend_pd(along_x, ty, tx);
-        let near = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(t_end, near), near, t_end);
-        let t_out = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(near, t_in), near, t_in);
-        let chord_ok = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(_mm512_sub_pd(t_out, t_in), min_chord);
-        let d = _mm512_mul_pd(half, _mm512_add_pd(t_in, t_out));
-        let far = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(d, lo_v);
-        // A reported cell that is not far stays for the scalar kernel: its lane stops unmoved.
-        let stop = active & chord_ok & !far;
-        let adv = active & !stop;
-        let take = adv & chord_ok;
-        let m = _mm512_mask_i64gather_pd::<8>(one, take, index, means.as_ptr());
-        r = _mm512_mask_mul_pd(r, take, r, _mm512_sub_pd(one, m));
-        let done = adv & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(t_out, t_end);
-        let (ax, ay) = (adv & along_x, adv & !along_x);
-        tx = _mm512_mask_add_pd(tx, ax, tx, dtx);
-        ty = _mm512_mask_add_pd(ty, ay, ty, dty);
-        ix = _mm512_mask_add_epi64(ix, ax, ix, sx);
-        iy = _mm512_mask_add_epi64(iy, ay, iy, sy);
-        index = _mm512_mask_add_epi64(index, ax, index, isx);
-        index = _mm512_mask_add_epi64(index, ay, index, isy);
-        t_in = _mm512_mask_mov_pd(t_in, adv, t_out);
-        steps = _mm512_mask_sub_epi64(steps, adv, steps, one_i);
-        ended |= done;
-        active = adv & !done & _mm512_cmpgt_epi64_mask(steps, zero_i);
-    }
-    let st = |v: __m512d, a: &mut [f64; LANES]| _mm512_storeu_pd(a.as_mut_ptr(), v);
-    let sti = |v: __m512i, a: &mut [i64; LANES]| _mm512_storeu_si512(a.as_mut_ptr() as *mut _, v);
-    st(tx, &mut f[0]);
-    st(ty, &mut f[1]);
-    st(t_in, &mut f[4]);
-    st(r, &mut f[7]);
-    sti(ix, &mut k[0]);
-    sti(iy, &mut k[1]);
-    sti(index, &mut k[2]);
-    sti(steps, &mut k[7]);
-    for (i, w) in walks.iter_mut().enumerate().take(n) {
-        if live & (1 << i) == 0 {
-            continue;
-        }
-        w.resume(
-            [f[0][i], f[1][i], f[4][i]],
-            [k[0][i], k[1][i], k[2][i]],
-            k[7][i] as usize,
-            ended & (1 << i) != 0,
-        );
-        reach[i] = f[7][i];
-    }
-}
-
 /// Walks the tails of `lanes` (at most [`LANES`], each paused by the windowed kernel at its
 /// first tail cell), reading m̂ from `means` at the walk's window index; `neg_lambda` is −λ of
 /// the weight model. Every walk's cells must lie inside `means`' window. Returns false, touching
@@ -164,120 +78,332 @@ pub(crate) fn tail_phase(lanes: &mut [TailLane], means: &[f64], neg_lambda: f64)
     false
 }
 
+/// Eight [`FastWalk`]s stepped together, with the operations of `next` in its order.
+#[cfg(target_arch = "x86_64")]
+struct WalkLanes {
+    tx: __m512d,
+    ty: __m512d,
+    dtx: __m512d,
+    dty: __m512d,
+    t_in: __m512d,
+    t_end: __m512d,
+    ix: __m512i,
+    iy: __m512i,
+    index: __m512i,
+    sx: __m512i,
+    sy: __m512i,
+    isx: __m512i,
+    isy: __m512i,
+    steps: __m512i,
+    /// Lanes holding a walk that has cells left.
+    live: __mmask8,
+    /// Lanes whose walk reached its end (`done`).
+    ended: __mmask8,
+}
+
+/// The next crossing of a set of walks: where the current cell is left, whether its chord is
+/// reported (≥ MIN_CHORD), and whether the walk leaves it through an x crossing.
+#[cfg(target_arch = "x86_64")]
+struct Crossing {
+    t_out: __m512d,
+    reported: __mmask8,
+    along_x: __mmask8,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl WalkLanes {
+    #[target_feature(enable = "avx512f")]
+    unsafe fn load<'w>(walks: impl Iterator<Item = &'w FastWalk>) -> Self {
+        let mut f = [[0.0f64; SET]; 6];
+        let mut k = [[0i64; SET]; 8];
+        let mut live: __mmask8 = 0;
+        for (i, w) in walks.enumerate() {
+            let s = w.parts();
+            [f[0][i], f[1][i], f[2][i], f[3][i], f[4][i], f[5][i]] =
+                [s.tx, s.ty, s.dtx, s.dty, s.t_in, s.t_end];
+            [
+                k[0][i], k[1][i], k[2][i], k[3][i], k[4][i], k[5][i], k[6][i],
+            ] = [
+                s.ix,
+                s.iy,
+                s.index,
+                s.step_x,
+                s.step_y,
+                s.index_step_x,
+                s.index_step_y,
+            ];
+            k[7][i] = s.steps_left as i64;
+            if !s.done && s.steps_left > 0 {
+                live |= 1 << i;
+            }
+        }
+        let ld = |a: &[f64; SET]| _mm512_loadu_pd(a.as_ptr());
+        let li = |a: &[i64; SET]| _mm512_loadu_si512(a.as_ptr() as *const _);
+        Self {
+            tx: ld(&f[0]),
+            ty: ld(&f[1]),
+            dtx: ld(&f[2]),
+            dty: ld(&f[3]),
+            t_in: ld(&f[4]),
+            t_end: ld(&f[5]),
+            ix: li(&k[0]),
+            iy: li(&k[1]),
+            index: li(&k[2]),
+            sx: li(&k[3]),
+            sy: li(&k[4]),
+            isx: li(&k[5]),
+            isy: li(&k[6]),
+            steps: li(&k[7]),
+            live,
+            ended: 0,
+        }
+    }
+
+    /// FastWalk::next's crossing: the nearer one, cut at the ray's end, never before t_in.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn crossing(&self) -> Crossing {
+        let along_x = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(self.tx, self.ty);
+        let near = _mm512_mask_blend_pd(along_x, self.ty, self.tx);
+        let near = _mm512_mask_blend_pd(
+            _mm512_cmp_pd_mask::<_CMP_LT_OQ>(self.t_end, near),
+            near,
+            self.t_end,
+        );
+        let t_out = _mm512_mask_blend_pd(
+            _mm512_cmp_pd_mask::<_CMP_LT_OQ>(near, self.t_in),
+            near,
+            self.t_in,
+        );
+        let min_chord = _mm512_set1_pd(crate::raycast::MIN_CHORD);
+        let reported = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(_mm512_sub_pd(t_out, self.t_in), min_chord);
+        Crossing {
+            t_out,
+            reported,
+            along_x,
+        }
+    }
+
+    /// Moves the lanes `adv` past the cell of `c`; returns the lanes that still have cells.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn advance(&mut self, adv: __mmask8, c: &Crossing) -> __mmask8 {
+        let done = adv & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(c.t_out, self.t_end);
+        let (ax, ay) = (adv & c.along_x, adv & !c.along_x);
+        self.tx = _mm512_mask_add_pd(self.tx, ax, self.tx, self.dtx);
+        self.ty = _mm512_mask_add_pd(self.ty, ay, self.ty, self.dty);
+        self.ix = _mm512_mask_add_epi64(self.ix, ax, self.ix, self.sx);
+        self.iy = _mm512_mask_add_epi64(self.iy, ay, self.iy, self.sy);
+        self.index = _mm512_mask_add_epi64(self.index, ax, self.index, self.isx);
+        self.index = _mm512_mask_add_epi64(self.index, ay, self.index, self.isy);
+        self.t_in = _mm512_mask_mov_pd(self.t_in, adv, c.t_out);
+        self.steps = _mm512_mask_sub_epi64(self.steps, adv, self.steps, _mm512_set1_epi64(1));
+        self.ended |= done;
+        adv & !done & _mm512_cmpgt_epi64_mask(self.steps, _mm512_setzero_si512())
+    }
+
+    /// Hands each live lane's state back to its walk.
+    #[target_feature(enable = "avx512f")]
+    unsafe fn store<'w>(&self, walks: impl Iterator<Item = &'w mut FastWalk>) {
+        let mut f = [[0.0f64; SET]; 3];
+        let mut k = [[0i64; SET]; 4];
+        let st = |v: __m512d, a: &mut [f64; SET]| _mm512_storeu_pd(a.as_mut_ptr(), v);
+        let sti = |v: __m512i, a: &mut [i64; SET]| _mm512_storeu_si512(a.as_mut_ptr() as *mut _, v);
+        st(self.tx, &mut f[0]);
+        st(self.ty, &mut f[1]);
+        st(self.t_in, &mut f[2]);
+        sti(self.ix, &mut k[0]);
+        sti(self.iy, &mut k[1]);
+        sti(self.index, &mut k[2]);
+        sti(self.steps, &mut k[3]);
+        for (i, w) in walks.enumerate() {
+            if self.live & (1 << i) != 0 {
+                w.resume(
+                    [f[0][i], f[1][i], f[2][i]],
+                    [k[0][i], k[1][i], k[2][i]],
+                    k[3][i] as usize,
+                    self.ended & (1 << i) != 0,
+                );
+            }
+        }
+    }
+}
+
+/// One set of far-phase lanes.
+#[cfg(target_arch = "x86_64")]
+struct FarLanes {
+    walk: WalkLanes,
+    lo: __m512d,
+    reach: __m512d,
+    active: __mmask8,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl FarLanes {
+    #[target_feature(enable = "avx512f")]
+    unsafe fn load(walks: &[FastWalk], lo: &[f64], reach: &[f64]) -> Self {
+        let (mut l, mut r) = ([0.0; SET], [0.0; SET]);
+        l[..lo.len()].copy_from_slice(lo);
+        r[..reach.len()].copy_from_slice(reach);
+        let walk = WalkLanes::load(walks.iter());
+        let active = walk.live;
+        Self {
+            walk,
+            lo: _mm512_loadu_pd(l.as_ptr()),
+            reach: _mm512_loadu_pd(r.as_ptr()),
+            active,
+        }
+    }
+
+    /// One cell of every active lane: a reported cell that is not far stays for the scalar
+    /// kernel (its lane stops unmoved); a far one multiplies the reach.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn step(&mut self, means: &[f64]) {
+        let c = self.walk.crossing();
+        let d = _mm512_mul_pd(_mm512_set1_pd(0.5), _mm512_add_pd(self.walk.t_in, c.t_out));
+        let far = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(d, self.lo);
+        let stop = self.active & c.reported & !far;
+        let adv = self.active & !stop;
+        let take = adv & c.reported;
+        let one = _mm512_set1_pd(1.0);
+        let m = _mm512_mask_i64gather_pd::<8>(one, take, self.walk.index, means.as_ptr());
+        self.reach = _mm512_mask_mul_pd(self.reach, take, self.reach, _mm512_sub_pd(one, m));
+        self.active = self.walk.advance(adv, &c);
+    }
+
+    #[target_feature(enable = "avx512f")]
+    unsafe fn store(&self, walks: &mut [FastWalk], reach: &mut [f64]) {
+        let mut r = [0.0; SET];
+        _mm512_storeu_pd(r.as_mut_ptr(), self.reach);
+        self.walk.store(walks.iter_mut());
+        for (i, out) in reach.iter_mut().enumerate() {
+            if self.walk.live & (1 << i) != 0 {
+                *out = r[i];
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn far_phase_avx512(walks: &mut [FastWalk], lo: &[f64], reach: &mut [f64], means: &[f64]) {
+    let split = walks.len().min(SET);
+    let (wa, wb) = walks.split_at_mut(split);
+    let (la, lb) = lo.split_at(split);
+    let (ra, rb) = reach.split_at_mut(split);
+    let mut a = FarLanes::load(wa, la, ra);
+    let mut b = FarLanes::load(wb, lb, rb);
+    while a.active | b.active != 0 {
+        if a.active != 0 {
+            a.step(means);
+        }
+        if b.active != 0 {
+            b.step(means);
+        }
+    }
+    a.store(wa, ra);
+    b.store(wb, rb);
+}
+
+/// One set of tail lanes (the sums of [`TailLane`]).
+#[cfg(target_arch = "x86_64")]
+struct TailLanes {
+    walk: WalkLanes,
+    reach: __m512d,
+    mass: __m512d,
+    short: __m512d,
+    base: __m512d,
+    floor: __m512d,
+    sup_past: __m512d,
+    active: __mmask8,
+    stopped: __mmask8,
+}
+
+#[cfg(target_arch = "x86_64")]
+impl TailLanes {
+    #[target_feature(enable = "avx512f")]
+    unsafe fn load(lanes: &[TailLane]) -> Self {
+        let mut f = [[0.0f64; SET]; 6];
+        for (i, l) in lanes.iter().enumerate() {
+            [f[0][i], f[1][i], f[2][i], f[3][i], f[4][i], f[5][i]] =
+                [l.reach, l.mass, l.short, l.base, l.floor, l.sup_past];
+        }
+        let ld = |a: &[f64; SET]| _mm512_loadu_pd(a.as_ptr());
+        let walk = WalkLanes::load(lanes.iter().map(|l| &l.walk));
+        let active = walk.live;
+        Self {
+            walk,
+            reach: ld(&f[0]),
+            mass: ld(&f[1]),
+            short: ld(&f[2]),
+            base: ld(&f[3]),
+            floor: ld(&f[4]),
+            sup_past: ld(&f[5]),
+            active,
+            stopped: 0,
+        }
+    }
+
+    /// One cell of every active lane (every reported cell is a tail cell): π = R m̂; Σ π;
+    /// Σ π/(1 − e^{−λd}); R ← R (1 − m̂); then the stop rule on the new R.
+    #[target_feature(enable = "avx512f")]
+    #[inline]
+    unsafe fn step(&mut self, means: &[f64], neg_lambda: __m512d) {
+        let c = self.walk.crossing();
+        let take = self.active & c.reported;
+        let d = _mm512_mul_pd(_mm512_set1_pd(0.5), _mm512_add_pd(self.walk.t_in, c.t_out));
+        let one = _mm512_set1_pd(1.0);
+        let m = _mm512_mask_i64gather_pd::<8>(one, take, self.walk.index, means.as_ptr());
+        let pi = _mm512_mul_pd(self.reach, m);
+        let e = exp_for_sums_avx512(_mm512_mul_pd(neg_lambda, d));
+        let term = _mm512_div_pd(pi, _mm512_sub_pd(one, e));
+        self.short = _mm512_mask_add_pd(self.short, take, self.short, term);
+        self.mass = _mm512_mask_add_pd(self.mass, take, self.mass, pi);
+        self.reach = _mm512_mask_mul_pd(self.reach, take, self.reach, _mm512_sub_pd(one, m));
+        let total = _mm512_add_pd(self.base, _mm512_mul_pd(self.floor, self.mass));
+        let stop = take
+            & _mm512_cmp_pd_mask::<_CMP_LE_OQ>(
+                _mm512_mul_pd(self.reach, self.sup_past),
+                _mm512_mul_pd(total, _mm512_set1_pd(TAIL_EPS)),
+            );
+        self.stopped |= stop;
+        self.active = self.walk.advance(self.active, &c) & !stop;
+    }
+
+    #[target_feature(enable = "avx512f")]
+    unsafe fn store(&self, lanes: &mut [TailLane]) {
+        let mut f = [[0.0f64; SET]; 3];
+        _mm512_storeu_pd(f[0].as_mut_ptr(), self.reach);
+        _mm512_storeu_pd(f[1].as_mut_ptr(), self.mass);
+        _mm512_storeu_pd(f[2].as_mut_ptr(), self.short);
+        self.walk.store(lanes.iter_mut().map(|l| &mut l.walk));
+        for (i, l) in lanes.iter_mut().enumerate() {
+            if self.walk.live & (1 << i) != 0 {
+                [l.reach, l.mass, l.short] = [f[0][i], f[1][i], f[2][i]];
+                l.stopped = self.stopped & (1 << i) != 0;
+            }
+        }
+    }
+}
+
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 unsafe fn tail_phase_avx512(lanes: &mut [TailLane], means: &[f64], neg_lambda: f64) {
-    use std::arch::x86_64::*;
-    let mut f = [[0.0f64; LANES]; 12];
-    let mut k = [[0i64; LANES]; 8];
-    let mut live: u8 = 0;
-    for (i, l) in lanes.iter().enumerate() {
-        let s = l.walk.parts();
-        f[0][i] = s.tx;
-        f[1][i] = s.ty;
-        f[2][i] = s.dtx;
-        f[3][i] = s.dty;
-        f[4][i] = s.t_in;
-        f[5][i] = s.t_end;
-        f[6][i] = l.reach;
-        f[7][i] = l.mass;
-        f[8][i] = l.short;
-        f[9][i] = l.base;
-        f[10][i] = l.floor;
-        f[11][i] = l.sup_past;
-        k[0][i] = s.ix;
-        k[1][i] = s.iy;
-        k[2][i] = s.index;
-        k[3][i] = s.step_x;
-        k[4][i] = s.step_y;
-        k[5][i] = s.index_step_x;
-        k[6][i] = s.index_step_y;
-        k[7][i] = s.steps_left as i64;
-        if !s.done && s.steps_left > 0 {
-            live |= 1 << i;
+    let (la, lb) = lanes.split_at_mut(lanes.len().min(SET));
+    let neg_lambda = _mm512_set1_pd(neg_lambda);
+    let mut a = TailLanes::load(la);
+    let mut b = TailLanes::load(lb);
+    while a.active | b.active != 0 {
+        if a.active != 0 {
+            a.step(means, neg_lambda);
+        }
+        if b.active != 0 {
+            b.step(means, neg_lambda);
         }
     }
-    let ld = |a: &[f64; LANES]| _mm512_loadu_pd(a.as_ptr());
-    let li = |a: &[i64; LANES]| _mm512_loadu_si512(a.as_ptr() as *const _);
-    let (mut tx, mut ty, dtx, dty) = (ld(&f[0]), ld(&f[1]), ld(&f[2]), ld(&f[3]));
-    let (mut t_in, t_end, mut reach) = (ld(&f[4]), ld(&f[5]), ld(&f[6]));
-    let (mut mass, mut short, base) = (ld(&f[7]), ld(&f[8]), ld(&f[9]));
-    let (floor, sup_past) = (ld(&f[10]), ld(&f[11]));
-    let (mut ix, mut iy, mut index) = (li(&k[0]), li(&k[1]), li(&k[2]));
-    let (sx, sy, isx, isy, mut steps) = (li(&k[3]), li(&k[4]), li(&k[5]), li(&k[6]), li(&k[7]));
-    let (half, one, min_chord) = (
-        _mm512_set1_pd(0.5),
-        _mm512_set1_pd(1.0),
-        _mm512_set1_pd(crate::raycast::MIN_CHORD),
-    );
-    let (neg_l, eps) = (_mm512_set1_pd(neg_lambda), _mm512_set1_pd(TAIL_EPS));
-    let (zero_i, one_i) = (_mm512_setzero_si512(), _mm512_set1_epi64(1));
-    let mut active: __mmask8 = live;
-    let mut ended: __mmask8 = 0;
-    let mut stopped: __mmask8 = 0;
-    while active != 0 {
-        // FastWalk::next, as in the far phase; every reported cell is a tail cell.
-        let along_x = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(tx, ty);
-        let near = _mm512_mask_blend_pd(along_x, ty, tx);
-        let near = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(t_end, near), near, t_end);
-        let t_out = _mm512_mask_blend_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(near, t_in), near, t_in);
-        let take = active & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(_mm512_sub_pd(t_out, t_in), min_chord);
-        let d = _mm512_mul_pd(half, _mm512_add_pd(t_in, t_out));
-        let m = _mm512_mask_i64gather_pd::<8>(one, take, index, means.as_ptr());
-        // π = R m̂; Σ π; Σ π/(1 − e^{−λd}); R ← R (1 − m̂); the stop rule on the new R.
-        let pi = _mm512_mul_pd(reach, m);
-        let e = exp_for_sums_avx512(_mm512_mul_pd(neg_l, d));
-        let term = _mm512_div_pd(pi, _mm512_sub_pd(one, e));
-        short = _mm512_mask_add_pd(short, take, short, term);
-        mass = _mm512_mask_add_pd(mass, take, mass, pi);
-        reach = _mm512_mask_mul_pd(reach, take, reach, _mm512_sub_pd(one, m));
-        let total = _mm512_add_pd(base, _mm512_mul_pd(floor, mass));
-        let stop = take
-            & _mm512_cmp_pd_mask::<_CMP_LE_OQ>(
-                _mm512_mul_pd(reach, sup_past),
-                _mm512_mul_pd(total, eps),
-            );
-        stopped |= stop;
-        let done = active & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(t_out, t_end);
-        let (ax, ay) = (active & along_x, active & !along_x);
-        tx = _mm512_mask_add_pd(tx, ax, tx, dtx);
-        ty = _mm512_mask_add_pd(ty, ay, ty, dty);
-        ix = _mm512_mask_add_epi64(ix, ax, ix, sx);
-        iy = _mm512_mask_add_epi64(iy, ay, iy, sy);
-        index = _mm512_mask_add_epi64(index, ax, index, isx);
-        index = _mm512_mask_add_epi64(index, ay, index, isy);
-        t_in = _mm512_mask_mov_pd(t_in, active, t_out);
-        steps = _mm512_mask_sub_epi64(steps, active, steps, one_i);
-        ended |= done;
-        active = active & !done & !stop & _mm512_cmpgt_epi64_mask(steps, zero_i);
-    }
-    let st = |v: __m512d, a: &mut [f64; LANES]| _mm512_storeu_pd(a.as_mut_ptr(), v);
-    let sti = |v: __m512i, a: &mut [i64; LANES]| _mm512_storeu_si512(a.as_mut_ptr() as *mut _, v);
-    st(tx, &mut f[0]);
-    st(ty, &mut f[1]);
-    st(t_in, &mut f[4]);
-    st(reach, &mut f[6]);
-    st(mass, &mut f[7]);
-    st(short, &mut f[8]);
-    sti(ix, &mut k[0]);
-    sti(iy, &mut k[1]);
-    sti(index, &mut k[2]);
-    sti(steps, &mut k[7]);
-    for (i, l) in lanes.iter_mut().enumerate() {
-        if live & (1 << i) == 0 {
-            continue;
-        }
-        l.walk.resume(
-            [f[0][i], f[1][i], f[4][i]],
-            [k[0][i], k[1][i], k[2][i]],
-            k[7][i] as usize,
-            ended & (1 << i) != 0,
-        );
-        l.reach = f[6][i];
-        l.mass = f[7][i];
-        l.short = f[8][i];
-        l.stopped = stopped & (1 << i) != 0;
-    }
+    a.store(la);
+    b.store(lb);
 }
 
 #[cfg(test)]
