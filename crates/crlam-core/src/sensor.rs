@@ -11,13 +11,13 @@ mod reading;
 pub use reading::MixtureReading;
 
 const LN_SQRT_2PI: f64 = 0.918_938_533_204_672_8;
-const SQRT_2PI: f64 = 2.506_628_274_631_000_5;
+pub(crate) const SQRT_2PI: f64 = 2.506_628_274_631_000_5;
 /// Beyond this many σ a Gaussian factor exp(−u²/2) is below 1e-300 and is taken as 0 in the
 /// linear-space sweep (the log-space sweep keeps it).
 pub const GAUSS_CUTOFF_SIGMAS: f64 = 37.0;
 /// Φ(−8.3) < 1e-16: closer than this many σ to 0 or z_max the truncation normaliser is computed,
 /// elsewhere it equals 1 to rounding.
-const TRUNC_SIGMAS: f64 = 8.3;
+pub(crate) const TRUNC_SIGMAS: f64 = 8.3;
 
 /// Which cause model to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

@@ -8,7 +8,8 @@ use crate::crm::beam::{
 use crate::crm::far_simd::{far_phase, tail_phase, LANES};
 use crate::crm::map::{BeamJob, CrmMap, CrmScratch};
 use crate::crm::scan_cells::scan_window;
-use crate::crm::windowed::{TailLane, WindowedBeam, WindowedScan};
+use crate::crm::window_simd::{window_phase, WindowLanesIo};
+use crate::crm::windowed::{LaneStart, TailLane, WindowedBeam, WindowedScan};
 use crate::error::Result;
 use crate::raycast::FastWalk;
 use crate::sensor::SensorModel;
@@ -284,16 +285,17 @@ impl CrmMap {
         Ok((total, used, st))
     }
 
-    /// The far phases of a group of weighed beams, eight lanes wide ([`far_simd`]): for each
-    /// beam, the walk and reach where its far phase ended, or `None` (the kernel then walks the
-    /// beam alone) for a beam whose ray might leave the mean table, or on CPUs without AVX-512.
+    /// The far phases and then the windows of a group of weighed beams in lanes ([`far_simd`],
+    /// [`window_simd`]): for each beam, where the lanes left it, or `None` (the kernel then walks
+    /// the beam alone) for a beam whose ray might leave the mean table, or on CPUs without
+    /// AVX-512.
     fn far_phases(
         &self,
         k: &WindowedScan,
         group: &[BeamJob],
         sc: &CrmScratch,
-    ) -> [Option<(FastWalk, f64)>; LANES] {
-        let mut out: [Option<(FastWalk, f64)>; LANES] = Default::default();
+    ) -> [Option<LaneStart>; LANES] {
+        let mut out: [Option<LaneStart>; LANES] = Default::default();
         let Some(t) = sc.scan.mean_table() else {
             return out;
         };
@@ -331,8 +333,40 @@ impl CrmMap {
         if walks.is_empty() || !far_phase(&mut walks, &lo, &mut reach, &t.values) {
             return out;
         }
-        for ((i, w), r) in lanes.into_iter().zip(walks).zip(reach) {
-            out[i] = Some((w, r));
+        // Lanes without their reading's constants or a mapping ray stop at once.
+        let n = walks.len();
+        let (mut z, mut map_length, mut short_numerator) =
+            ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for (j, &i) in lanes.iter().enumerate() {
+            let job = &group[i];
+            z[j] = job.w_plan.map_or(f64::NAN, |p| p.z);
+            (map_length[j], short_numerator[j]) = match (job.consts, job.m_plan) {
+                (Some(c), Some(p)) => (p.length, c.short_numerator),
+                _ => (f64::NEG_INFINITY, f64::NAN),
+            };
+        }
+        let (mut reach_far, mut eta) = ([f64::NAN; LANES], [0.0; LANES]);
+        if let Some(w) = k.window_model() {
+            let io = WindowLanesIo {
+                walks: &mut walks,
+                reach: &mut reach,
+                z: &z[..n],
+                map_length: &map_length[..n],
+                short_numerator: &short_numerator[..n],
+                reach_far: &mut reach_far[..n],
+                eta: &mut eta[..n],
+            };
+            if !window_phase(io, &t.values, &w) {
+                (reach_far, eta) = ([f64::NAN; LANES], [0.0; LANES]);
+            }
+        }
+        for (j, (i, walk)) in lanes.into_iter().zip(walks).enumerate() {
+            out[i] = Some(LaneStart {
+                walk,
+                reach: reach[j],
+                reach_far: (!reach_far[j].is_nan()).then_some(reach_far[j]),
+                eta_w: eta[j],
+            });
         }
         out
     }
@@ -386,7 +420,7 @@ impl CrmMap {
         weight_model: Option<&SensorModel>,
         mapping_model: &SensorModel,
         job: &BeamJob,
-        (start, tails): (Option<(FastWalk, f64)>, Option<&mut Vec<TailLane>>),
+        (start, tails): (Option<LaneStart>, Option<&mut Vec<TailLane>>),
         update: bool,
         sc: &mut CrmScratch,
         st: &mut ScanStats,

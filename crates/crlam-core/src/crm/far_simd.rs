@@ -30,7 +30,7 @@ use crate::raycast::FastWalk;
 use std::arch::x86_64::*;
 
 /// Lanes of one AVX-512 register of f64.
-const SET: usize = 8;
+pub(crate) const SET: usize = 8;
 
 /// Beams a call takes: two sets of lanes.
 pub(crate) const LANES: usize = 2 * SET;
@@ -80,23 +80,23 @@ pub(crate) fn tail_phase(lanes: &mut [TailLane], means: &[f64], neg_lambda: f64)
 
 /// Eight [`FastWalk`]s stepped together, with the operations of `next` in its order.
 #[cfg(target_arch = "x86_64")]
-struct WalkLanes {
+pub(crate) struct WalkLanes {
     tx: __m512d,
     ty: __m512d,
     dtx: __m512d,
     dty: __m512d,
-    t_in: __m512d,
+    pub(crate) t_in: __m512d,
     t_end: __m512d,
     ix: __m512i,
     iy: __m512i,
-    index: __m512i,
+    pub(crate) index: __m512i,
     sx: __m512i,
     sy: __m512i,
     isx: __m512i,
     isy: __m512i,
     steps: __m512i,
     /// Lanes holding a walk that has cells left.
-    live: __mmask8,
+    pub(crate) live: __mmask8,
     /// Lanes whose walk reached its end (`done`).
     ended: __mmask8,
 }
@@ -104,16 +104,16 @@ struct WalkLanes {
 /// The next crossing of a set of walks: where the current cell is left, whether its chord is
 /// reported (≥ MIN_CHORD), and whether the walk leaves it through an x crossing.
 #[cfg(target_arch = "x86_64")]
-struct Crossing {
-    t_out: __m512d,
-    reported: __mmask8,
+pub(crate) struct Crossing {
+    pub(crate) t_out: __m512d,
+    pub(crate) reported: __mmask8,
     along_x: __mmask8,
 }
 
 #[cfg(target_arch = "x86_64")]
 impl WalkLanes {
     #[target_feature(enable = "avx512f")]
-    unsafe fn load<'w>(walks: impl Iterator<Item = &'w FastWalk>) -> Self {
+    pub(crate) unsafe fn load<'w>(walks: impl Iterator<Item = &'w FastWalk>) -> Self {
         let mut f = [[0.0f64; SET]; 6];
         let mut k = [[0i64; SET]; 8];
         let mut live: __mmask8 = 0;
@@ -162,7 +162,7 @@ impl WalkLanes {
     /// FastWalk::next's crossing: the nearer one, cut at the ray's end, never before t_in.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn crossing(&self) -> Crossing {
+    pub(crate) unsafe fn crossing(&self) -> Crossing {
         let along_x = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(self.tx, self.ty);
         let near = _mm512_mask_blend_pd(along_x, self.ty, self.tx);
         let near = _mm512_mask_blend_pd(
@@ -187,7 +187,7 @@ impl WalkLanes {
     /// Moves the lanes `adv` past the cell of `c`; returns the lanes that still have cells.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn advance(&mut self, adv: __mmask8, c: &Crossing) -> __mmask8 {
+    pub(crate) unsafe fn advance(&mut self, adv: __mmask8, c: &Crossing) -> __mmask8 {
         let done = adv & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(c.t_out, self.t_end);
         let (ax, ay) = (adv & c.along_x, adv & !c.along_x);
         self.tx = _mm512_mask_add_pd(self.tx, ax, self.tx, self.dtx);
@@ -204,7 +204,7 @@ impl WalkLanes {
 
     /// Hands each live lane's state back to its walk.
     #[target_feature(enable = "avx512f")]
-    unsafe fn store<'w>(&self, walks: impl Iterator<Item = &'w mut FastWalk>) {
+    pub(crate) unsafe fn store<'w>(&self, walks: impl Iterator<Item = &'w mut FastWalk>) {
         let mut f = [[0.0f64; SET]; 3];
         let mut k = [[0i64; SET]; 4];
         let st = |v: __m512d, a: &mut [f64; SET]| _mm512_storeu_pd(a.as_mut_ptr(), v);

@@ -11,6 +11,7 @@ mod reading_table;
 mod scan;
 mod scan_cells;
 pub mod update;
+mod window_simd;
 mod windowed;
 
 pub use beam::{BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode};

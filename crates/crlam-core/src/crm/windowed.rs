@@ -159,6 +159,17 @@ impl TailLane {
     }
 }
 
+/// Where the lanes left a weighed beam (after its far phase and, where they could, its window):
+/// the walk, the reach, the reach at the window's first cell if the window was entered, and the
+/// window's Σ π·L so far.
+#[derive(Clone, Debug)]
+pub(crate) struct LaneStart {
+    pub(crate) walk: FastWalk,
+    pub(crate) reach: f64,
+    pub(crate) reach_far: Option<f64>,
+    pub(crate) eta_w: f64,
+}
+
 /// What became of a beam.
 pub(crate) enum WindowedBeam {
     /// Applied to the scan table; the weight's log η when the beam is weighed.
@@ -213,6 +224,14 @@ impl<'a> WindowedScan<'a> {
         })
     }
 
+    /// The weight model and hit reach, for the window lanes ([`super::window_simd`]).
+    pub(crate) fn window_model(&self) -> Option<super::window_simd::WindowModel> {
+        self.weight.map(|w| super::window_simd::WindowModel {
+            model: *w,
+            hit_reach: self.weight_hit_reach,
+        })
+    }
+
     /// Where the far phase of a weighed beam ends: cells with a chord midpoint below this
     /// need only the reach (+∞ for a no-return: all of them).
     pub(crate) fn far_end(&self, w_plan: &BeamPlan) -> f64 {
@@ -237,7 +256,7 @@ impl<'a> WindowedScan<'a> {
         ws: &mut WindowScratch,
         job: &BeamJob,
         update: bool,
-        start: Option<(FastWalk, f64)>,
+        start: Option<LaneStart>,
         mut tails: Option<&mut Vec<TailLane>>,
         st: &mut ScanStats,
     ) -> WindowedBeam {
@@ -275,8 +294,7 @@ impl<'a> WindowedScan<'a> {
         ws.tail_x.clear();
         // Σ π of the buffered tail: its floor part w_r/z_max · Σ π is known during the walk.
         let mut tail_mass = 0.0f64;
-        let (mut bound, mut eta_w) = (0.0f64, 0.0f64);
-        let mut reach_far: Option<f64> = None;
+        let mut bound = 0.0f64;
         let mut past = 0u32;
         let mut stopped = false;
         let map_on = m_plan.is_some();
@@ -294,9 +312,14 @@ impl<'a> WindowedScan<'a> {
         let map_work = map_on && update;
         // Weighing only, the far phase may have been walked already (eight beams at a time).
         debug_assert!(start.is_none() || !update);
-        let (mut walk, mut reach) = match start {
-            Some(s) => s,
-            None => (FastWalk::along(&g, origin, dir, length, window), 1.0),
+        let (mut walk, mut reach, mut reach_far, mut eta_w) = match start {
+            Some(s) => (s.walk, s.reach, s.reach_far, s.eta_w),
+            None => (
+                FastWalk::along(&g, origin, dir, length, window),
+                1.0,
+                None,
+                0.0,
+            ),
         };
         while let Some(wc) = walk.next() {
             let c = wc.cell;

@@ -517,6 +517,44 @@ pub fn exp_table(x: f64) -> f64 {
     t * p
 }
 
+/// Eight lanes of [`exp_table`] for x in [−708, 709] (the caller checks the range; outside it
+/// the scalar function calls libm): the scalar operations one for one, so each lane equals
+/// `exp_table` bit for bit.
+///
+/// # Safety
+/// The CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+pub(crate) unsafe fn exp_table_avx512(x: std::arch::x86_64::__m512d) -> std::arch::x86_64::__m512d {
+    use std::arch::x86_64::*;
+    const INV_LN2_128: f64 = 184.664_965_233_787_3;
+    const LN2_128_HI: f64 = f64::from_bits(0x3f76_2e42_fef8_0000);
+    const LN2_128_LO: f64 = 1.265_508_608_332_543_8e-13;
+    const SHIFTER: f64 = 6_755_399_441_055_744.0;
+    let set = |v: f64| _mm512_set1_pd(v);
+    let (add, sub, mul) = (_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd);
+    let z = add(mul(x, set(INV_LN2_128)), set(SHIFTER));
+    let kf = sub(z, set(SHIFTER));
+    let k = _mm512_sub_epi64(
+        _mm512_castpd_si512(z),
+        _mm512_set1_epi64(SHIFTER.to_bits() as i64),
+    );
+    let r = sub(sub(x, mul(kf, set(LN2_128_HI))), mul(kf, set(LN2_128_LO)));
+    let j = _mm512_and_si512(k, _mm512_set1_epi64(127));
+    let entry = _mm512_i64gather_epi64::<8>(j, EXP2_TABLE.as_ptr() as *const i64);
+    let t = _mm512_castsi512_pd(_mm512_add_epi64(
+        entry,
+        _mm512_slli_epi64::<52>(_mm512_srai_epi64::<7>(k)),
+    ));
+    let r2 = mul(r, r);
+    let inner = add(
+        add(set(0.5), mul(r, set(1.0 / 6.0))),
+        mul(r2, add(set(1.0 / 24.0), mul(r, set(1.0 / 120.0)))),
+    );
+    let p = add(add(set(1.0), r), mul(r2, inner));
+    mul(t, p)
+}
+
 /// The range of [`exp_in_range`] (normal results, no overflow).
 const EXP_MIN: f64 = -708.3;
 const EXP_MAX: f64 = 709.7;
@@ -736,6 +774,37 @@ mod tests {
                 }
                 for (i, (g, w)) in got.iter().zip(w).enumerate() {
                     assert_eq!(g.to_bits(), w.to_bits(), "{}", chunk[i]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn eight_lane_table_exp_equals_the_scalar_one_bit_for_bit() {
+        #[cfg(target_arch = "x86_64")]
+        if crate::info::fastlog::has_avx512() {
+            let mut rng = crate::rng::Rng::new(8);
+            let xs: Vec<f64> = (0..8192)
+                .map(|i| match i % 11 {
+                    0 => -708.0,
+                    1 => 709.0,
+                    2 => 0.0,
+                    3 => -0.0,
+                    4 => (rng.uniform() - 0.5) * 1e-9,
+                    5 => rng.uniform() * 1417.0 - 708.0,
+                    _ => -rng.uniform() * 40.0,
+                })
+                .collect();
+            for chunk in xs.chunks(8) {
+                let mut got = [0.0; 8];
+                // SAFETY: the CPU supports AVX-512F, checked above.
+                unsafe {
+                    use std::arch::x86_64::*;
+                    let v = exp_table_avx512(_mm512_loadu_pd(chunk.as_ptr()));
+                    _mm512_storeu_pd(got.as_mut_ptr(), v);
+                }
+                for (g, &x) in got.iter().zip(chunk) {
+                    assert_eq!(g.to_bits(), exp_table(x).to_bits(), "{x}");
                 }
             }
         }
