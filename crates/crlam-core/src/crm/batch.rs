@@ -1,17 +1,16 @@
 //! The batch scan (crm-spec 3.3, 4.3): weight and update of every beam from the pre-scan beliefs,
-//! one walk per beam, through the windowed kernel (eight far phases and tails at a time when only
-//! weighing) or the full sweep, and the factors written back once.
+//! one walk per beam, through the windowed kernel (sixteen beams at a time in lanes when only
+//! weighing, [`super::lanes`]) or the full sweep, and the factors written back once.
 
 use crate::crm::beam::{
     check_scan, plan_beam, BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode,
 };
-use crate::crm::far_simd::{far_phase, tail_phase, LANES};
+use crate::crm::far_simd::LANES;
+use crate::crm::lanes::LaneOutcome;
 use crate::crm::map::{BeamJob, CrmMap, CrmScratch};
 use crate::crm::scan_cells::scan_window;
-use crate::crm::window_simd::{window_phase, WindowLanesIo};
-use crate::crm::windowed::{LaneStart, TailLane, WindowedBeam, WindowedScan};
+use crate::crm::windowed::{LaneStart, WindowedBeam, WindowedScan};
 use crate::error::Result;
-use crate::raycast::FastWalk;
 use crate::sensor::SensorModel;
 
 /// Scan windows up to this many cells (8 m at 0.05 m, 25 m at 0.2 m) get a mean table of their
@@ -225,54 +224,60 @@ impl CrmMap {
             }
         };
         match (&windowed, weight_model) {
-            // Weighing only: the far phases and then the tails of eight beams at a time, each
-            // beam's window on its own in between; the weights are summed in beam order.
+            // Weighing only: sixteen beams at a time in lanes, each beam the lanes hand back (or
+            // did not take) by the scalar kernel; the weights are summed in beam order.
             (Some(k), Some(w)) if !update && sc.scan.mean_table().is_some() => {
-                let (mut lanes, mut lane_of) =
-                    (Vec::with_capacity(LANES), Vec::with_capacity(LANES));
                 for group in jobs.chunks(LANES) {
-                    let starts = self.far_phases(k, group, sc);
-                    let mut outs = [BeamOutcome::Unweighed; LANES];
-                    lanes.clear();
-                    lane_of.clear();
-                    for (i, (job, start)) in group.iter().zip(starts).enumerate() {
-                        // A beam whose far phase the lanes walked leaves its tail to them too.
-                        let tails = start.is_some().then_some(&mut lanes);
-                        match self.finish_beam(
+                    let lanes = self.weigh_in_lanes(k, w, group, sc);
+                    for (job, lane) in group.iter().zip(lanes) {
+                        let start = match lane {
+                            LaneOutcome::Weighed(l) => {
+                                add(BeamOutcome::Weighed(l));
+                                continue;
+                            }
+                            LaneOutcome::FullSweep => {
+                                let (ll, weighed) = self.full_ray_beam(
+                                    weight_model,
+                                    job.w_plan,
+                                    mapping_model,
+                                    None,
+                                    job.m_plan.map_or(0.0, |p| p.length),
+                                    sc,
+                                    &mut st,
+                                );
+                                add(BeamOutcome::from_full_ray(ll, weighed));
+                                continue;
+                            }
+                            LaneOutcome::Resume(s) => Some(s),
+                            LaneOutcome::Alone => None,
+                        };
+                        let out = self.finish_beam(
                             Some(k),
                             weight_model,
                             mapping_model,
                             job,
-                            (start, tails),
+                            start,
                             update,
                             sc,
                             &mut st,
-                        ) {
-                            Some(out) => outs[i] = out,
-                            None => lane_of.push(i),
-                        }
+                        );
+                        add(out);
                     }
-                    if !lanes.is_empty() {
-                        let tails = (&mut lanes[..], &lane_of[..]);
-                        self.finish_tails(w, mapping_model, group, tails, &mut outs, sc, &mut st);
-                    }
-                    outs[..group.len()].iter().for_each(|&o| add(o));
                 }
             }
             (k, _) => {
                 for job in &jobs {
-                    // Without a far phase from the lanes no beam pauses at its tail.
                     let out = self.finish_beam(
                         k.as_ref(),
                         weight_model,
                         mapping_model,
                         job,
-                        (None, None),
+                        None,
                         update,
                         sc,
                         &mut st,
                     );
-                    add(out.unwrap_or_else(|| unreachable!("a beam paused without lanes")));
+                    add(out);
                 }
             }
         }
@@ -285,134 +290,8 @@ impl CrmMap {
         Ok((total, used, st))
     }
 
-    /// The far phases and then the windows of a group of weighed beams in lanes ([`far_simd`],
-    /// [`window_simd`]): for each beam, where the lanes left it, or `None` (the kernel then walks
-    /// the beam alone) for a beam whose ray might leave the mean table, or on CPUs without
-    /// AVX-512.
-    fn far_phases(
-        &self,
-        k: &WindowedScan,
-        group: &[BeamJob],
-        sc: &CrmScratch,
-    ) -> [Option<LaneStart>; LANES] {
-        let mut out: [Option<LaneStart>; LANES] = Default::default();
-        let Some(t) = sc.scan.mean_table() else {
-            return out;
-        };
-        let g = *self.grid.geometry();
-        let r = t.rect;
-        let mut walks = Vec::with_capacity(LANES);
-        let mut lanes = Vec::with_capacity(LANES);
-        let mut lo = Vec::with_capacity(LANES);
-        for (i, job) in group.iter().enumerate() {
-            let Some(w) = job.w_plan.as_ref() else {
-                continue;
-            };
-            let length = w.length.max(job.m_plan.map_or(0.0, |p| p.length));
-            // Every cell the ray can reach lies in the table (one cell of slack each side).
-            let (cx, cy) = g.cell_of(w.origin[0], w.origin[1]);
-            let reach_cells = (length / g.resolution).ceil() as i64 + 2;
-            let inside = cx - reach_cells >= r.ix0
-                && cy - reach_cells >= r.iy0
-                && cx + reach_cells < r.ix0 + r.nx
-                && cy + reach_cells < r.iy0 + r.ny;
-            if !inside {
-                continue;
-            }
-            walks.push(FastWalk::along(
-                &g,
-                w.origin,
-                job.dir,
-                length,
-                (r.ix0, r.iy0, r.nx),
-            ));
-            lo.push(k.far_end(w));
-            lanes.push(i);
-        }
-        let mut reach = vec![1.0; walks.len()];
-        if walks.is_empty() || !far_phase(&mut walks, &lo, &mut reach, &t.values) {
-            return out;
-        }
-        // Lanes without their reading's constants or a mapping ray stop at once.
-        let n = walks.len();
-        let (mut z, mut map_length, mut short_numerator) =
-            ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-        for (j, &i) in lanes.iter().enumerate() {
-            let job = &group[i];
-            z[j] = job.w_plan.map_or(f64::NAN, |p| p.z);
-            (map_length[j], short_numerator[j]) = match (job.consts, job.m_plan) {
-                (Some(c), Some(p)) => (p.length, c.short_numerator),
-                _ => (f64::NEG_INFINITY, f64::NAN),
-            };
-        }
-        let (mut reach_far, mut eta) = ([f64::NAN; LANES], [0.0; LANES]);
-        if let Some(w) = k.window_model() {
-            let io = WindowLanesIo {
-                walks: &mut walks,
-                reach: &mut reach,
-                z: &z[..n],
-                map_length: &map_length[..n],
-                short_numerator: &short_numerator[..n],
-                reach_far: &mut reach_far[..n],
-                eta: &mut eta[..n],
-            };
-            if !window_phase(io, &t.values, &w) {
-                (reach_far, eta) = ([f64::NAN; LANES], [0.0; LANES]);
-            }
-        }
-        for (j, (i, walk)) in lanes.into_iter().zip(walks).enumerate() {
-            out[i] = Some(LaneStart {
-                walk,
-                reach: reach[j],
-                reach_far: (!reach_far[j].is_nan()).then_some(reach_far[j]),
-                eta_w: eta[j],
-            });
-        }
-        out
-    }
-
-    /// The tails of a group's paused beams (`lanes`, of the beams `group[lane_of[j]]`) eight
-    /// lanes wide, then each beam's weight into `outs`; a beam whose η underflows goes to the
-    /// full sweep (as all would where the lanes cannot run, which the far phase has excluded).
-    #[allow(clippy::too_many_arguments)]
-    fn finish_tails(
-        &self,
-        weight_model: &SensorModel,
-        mapping_model: &SensorModel,
-        group: &[BeamJob],
-        (lanes, lane_of): (&mut [TailLane], &[usize]),
-        outs: &mut [BeamOutcome; LANES],
-        sc: &mut CrmScratch,
-        st: &mut ScanStats,
-    ) {
-        let walked = sc
-            .scan
-            .mean_table()
-            .is_some_and(|t| tail_phase(lanes, &t.values, -weight_model.lambda_short));
-        for (lane, &i) in lanes.iter().zip(lane_of) {
-            outs[i] = match lane.finish().filter(|_| walked) {
-                Some(l) => BeamOutcome::Weighed(l),
-                None => {
-                    let job = &group[i];
-                    let (ll, weighed) = self.full_ray_beam(
-                        Some(weight_model),
-                        job.w_plan,
-                        mapping_model,
-                        None,
-                        job.m_plan.map_or(0.0, |p| p.length),
-                        sc,
-                        st,
-                    );
-                    BeamOutcome::from_full_ray(ll, weighed)
-                }
-            };
-        }
-    }
-
     /// Weighs and (with `update`) updates one beam: the windowed kernel `k` where it can (from
-    /// the far phase's end when `start` is given), the full sweep where it cannot. Given
-    /// `tails`, a weighed beam may instead pause at its tail: its lane is pushed there for the
-    /// lanes to walk, and the result is `None`.
+    /// where the lanes left it when `start` is given), the full sweep where it cannot.
     #[allow(clippy::too_many_arguments)]
     fn finish_beam(
         &self,
@@ -420,11 +299,11 @@ impl CrmMap {
         weight_model: Option<&SensorModel>,
         mapping_model: &SensorModel,
         job: &BeamJob,
-        (start, tails): (Option<LaneStart>, Option<&mut Vec<TailLane>>),
+        start: Option<LaneStart>,
         update: bool,
         sc: &mut CrmScratch,
         st: &mut ScanStats,
-    ) -> Option<BeamOutcome> {
+    ) -> BeamOutcome {
         if let Some(k) = k {
             let out = k.beam(
                 &self.grid,
@@ -434,16 +313,14 @@ impl CrmMap {
                 job,
                 update,
                 start,
-                tails,
                 st,
             );
             match out {
-                WindowedBeam::Done(log_eta) => return Some(BeamOutcome::from(log_eta)),
+                WindowedBeam::Done(log_eta) => return BeamOutcome::from(log_eta),
                 WindowedBeam::MapFullSweep(log_eta) => {
                     self.full_ray_beam(None, None, mapping_model, job.m_plan, 0.0, sc, st);
-                    return Some(BeamOutcome::from(log_eta));
+                    return BeamOutcome::from(log_eta);
                 }
-                WindowedBeam::Tail => return None,
                 WindowedBeam::FullSweep => {}
             }
         }
@@ -456,7 +333,7 @@ impl CrmMap {
             sc,
             st,
         );
-        Some(BeamOutcome::from_full_ray(ll, weighed))
+        BeamOutcome::from_full_ray(ll, weighed)
     }
 
     /// One beam of a batch scan by the full sweep ([`BatchKernel::FullRay`]): its weight (log η,

@@ -22,7 +22,7 @@
 //! product), so one set of eight lanes leaves the core waiting on latencies; two independent sets
 //! stepped in the same loop overlap their chains.
 
-use crate::crm::windowed::{TailLane, TAIL_EPS};
+use crate::crm::windowed::TAIL_EPS;
 #[cfg(target_arch = "x86_64")]
 use crate::info::fastmath::exp_for_sums_avx512;
 use crate::raycast::FastWalk;
@@ -59,22 +59,37 @@ pub(crate) fn far_phase(
     false
 }
 
-/// Walks the tails of `lanes` (at most [`LANES`], each paused by the windowed kernel at its
-/// first tail cell), reading m̂ from `means` at the walk's window index; `neg_lambda` is −λ of
-/// the weight model. Every walk's cells must lie inside `means`' window. Returns false, touching
-/// nothing, where the CPU lacks AVX-512F.
-pub(crate) fn tail_phase(lanes: &mut [TailLane], means: &[f64], neg_lambda: f64) -> bool {
-    assert!(lanes.len() <= LANES);
+/// Weighed beams at the first cell of their tails (past the mapping ray and the weight's hit
+/// reach), one per lane: the walk and the reach there, Σ π and Σ π/(1 − e^{−λd}) so far (0 at
+/// the start), the part `base` of the stop rule's lower bound of η that the tail does not change
+/// ((1 − R_far)·far_like + η_w) and the bound `sup_past` of every cause's likelihood past the
+/// mapping ray. On return: where each walk ended, the sums, and whether the stop rule ended it.
+pub(crate) struct TailLanesIo<'a> {
+    pub(crate) walks: &'a mut [FastWalk],
+    pub(crate) reach: &'a mut [f64],
+    pub(crate) mass: &'a mut [f64],
+    pub(crate) short: &'a mut [f64],
+    pub(crate) base: &'a [f64],
+    pub(crate) sup_past: &'a [f64],
+    pub(crate) stopped: &'a mut [bool],
+}
+
+/// Walks the tails of `io`'s beams (at most [`LANES`]), reading m̂ from `means` at the walk's
+/// window index; `floor` is the mixture's w_r/z_max and `neg_lambda` its −λ. Every walk's cells
+/// must lie inside `means`' window. Returns false, touching nothing, where the CPU lacks
+/// AVX-512F.
+pub(crate) fn tail_phase(io: TailLanesIo, means: &[f64], floor: f64, neg_lambda: f64) -> bool {
+    assert!(io.walks.len() <= LANES);
     #[cfg(target_arch = "x86_64")]
     {
         if crate::info::fastlog::has_avx512() {
             // SAFETY: the CPU has AVX-512F; the caller guarantees every index the walks reach
             // lies in `means`.
-            unsafe { tail_phase_avx512(lanes, means, neg_lambda) };
+            unsafe { tail_phase_avx512(io, means, floor, neg_lambda) };
             return true;
         }
     }
-    let _ = (lanes, means, neg_lambda);
+    let _ = (io, means, floor, neg_lambda);
     false
 }
 
@@ -306,7 +321,7 @@ unsafe fn far_phase_avx512(walks: &mut [FastWalk], lo: &[f64], reach: &mut [f64]
     b.store(wb, rb);
 }
 
-/// One set of tail lanes (the sums of [`TailLane`]).
+/// One set of tail lanes.
 #[cfg(target_arch = "x86_64")]
 struct TailLanes {
     walk: WalkLanes,
@@ -314,7 +329,6 @@ struct TailLanes {
     mass: __m512d,
     short: __m512d,
     base: __m512d,
-    floor: __m512d,
     sup_past: __m512d,
     active: __mmask8,
     stopped: __mmask8,
@@ -322,24 +336,23 @@ struct TailLanes {
 
 #[cfg(target_arch = "x86_64")]
 impl TailLanes {
+    /// The lanes `range` of `io`.
     #[target_feature(enable = "avx512f")]
-    unsafe fn load(lanes: &[TailLane]) -> Self {
-        let mut f = [[0.0f64; SET]; 6];
-        for (i, l) in lanes.iter().enumerate() {
-            [f[0][i], f[1][i], f[2][i], f[3][i], f[4][i], f[5][i]] =
-                [l.reach, l.mass, l.short, l.base, l.floor, l.sup_past];
-        }
-        let ld = |a: &[f64; SET]| _mm512_loadu_pd(a.as_ptr());
-        let walk = WalkLanes::load(lanes.iter().map(|l| &l.walk));
+    unsafe fn load(io: &TailLanesIo, range: std::ops::Range<usize>) -> Self {
+        let ld = |v: &[f64]| {
+            let mut a = [0.0; SET];
+            a[..v.len()].copy_from_slice(v);
+            _mm512_loadu_pd(a.as_ptr())
+        };
+        let walk = WalkLanes::load(io.walks[range.clone()].iter());
         let active = walk.live;
         Self {
             walk,
-            reach: ld(&f[0]),
-            mass: ld(&f[1]),
-            short: ld(&f[2]),
-            base: ld(&f[3]),
-            floor: ld(&f[4]),
-            sup_past: ld(&f[5]),
+            reach: ld(&io.reach[range.clone()]),
+            mass: ld(&io.mass[range.clone()]),
+            short: ld(&io.short[range.clone()]),
+            base: ld(&io.base[range.clone()]),
+            sup_past: ld(&io.sup_past[range]),
             active,
             stopped: 0,
         }
@@ -349,7 +362,7 @@ impl TailLanes {
     /// Σ π/(1 − e^{−λd}); R ← R (1 − m̂); then the stop rule on the new R.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn step(&mut self, means: &[f64], neg_lambda: __m512d) {
+    unsafe fn step(&mut self, means: &[f64], floor: __m512d, neg_lambda: __m512d) {
         let c = self.walk.crossing();
         let take = self.active & c.reported;
         let d = _mm512_mul_pd(_mm512_set1_pd(0.5), _mm512_add_pd(self.walk.t_in, c.t_out));
@@ -361,7 +374,7 @@ impl TailLanes {
         self.short = _mm512_mask_add_pd(self.short, take, self.short, term);
         self.mass = _mm512_mask_add_pd(self.mass, take, self.mass, pi);
         self.reach = _mm512_mask_mul_pd(self.reach, take, self.reach, _mm512_sub_pd(one, m));
-        let total = _mm512_add_pd(self.base, _mm512_mul_pd(self.floor, self.mass));
+        let total = _mm512_add_pd(self.base, _mm512_mul_pd(floor, self.mass));
         let stop = take
             & _mm512_cmp_pd_mask::<_CMP_LE_OQ>(
                 _mm512_mul_pd(self.reach, self.sup_past),
@@ -372,16 +385,18 @@ impl TailLanes {
     }
 
     #[target_feature(enable = "avx512f")]
-    unsafe fn store(&self, lanes: &mut [TailLane]) {
+    unsafe fn store(&self, io: &mut TailLanesIo, range: std::ops::Range<usize>) {
         let mut f = [[0.0f64; SET]; 3];
         _mm512_storeu_pd(f[0].as_mut_ptr(), self.reach);
         _mm512_storeu_pd(f[1].as_mut_ptr(), self.mass);
         _mm512_storeu_pd(f[2].as_mut_ptr(), self.short);
-        self.walk.store(lanes.iter_mut().map(|l| &mut l.walk));
-        for (i, l) in lanes.iter_mut().enumerate() {
+        self.walk.store(io.walks[range.clone()].iter_mut());
+        for (i, lane) in range.enumerate() {
             if self.walk.live & (1 << i) != 0 {
-                [l.reach, l.mass, l.short] = [f[0][i], f[1][i], f[2][i]];
-                l.stopped = self.stopped & (1 << i) != 0;
+                io.reach[lane] = f[0][i];
+                io.mass[lane] = f[1][i];
+                io.short[lane] = f[2][i];
+                io.stopped[lane] = self.stopped & (1 << i) != 0;
             }
         }
     }
@@ -389,21 +404,22 @@ impl TailLanes {
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn tail_phase_avx512(lanes: &mut [TailLane], means: &[f64], neg_lambda: f64) {
-    let (la, lb) = lanes.split_at_mut(lanes.len().min(SET));
-    let neg_lambda = _mm512_set1_pd(neg_lambda);
-    let mut a = TailLanes::load(la);
-    let mut b = TailLanes::load(lb);
+unsafe fn tail_phase_avx512(mut io: TailLanesIo, means: &[f64], floor: f64, neg_lambda: f64) {
+    let (floor, neg_lambda) = (_mm512_set1_pd(floor), _mm512_set1_pd(neg_lambda));
+    let n = io.walks.len();
+    let (ra, rb) = (0..n.min(SET), n.min(SET)..n);
+    let mut a = TailLanes::load(&io, ra.clone());
+    let mut b = TailLanes::load(&io, rb.clone());
     while a.active | b.active != 0 {
         if a.active != 0 {
-            a.step(means, neg_lambda);
+            a.step(means, floor, neg_lambda);
         }
         if b.active != 0 {
-            b.step(means, neg_lambda);
+            b.step(means, floor, neg_lambda);
         }
     }
-    a.store(la);
-    b.store(lb);
+    a.store(&mut io, ra);
+    b.store(&mut io, rb);
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@ mod batch;
 pub mod beam;
 mod far_simd;
 mod forward;
+mod lanes;
 pub mod levels;
 pub mod map;
 mod mean_cache;

@@ -23,7 +23,9 @@ use std::arch::x86_64::*;
 /// ended, the reading, the end of the mapping ray (−∞ without one: the lane then stops at once)
 /// and the reading's λ e^{−λz}. On return `walks` and `reach` are where the lanes left the
 /// beams, `reach_far` the reach at the window's first cell (`NaN` if the window was not
-/// entered) and `eta` the window's Σ π·L so far.
+/// entered), `eta` the window's Σ π·L so far, and each lane either stopped before its first tail
+/// cell (`at_tail`: past the mapping ray and the hit reach), or before a cell only the scalar
+/// kernel handles (`bailed`), or reached the end of its ray (neither).
 pub(crate) struct WindowLanesIo<'a> {
     pub(crate) walks: &'a mut [FastWalk],
     pub(crate) reach: &'a mut [f64],
@@ -32,6 +34,8 @@ pub(crate) struct WindowLanesIo<'a> {
     pub(crate) short_numerator: &'a [f64],
     pub(crate) reach_far: &'a mut [f64],
     pub(crate) eta: &'a mut [f64],
+    pub(crate) at_tail: &'a mut [bool],
+    pub(crate) bailed: &'a mut [bool],
 }
 
 /// The weight model's constants the window needs; `hit_reach` is the kernel's (beyond it the
@@ -87,6 +91,10 @@ struct WindowLanes {
     entered: __mmask8,
     eta: __m512d,
     active: __mmask8,
+    /// Lanes with a mapping ray (the scalar kernel's `map_on`).
+    map_on: __mmask8,
+    at_tail: __mmask8,
+    bailed: __mmask8,
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -101,11 +109,17 @@ impl WindowLanes {
         };
         let walk = WalkLanes::load(io.walks[range.clone()].iter());
         let active = walk.live;
+        let map_length = ld(&io.map_length[range.clone()]);
+        let map_on =
+            _mm512_cmp_pd_mask::<_CMP_GT_OQ>(map_length, _mm512_set1_pd(f64::NEG_INFINITY));
         Self {
             walk,
             reach: ld(&io.reach[range.clone()]),
             z: ld(&io.z[range.clone()]),
-            map_length: ld(&io.map_length[range.clone()]),
+            map_length,
+            map_on,
+            at_tail: 0,
+            bailed: 0,
             short_numerator: ld(&io.short_numerator[range]),
             reach_far: _mm512_set1_pd(f64::NAN),
             entered: 0,
@@ -132,6 +146,8 @@ impl WindowLanes {
         // truncation normaliser (left to the scalar kernel) within TRUNC_SIGMAS σ of 0 or z_max.
         let abs = |v: __m512d| _mm512_abs_pd(v);
         let in_hit = _mm512_cmp_pd_mask::<_CMP_LE_OQ>(abs(sub(d, self.z)), k.hit_reach);
+        // Not past the hit reach (the scalar tail test is d − z > hit reach).
+        let in_hit_raw = !_mm512_cmp_pd_mask::<_CMP_GT_OQ>(sub(d, self.z), k.hit_reach);
         let u = _mm512_div_pd(sub(self.z, d), k.sigma);
         let gauss = in_hit & !_mm512_cmp_pd_mask::<_CMP_GT_OQ>(abs(u), k.cutoff);
         let untruncated = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(d, k.trunc)
@@ -142,9 +158,14 @@ impl WindowLanes {
         let x_short = mul(k.neg_lambda, d);
         let x_ok = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(x_short, _mm512_set1_pd(-708.0))
             & _mm512_cmp_pd_mask::<_CMP_LE_OQ>(x_short, _mm512_set1_pd(709.0));
-        // A reported cell the lanes do not handle stays for the scalar kernel, unmoved.
+        // A lane stops unmoved before its first tail cell (past the mapping ray and the hit
+        // reach: the tail lanes take it from there) and before a cell only the scalar kernel
+        // handles (past the mapping ray within the hit reach, or a truncated hit density).
+        let tail = self.map_on & !in_map & !in_hit_raw;
         let handled = in_map & (!gauss | untruncated) & (!short_on | x_ok);
         let stop = self.active & c.reported & !handled;
+        self.at_tail |= stop & tail;
+        self.bailed |= stop & !tail;
         let adv = self.active & !stop;
         let take = adv & c.reported;
         let one = _mm512_set1_pd(1.0);
@@ -177,6 +198,8 @@ impl WindowLanes {
                 io.reach[lane] = f[0][i];
                 io.reach_far[lane] = f[1][i];
                 io.eta[lane] = f[2][i];
+                io.at_tail[lane] = self.at_tail & (1 << i) != 0;
+                io.bailed[lane] = self.bailed & (1 << i) != 0;
             }
         }
     }

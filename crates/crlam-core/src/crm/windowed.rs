@@ -29,8 +29,8 @@
 //! The weight never depends on the update (a beam whose map part needs the full sweep keeps its
 //! windowed weight), so a weight-only call (`update = false`, used by a filter that updates only
 //! the maps resampling keeps) does none of the update's work and gives the same weight bit for
-//! bit; its far phases and its tails may then be walked eight beams at a time
-//! ([`super::far_simd`]; the kernel pauses such a beam at its first tail cell, [`TailLane`]).
+//! bit; such beams may then be weighed sixteen at a time in lanes ([`super::lanes`]), which
+//! hand a beam back to this kernel ([`LaneStart`]) where they stop.
 //!
 //! [`BatchKernel::Windowed`]: super::beam::BatchKernel::Windowed
 //! [`BatchKernel::FullRay`]: super::beam::BatchKernel::FullRay
@@ -120,45 +120,6 @@ pub(crate) struct WindowedScan<'a> {
     shared_hit: bool,
 }
 
-/// A weighed beam paused at its first buffered tail cell (past the mapping ray and the hit
-/// reach), for [`super::far_simd::tail_phase`] to walk the rest of its tail eight beams at a
-/// time and [`TailLane::finish`] to complete its weight: the state the scalar loop would carry.
-#[derive(Clone, Debug)]
-pub(crate) struct TailLane {
-    pub(crate) walk: FastWalk,
-    pub(crate) reach: f64,
-    /// Σ π over the tail so far.
-    pub(crate) mass: f64,
-    /// Σ π / (1 − e^{−λd}) over the tail so far, in walk order.
-    pub(crate) short: f64,
-    /// (1 − R_far)·far_like + η_w: the part of the stop rule's lower bound of η that the tail
-    /// does not change.
-    pub(crate) base: f64,
-    /// The mixture's floor w_r/z_max.
-    pub(crate) floor: f64,
-    /// Bound of every cause's likelihood past the mapping ray.
-    pub(crate) sup_past: f64,
-    /// The stop rule ended the walk (else the ray did).
-    pub(crate) stopped: bool,
-    far_term: f64,
-    eta_w: f64,
-    short_scale: f64,
-    infinity: f64,
-}
-
-impl TailLane {
-    /// The beam's log η, as the scalar loop completes it; `None` when η underflows (the caller
-    /// then sweeps the whole ray).
-    pub(crate) fn finish(&self) -> Option<f64> {
-        let eta_w = self.eta_w + (self.floor * self.mass + self.short_scale * self.short);
-        let mut eta = self.far_term + eta_w;
-        if !self.stopped {
-            eta += self.reach * self.infinity;
-        }
-        (eta >= LINEAR_ETA_MIN && eta.is_finite()).then(|| eta.ln())
-    }
-}
-
 /// Where the lanes left a weighed beam (after its far phase and, where they could, its window):
 /// the walk, the reach, the reach at the window's first cell if the window was entered, and the
 /// window's Σ π·L so far.
@@ -179,9 +140,6 @@ pub(crate) enum WindowedBeam {
     MapFullSweep(Option<f64>),
     /// Nothing applied: the caller sweeps the whole ray for the weight and the update.
     FullSweep,
-    /// A weighed beam (weight only) paused at its tail: its lane was pushed onto `tails` (only
-    /// when `tails` is given).
-    Tail,
 }
 
 impl<'a> WindowedScan<'a> {
@@ -257,7 +215,6 @@ impl<'a> WindowedScan<'a> {
         job: &BeamJob,
         update: bool,
         start: Option<LaneStart>,
-        mut tails: Option<&mut Vec<TailLane>>,
         st: &mut ScanStats,
     ) -> WindowedBeam {
         let (w_plan, m_plan, dir) = (job.w_plan.as_ref(), job.m_plan.as_ref(), job.dir);
@@ -312,7 +269,7 @@ impl<'a> WindowedScan<'a> {
         let map_work = map_on && update;
         // Weighing only, the far phase may have been walked already (eight beams at a time).
         debug_assert!(start.is_none() || !update);
-        let (mut walk, mut reach, mut reach_far, mut eta_w) = match start {
+        let (walk, mut reach, mut reach_far, mut eta_w) = match start {
             Some(s) => (s.walk, s.reach, s.reach_far, s.eta_w),
             None => (
                 FastWalk::along(&g, origin, dir, length, window),
@@ -321,7 +278,7 @@ impl<'a> WindowedScan<'a> {
                 0.0,
             ),
         };
-        while let Some(wc) = walk.next() {
+        for wc in walk {
             let c = wc.cell;
             // Only an update needs the cell registered in the scan table.
             let (id, m) = if update {
@@ -349,7 +306,6 @@ impl<'a> WindowedScan<'a> {
             }
             let r_far = *reach_far.get_or_insert(reach);
             let mut hit = f64::NAN;
-            let mut in_tail = false;
             if let (Some(r), Some(w)) = (&reading, self.weight) {
                 if !in_map && map_on && d - z > self.weight_hit_reach {
                     // Past the reading and the hit reach: floor + short term, summed later.
@@ -357,7 +313,6 @@ impl<'a> WindowedScan<'a> {
                     ws.tail_pi.push(pi);
                     ws.tail_x.push(-w.lambda_short * d);
                     tail_mass += pi;
-                    in_tail = true;
                 } else {
                     hit = if (d - z).abs() <= self.weight_hit_reach {
                         w.hit_density_fast(z, d)
@@ -397,24 +352,6 @@ impl<'a> WindowedScan<'a> {
                 if stop {
                     stopped = true;
                     break;
-                }
-                // Every later cell is a tail cell too (d and t_in only grow).
-                if let (true, Some(tails)) = (in_tail, tails.as_deref_mut()) {
-                    tails.push(TailLane {
-                        walk,
-                        reach,
-                        mass: tail_mass,
-                        short: ws.tail_short(),
-                        base: (1.0 - r_far) * far_like + eta_w,
-                        floor: r.rand_floor(),
-                        sup_past,
-                        stopped: false,
-                        far_term: (1.0 - r_far) * far_like,
-                        eta_w,
-                        short_scale: r.short_scale(),
-                        infinity: job.consts.map_or_else(|| r.infinity(), |c| c.infinity),
-                    });
-                    return WindowedBeam::Tail;
                 }
             }
         }
@@ -548,14 +485,13 @@ mod tests {
             },
             true,
             None,
-            None,
             &mut st,
         );
         match out {
             WindowedBeam::Done(_) => true,
             WindowedBeam::MapFullSweep(_) => false,
-            WindowedBeam::FullSweep | WindowedBeam::Tail => {
-                panic!("the beam is not weighed: only the map can fall back, nothing pauses")
+            WindowedBeam::FullSweep => {
+                panic!("the beam is not weighed: only the map can fall back")
             }
         }
     }

@@ -1,0 +1,210 @@
+//! Weighing a group of beams in AVX-512 lanes: far phase, window and tail
+//! ([`super::far_simd`], [`super::window_simd`]) and the weight's final sum, sixteen beams at a
+//! time.
+//!
+//! Each phase does for its lanes what the windowed kernel's scalar loop ([`super::windowed`])
+//! does, in its order, so a beam weighed here has the scalar weight bit for bit. A lane whose
+//! window meets a cell the lanes do not handle comes back as a [`LaneStart`], and the scalar
+//! kernel walks the rest of that beam from there; a beam whose ray may leave the scan's mean
+//! table is left to the scalar kernel altogether.
+
+use crate::crm::far_simd::{far_phase, tail_phase, TailLanesIo, LANES};
+use crate::crm::map::{BeamJob, CrmMap, CrmScratch};
+use crate::crm::update::LINEAR_ETA_MIN;
+use crate::crm::window_simd::{window_phase, WindowLanesIo};
+use crate::crm::windowed::{LaneStart, WindowedScan};
+use crate::raycast::FastWalk;
+use crate::sensor::SensorModel;
+
+/// What the lanes made of a beam of the group.
+#[derive(Clone, Debug, Default)]
+pub(crate) enum LaneOutcome {
+    /// Not taken by the lanes: the scalar kernel weighs the whole beam.
+    #[default]
+    Alone,
+    /// The scalar kernel goes on from where the lanes stopped.
+    Resume(LaneStart),
+    /// Weighed: log η.
+    Weighed(f64),
+    /// η underflowed: the full sweep weighs the beam (as the scalar kernel would send it there).
+    FullSweep,
+}
+
+impl CrmMap {
+    /// Weighs the beams of `group` (at most [`LANES`]) under `weight` in lanes, as far as the
+    /// lanes go; nothing where the scan has no mean table or the CPU lacks AVX-512.
+    pub(crate) fn weigh_in_lanes(
+        &self,
+        k: &WindowedScan,
+        weight: &SensorModel,
+        group: &[BeamJob],
+        sc: &CrmScratch,
+    ) -> [LaneOutcome; LANES] {
+        let mut out: [LaneOutcome; LANES] = Default::default();
+        let Some(t) = sc.scan.mean_table() else {
+            return out;
+        };
+        let g = *self.grid.geometry();
+        let r = t.rect;
+        let mut walks: Vec<FastWalk> = Vec::with_capacity(LANES);
+        let mut lane_of = [0usize; LANES];
+        let mut lo = [0.0; LANES];
+        for (i, job) in group.iter().enumerate() {
+            let (Some(w), Some(c)) = (job.w_plan.as_ref(), job.consts) else {
+                continue;
+            };
+            let length = w.length.max(job.m_plan.map_or(0.0, |p| p.length));
+            // Every cell the ray can reach lies in the table (one cell of slack each side).
+            let (cx, cy) = g.cell_of(w.origin[0], w.origin[1]);
+            let reach_cells = (length / g.resolution).ceil() as i64 + 2;
+            let inside = cx - reach_cells >= r.ix0
+                && cy - reach_cells >= r.iy0
+                && cx + reach_cells < r.ix0 + r.nx
+                && cy + reach_cells < r.iy0 + r.ny;
+            if !inside || !c.short_numerator.is_finite() {
+                continue;
+            }
+            let j = walks.len();
+            walks.push(FastWalk::along(
+                &g,
+                w.origin,
+                job.dir,
+                length,
+                (r.ix0, r.iy0, r.nx),
+            ));
+            lo[j] = k.far_end(w);
+            lane_of[j] = i;
+        }
+        let n = walks.len();
+        let mut reach = [1.0; LANES];
+        if n == 0 || !far_phase(&mut walks, &lo[..n], &mut reach[..n], &t.values) {
+            return out;
+        }
+        let Some(wm) = k.window_model() else {
+            return out;
+        };
+        // The window; a lane without a mapping ray stops at once (the scalar kernel has the
+        // rest of such beams).
+        let (mut z, mut map_length, mut numerator) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for (j, &i) in lane_of[..n].iter().enumerate() {
+            let job = &group[i];
+            let (w, c) = (
+                job.w_plan.expect("lanes hold weighed beams"),
+                job.consts.expect("lanes hold beams with constants"),
+            );
+            z[j] = w.z;
+            map_length[j] = job.m_plan.map_or(f64::NEG_INFINITY, |p| p.length);
+            numerator[j] = c.short_numerator;
+        }
+        let (mut reach_far, mut eta) = ([f64::NAN; LANES], [0.0; LANES]);
+        let (mut at_tail, mut bailed) = ([false; LANES], [false; LANES]);
+        let io = WindowLanesIo {
+            walks: &mut walks,
+            reach: &mut reach[..n],
+            z: &z[..n],
+            map_length: &map_length[..n],
+            short_numerator: &numerator[..n],
+            reach_far: &mut reach_far[..n],
+            eta: &mut eta[..n],
+            at_tail: &mut at_tail[..n],
+            bailed: &mut bailed[..n],
+        };
+        if !window_phase(io, &t.values, &wm) {
+            return out;
+        }
+        // The tails of the lanes that reached theirs, then every finished lane's η.
+        let floor = weight.w_rand / weight.z_max;
+        let mut tails: Vec<usize> = Vec::with_capacity(n);
+        let mut tail_walks: Vec<FastWalk> = Vec::with_capacity(n);
+        let (mut t_reach, mut base, mut sup_past) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for j in (0..n).filter(|&j| at_tail[j]) {
+            let c = group[lane_of[j]]
+                .consts
+                .expect("lanes hold beams with constants");
+            let m = tails.len();
+            // r_far: the reach at the first cell past the far phase, the tail's first if the
+            // window had none.
+            let r_far = if reach_far[j].is_nan() {
+                reach[j]
+            } else {
+                reach_far[j]
+            };
+            let far_term = (1.0 - r_far) * floor;
+            t_reach[m] = reach[j];
+            base[m] = far_term + eta[j];
+            sup_past[m] = c.sup_past;
+            tail_walks.push(walks[j].clone());
+            tails.push(j);
+        }
+        let nt = tails.len();
+        let (mut mass, mut short, mut stopped) = ([0.0; LANES], [0.0; LANES], [false; LANES]);
+        if nt > 0 {
+            let io = TailLanesIo {
+                walks: &mut tail_walks,
+                reach: &mut t_reach[..nt],
+                mass: &mut mass[..nt],
+                short: &mut short[..nt],
+                base: &base[..nt],
+                sup_past: &sup_past[..nt],
+                stopped: &mut stopped[..nt],
+            };
+            if !tail_phase(io, &t.values, floor, -weight.lambda_short) {
+                return out;
+            }
+        }
+        let mut tail_of = [usize::MAX; LANES];
+        for (m, &j) in tails.iter().enumerate() {
+            tail_of[j] = m;
+        }
+        for (j, walk) in walks.into_iter().enumerate() {
+            let i = lane_of[j];
+            let entered = !reach_far[j].is_nan();
+            if bailed[j] {
+                out[i] = LaneOutcome::Resume(LaneStart {
+                    walk,
+                    reach: reach[j],
+                    reach_far: entered.then_some(reach_far[j]),
+                    eta_w: eta[j],
+                });
+                continue;
+            }
+            let job = &group[i];
+            let (w, c) = (
+                job.w_plan.expect("lanes hold weighed beams"),
+                job.consts.expect("lanes hold beams with constants"),
+            );
+            // The scalar kernel's end of a beam: r_far is the reach at the window's first cell,
+            // or the final reach if the window was never entered.
+            let m = tail_of[j];
+            let (final_reach, mut eta_w, was_stopped) = if m == usize::MAX {
+                (reach[j], eta[j], false)
+            } else {
+                let short_scale = weight.w_short * c.short_numerator;
+                (
+                    t_reach[m],
+                    eta[j] + (floor * mass[m] + short_scale * short[m]),
+                    stopped[m],
+                )
+            };
+            // The scalar `reach_far.unwrap_or(reach)`: set at the first cell past the far phase
+            // (a window cell, or the tail's first), else the final reach.
+            let r_far = match (entered, m == usize::MAX) {
+                (true, _) => reach_far[j],
+                (false, false) => reach[j],
+                (false, true) => final_reach,
+            };
+            let far_like = if w.no_return { weight.w_max } else { floor };
+            let mut total = (1.0 - r_far) * far_like + eta_w;
+            if !was_stopped {
+                total += final_reach * c.infinity;
+            }
+            eta_w = total;
+            out[i] = if eta_w >= LINEAR_ETA_MIN && eta_w.is_finite() {
+                LaneOutcome::Weighed(eta_w.ln())
+            } else {
+                LaneOutcome::FullSweep
+            };
+        }
+        out
+    }
+}
