@@ -65,6 +65,8 @@ pub(crate) fn far_phase(
 /// ((1 − R_far)·far_like + η_w) and the bound `sup_past` of every cause's likelihood past the
 /// mapping ray. On return: where each walk ended, the sums, and whether the stop rule ended it.
 pub(crate) struct TailLanesIo<'a> {
+    /// Lanes to walk (the others are left untouched).
+    pub(crate) enabled: &'a [bool],
     pub(crate) walks: &'a mut [FastWalk],
     pub(crate) reach: &'a mut [f64],
     pub(crate) mass: &'a mut [f64],
@@ -344,7 +346,12 @@ impl TailLanes {
             a[..v.len()].copy_from_slice(v);
             _mm512_loadu_pd(a.as_ptr())
         };
-        let walk = WalkLanes::load(io.walks[range.clone()].iter());
+        let mut walk = WalkLanes::load(io.walks[range.clone()].iter());
+        for (i, &on) in io.enabled[range.clone()].iter().enumerate() {
+            if !on {
+                walk.live &= !(1 << i);
+            }
+        }
         let active = walk.live;
         Self {
             walk,

@@ -112,16 +112,13 @@ impl CrmMap {
         if !window_phase(io, &t.values, &wm) {
             return out;
         }
-        // The tails of the lanes that reached theirs, then every finished lane's η.
+        // The tails of the lanes that reached theirs (in place), then every finished lane's η.
         let floor = weight.w_rand / weight.z_max;
-        let mut tails: Vec<usize> = Vec::with_capacity(n);
-        let mut tail_walks: Vec<FastWalk> = Vec::with_capacity(n);
-        let (mut t_reach, mut base, mut sup_past) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let (mut base, mut sup_past) = ([0.0; LANES], [0.0; LANES]);
         for j in (0..n).filter(|&j| at_tail[j]) {
             let c = group[lane_of[j]]
                 .consts
                 .expect("lanes hold beams with constants");
-            let m = tails.len();
             // r_far: the reach at the first cell past the far phase, the tail's first if the
             // window had none.
             let r_far = if reach_far[j].is_nan() {
@@ -129,32 +126,25 @@ impl CrmMap {
             } else {
                 reach_far[j]
             };
-            let far_term = (1.0 - r_far) * floor;
-            t_reach[m] = reach[j];
-            base[m] = far_term + eta[j];
-            sup_past[m] = c.sup_past;
-            tail_walks.push(walks[j].clone());
-            tails.push(j);
+            base[j] = (1.0 - r_far) * floor + eta[j];
+            sup_past[j] = c.sup_past;
         }
-        let nt = tails.len();
+        let tail_start = reach;
         let (mut mass, mut short, mut stopped) = ([0.0; LANES], [0.0; LANES], [false; LANES]);
-        if nt > 0 {
+        if at_tail[..n].iter().any(|&a| a) {
             let io = TailLanesIo {
-                walks: &mut tail_walks,
-                reach: &mut t_reach[..nt],
-                mass: &mut mass[..nt],
-                short: &mut short[..nt],
-                base: &base[..nt],
-                sup_past: &sup_past[..nt],
-                stopped: &mut stopped[..nt],
+                enabled: &at_tail[..n],
+                walks: &mut walks,
+                reach: &mut reach[..n],
+                mass: &mut mass[..n],
+                short: &mut short[..n],
+                base: &base[..n],
+                sup_past: &sup_past[..n],
+                stopped: &mut stopped[..n],
             };
             if !tail_phase(io, &t.values, floor, -weight.lambda_short) {
                 return out;
             }
-        }
-        let mut tail_of = [usize::MAX; LANES];
-        for (m, &j) in tails.iter().enumerate() {
-            tail_of[j] = m;
         }
         for (j, walk) in walks.into_iter().enumerate() {
             let i = lane_of[j];
@@ -173,34 +163,27 @@ impl CrmMap {
                 job.w_plan.expect("lanes hold weighed beams"),
                 job.consts.expect("lanes hold beams with constants"),
             );
-            // The scalar kernel's end of a beam: r_far is the reach at the window's first cell,
-            // or the final reach if the window was never entered.
-            let m = tail_of[j];
-            let (final_reach, mut eta_w, was_stopped) = if m == usize::MAX {
-                (reach[j], eta[j], false)
-            } else {
+            // The scalar kernel's end of a beam.
+            let eta_w = if at_tail[j] {
                 let short_scale = weight.w_short * c.short_numerator;
-                (
-                    t_reach[m],
-                    eta[j] + (floor * mass[m] + short_scale * short[m]),
-                    stopped[m],
-                )
+                eta[j] + (floor * mass[j] + short_scale * short[j])
+            } else {
+                eta[j]
             };
             // The scalar `reach_far.unwrap_or(reach)`: set at the first cell past the far phase
             // (a window cell, or the tail's first), else the final reach.
-            let r_far = match (entered, m == usize::MAX) {
+            let r_far = match (entered, at_tail[j]) {
                 (true, _) => reach_far[j],
+                (false, true) => tail_start[j],
                 (false, false) => reach[j],
-                (false, true) => final_reach,
             };
             let far_like = if w.no_return { weight.w_max } else { floor };
-            let mut total = (1.0 - r_far) * far_like + eta_w;
-            if !was_stopped {
-                total += final_reach * c.infinity;
+            let mut eta_total = (1.0 - r_far) * far_like + eta_w;
+            if !stopped[j] {
+                eta_total += reach[j] * c.infinity;
             }
-            eta_w = total;
-            out[i] = if eta_w >= LINEAR_ETA_MIN && eta_w.is_finite() {
-                LaneOutcome::Weighed(eta_w.ln())
+            out[i] = if eta_total >= LINEAR_ETA_MIN && eta_total.is_finite() {
+                LaneOutcome::Weighed(eta_total.ln())
             } else {
                 LaneOutcome::FullSweep
             };
