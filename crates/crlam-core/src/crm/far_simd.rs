@@ -6,17 +6,17 @@
 //! which a scalar loop does at the speed of its walk's branch. Here each lane walks one beam
 //! (a [`FastWalk`], the same operations in the same order as its `next`), reads its cells' means
 //! by a gather from the scan's mean table and multiplies its reach, until the lane reaches a cell
-//! that is not far (left unconsumed, for the scalar kernel to take up), or its ray ends. Every
-//! lane ends in the state the scalar loop would have reached, bit for bit, so the kernel goes on
-//! from there as if it had walked alone.
+//! that is not far (left unconsumed, for the window lanes of [`super::window_simd`] or the scalar
+//! kernel to take up), or its ray ends. Every lane ends in the state the scalar loop would have
+//! reached, bit for bit, so what follows goes on as if the beam had been walked alone.
 //!
 //! The tail of a weighed beam, past the mapping ray and the weight's hit reach, is again a walk
 //! with a little arithmetic per cell: each cause's probability π = R·m̂ goes into Σ π and, with
 //! e^{−λd}, into Σ π/(1 − e^{−λd}), until the stop rule of [`super::windowed`] holds or the ray
-//! ends. [`tail_phase`] walks the tails of the beams the kernel paused there
-//! ([`TailLane`]), with the scalar loop's operations in its order (the exponential is
+//! ends. [`tail_phase`] walks the tails of the beams whose window lanes stopped at their first
+//! tail cell, with the scalar loop's operations in its order (the exponential is
 //! [`exp_for_sums_avx512`], lane for lane the scalar one), so every lane ends as the scalar
-//! loop would, bit for bit.
+//! loop would, bit for bit. [`super::lanes`] drives the three phases.
 //!
 //! A lane's step is a chain of dependent operations (crossing, midpoint, compare, gather,
 //! product), so one set of eight lanes leaves the core waiting on latencies; two independent sets

@@ -267,7 +267,7 @@ impl<'a> WindowedScan<'a> {
             return WindowedBeam::FullSweep;
         };
         let map_work = map_on && update;
-        // Weighing only, the far phase may have been walked already (eight beams at a time).
+        // Weighing only, the lanes may have walked part of the beam already.
         debug_assert!(start.is_none() || !update);
         let (walk, mut reach, mut reach_far, mut eta_w) = match start {
             Some(s) => (s.walk, s.reach, s.reach_far, s.eta_w),

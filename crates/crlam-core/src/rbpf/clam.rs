@@ -94,7 +94,8 @@ pub struct ClamConfig {
     /// Update a particle's map only once resampling has kept it (every particle when there is no
     /// resampling). Exact: the weights use the pre-update maps and the updates do not depend on
     /// the weights, so the results are the same bit for bit; with peaked weights most particles
-    /// are dropped and their updates are saved, and weighing alone walks eight beams at a time.
+    /// are dropped and their updates are saved, and weighing alone runs sixteen beams at a time in
+    /// lanes.
     /// On by default; off, the odometry proposal fuses weight and update into one walk of each
     /// beam (the reference the tests compare with).
     pub defer_map_updates: bool,
