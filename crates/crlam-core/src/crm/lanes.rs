@@ -48,7 +48,13 @@ impl CrmMap {
         let r = t.rect;
         let mut walks: Vec<FastWalk> = Vec::with_capacity(LANES);
         let mut lane_of = [0usize; LANES];
-        let mut lo = [0.0; LANES];
+        // Per lane: where the far phase ends, the reading, the end of the mapping ray (−∞
+        // without one: the window lane then stops at once and the scalar kernel has the rest),
+        // and the reading's constants.
+        let (mut lo, mut z, mut map_length) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let (mut numerator, mut sup_past, mut infinity) =
+            ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let mut no_return = [false; LANES];
         for (i, job) in group.iter().enumerate() {
             let (Some(w), Some(c)) = (job.w_plan.as_ref(), job.consts) else {
                 continue;
@@ -74,6 +80,10 @@ impl CrmMap {
             ));
             lo[j] = k.far_end(w);
             lane_of[j] = i;
+            z[j] = w.z;
+            map_length[j] = job.m_plan.map_or(f64::NEG_INFINITY, |p| p.length);
+            (numerator[j], sup_past[j], infinity[j]) = (c.short_numerator, c.sup_past, c.infinity);
+            no_return[j] = w.no_return;
         }
         let n = walks.len();
         let mut reach = [1.0; LANES];
@@ -83,19 +93,6 @@ impl CrmMap {
         let Some(wm) = k.window_model() else {
             return out;
         };
-        // The window; a lane without a mapping ray stops at once (the scalar kernel has the
-        // rest of such beams).
-        let (mut z, mut map_length, mut numerator) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-        for (j, &i) in lane_of[..n].iter().enumerate() {
-            let job = &group[i];
-            let (w, c) = (
-                job.w_plan.expect("lanes hold weighed beams"),
-                job.consts.expect("lanes hold beams with constants"),
-            );
-            z[j] = w.z;
-            map_length[j] = job.m_plan.map_or(f64::NEG_INFINITY, |p| p.length);
-            numerator[j] = c.short_numerator;
-        }
         let (mut reach_far, mut eta) = ([f64::NAN; LANES], [0.0; LANES]);
         let (mut at_tail, mut bailed) = ([false; LANES], [false; LANES]);
         let io = WindowLanesIo {
@@ -114,11 +111,8 @@ impl CrmMap {
         }
         // The tails of the lanes that reached theirs (in place), then every finished lane's η.
         let floor = weight.w_rand / weight.z_max;
-        let (mut base, mut sup_past) = ([0.0; LANES], [0.0; LANES]);
+        let mut base = [0.0; LANES];
         for j in (0..n).filter(|&j| at_tail[j]) {
-            let c = group[lane_of[j]]
-                .consts
-                .expect("lanes hold beams with constants");
             // r_far: the reach at the first cell past the far phase, the tail's first if the
             // window had none.
             let r_far = if reach_far[j].is_nan() {
@@ -127,7 +121,6 @@ impl CrmMap {
                 reach_far[j]
             };
             base[j] = (1.0 - r_far) * floor + eta[j];
-            sup_past[j] = c.sup_past;
         }
         let tail_start = reach;
         let (mut mass, mut short, mut stopped) = ([0.0; LANES], [0.0; LANES], [false; LANES]);
@@ -158,14 +151,9 @@ impl CrmMap {
                 });
                 continue;
             }
-            let job = &group[i];
-            let (w, c) = (
-                job.w_plan.expect("lanes hold weighed beams"),
-                job.consts.expect("lanes hold beams with constants"),
-            );
             // The scalar kernel's end of a beam.
             let eta_w = if at_tail[j] {
-                let short_scale = weight.w_short * c.short_numerator;
+                let short_scale = weight.w_short * numerator[j];
                 eta[j] + (floor * mass[j] + short_scale * short[j])
             } else {
                 eta[j]
@@ -177,10 +165,10 @@ impl CrmMap {
                 (false, true) => tail_start[j],
                 (false, false) => reach[j],
             };
-            let far_like = if w.no_return { weight.w_max } else { floor };
+            let far_like = if no_return[j] { weight.w_max } else { floor };
             let mut eta_total = (1.0 - r_far) * far_like + eta_w;
             if !stopped[j] {
-                eta_total += reach[j] * c.infinity;
+                eta_total += reach[j] * infinity[j];
             }
             out[i] = if eta_total >= LINEAR_ETA_MIN && eta_total.is_finite() {
                 LaneOutcome::Weighed(eta_total.ln())
