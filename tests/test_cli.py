@@ -28,6 +28,16 @@ def test_python_dash_m_works() -> None:
     assert all(c in r.stdout for c in COMMANDS)
 
 
+def test_a_closed_output_pipe_ends_quietly() -> None:
+    # `crlam data list | head -0`: the reader is gone before anything is written.
+    proc = subprocess.Popen([sys.executable, "-m", "crlam", "data", "list"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout is not None and proc.stderr is not None
+    proc.stdout.close()
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141
+    assert "Traceback" not in err and "BrokenPipeError" not in err, err
+
+
 def test_parser_knows_every_command() -> None:
     assert set(COMMANDS) <= set(build_parser()._subparsers._group_actions[0].choices)  # type: ignore[union-attr]
 
