@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -29,12 +30,17 @@ def test_python_dash_m_works() -> None:
 
 
 def test_a_closed_output_pipe_ends_quietly() -> None:
-    # `crlam data list | head -0`: the reader is gone before anything is written.
-    proc = subprocess.Popen([sys.executable, "-m", "crlam", "data", "list"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    assert proc.stdout is not None and proc.stderr is not None
-    proc.stdout.close()
-    err = proc.stderr.read().decode()
-    assert proc.wait(timeout=120) == 141
+    # `crlam data list | head -0`: the pipe has no reader before anything is written.
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-m", "crlam", "data", "list"], stdout=write_end, stderr=subprocess.PIPE, timeout=120
+        )
+    finally:
+        os.close(write_end)
+    err = proc.stderr.decode()
+    assert proc.returncode == 141, err
     assert "Traceback" not in err and "BrokenPipeError" not in err, err
 
 
