@@ -230,29 +230,18 @@ impl CrmMap {
                 for group in jobs.chunks(LANES) {
                     let lanes = self.weigh_in_lanes(k, w, group, sc);
                     for (job, lane) in group.iter().zip(lanes) {
-                        let start = match lane {
+                        // Without a kernel, `finish_beam` is the full sweep.
+                        let (kernel, start) = match lane {
                             LaneOutcome::Weighed(l) => {
                                 add(BeamOutcome::Weighed(l));
                                 continue;
                             }
-                            LaneOutcome::FullSweep => {
-                                let (ll, weighed) = self.full_ray_beam(
-                                    weight_model,
-                                    job.w_plan,
-                                    mapping_model,
-                                    None,
-                                    job.m_plan.map_or(0.0, |p| p.length),
-                                    sc,
-                                    &mut st,
-                                );
-                                add(BeamOutcome::from_full_ray(ll, weighed));
-                                continue;
-                            }
-                            LaneOutcome::Resume(s) => Some(s),
-                            LaneOutcome::Alone => None,
+                            LaneOutcome::FullSweep => (None, None),
+                            LaneOutcome::Resume(s) => (Some(k), Some(s)),
+                            LaneOutcome::Alone => (Some(k), None),
                         };
                         let out = self.finish_beam(
-                            Some(k),
+                            kernel,
                             weight_model,
                             mapping_model,
                             job,
