@@ -10,9 +10,24 @@
 //! prior), so the map is conceptually infinite. A grid either grows on demand (writes outside the
 //! current tile rectangle enlarge it) or has a fixed extent, outside of which writes are refused.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use crate::error::{config_err, CrlamError, Result};
+
+/// `x.floor() as i64` (saturating, NaN to 0), bit for bit, without the call to libm's `floor`
+/// that the baseline x86-64 target makes of `f64::floor` (no SSE4.1 `roundsd`): every walk
+/// starts with two of them.
+#[inline(always)]
+pub fn floor_to_i64(x: f64) -> i64 {
+    // Truncation saturates and maps NaN to 0; |t| <= |x| and t is an integer, so `t as f64` is
+    // exact (below 2^53 every integer is, above it x is itself an integer).
+    let t = x as i64;
+    if (t as f64) > x {
+        t.saturating_sub(1)
+    } else {
+        t
+    }
+}
 
 /// Origin and cell size of a grid.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -42,8 +57,8 @@ impl GridGeometry {
     #[inline]
     pub fn cell_of(&self, x: f64, y: f64) -> (i64, i64) {
         (
-            ((x - self.origin[0]) / self.resolution).floor() as i64,
-            ((y - self.origin[1]) / self.resolution).floor() as i64,
+            floor_to_i64((x - self.origin[0]) / self.resolution),
+            floor_to_i64((y - self.origin[1]) / self.resolution),
         )
     }
 
@@ -128,6 +143,39 @@ pub struct TileStats {
     pub bytes_allocated: usize,
 }
 
+/// Most bytes of tiles a pool keeps for reuse.
+const MAX_POOLED_BYTES: usize = 256 << 20;
+
+/// Tiles of dropped grids, kept for the copies and new tiles of the grids that share the pool
+/// (a grid and its clones). A particle filter drops the maps resampling discards and copies
+/// the tiles of the kept ones as they diverge: recycling the memory, already faulted in, avoids
+/// the allocator returning it to the system and faulting it in again (zeroed) for the next copy.
+/// Invariant: every pooled tile is unshared (`Arc::get_mut` succeeds) and has the grid's tile
+/// length.
+struct TilePool<T> {
+    free: Mutex<Vec<Arc<[T]>>>,
+}
+
+impl<T> TilePool<T> {
+    fn new() -> Self {
+        Self {
+            free: Mutex::new(Vec::new()),
+        }
+    }
+
+    /// The pooled tiles (a poisoned lock only means a thread panicked while pushing or popping:
+    /// the vector itself is intact).
+    fn lock(&self) -> std::sync::MutexGuard<'_, Vec<Arc<[T]>>> {
+        self.free.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl<T> std::fmt::Debug for TilePool<T> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "TilePool({} tiles)", self.lock().len())
+    }
+}
+
 /// Tiled, copy-on-write storage of `stride` values of type `T` per cell.
 #[derive(Clone, Debug)]
 pub struct TiledGrid<T: Copy + Send + Sync> {
@@ -142,6 +190,30 @@ pub struct TiledGrid<T: Copy + Send + Sync> {
     nty: i64,
     tiles: Vec<Option<Arc<[T]>>>,
     fixed: Option<CellRect>,
+    /// Shared by this grid and its clones.
+    pool: Arc<TilePool<T>>,
+}
+
+impl<T: Copy + Send + Sync> Drop for TiledGrid<T> {
+    /// Hands this grid's unshared tiles to the pool, if another grid can still use it.
+    fn drop(&mut self) {
+        if Arc::strong_count(&self.pool) == 1 {
+            return;
+        }
+        let tile_bytes = (self.stride << (2 * self.shift)) * std::mem::size_of::<T>();
+        let cap = MAX_POOLED_BYTES / tile_bytes.max(1);
+        let mut free = self.pool.lock();
+        for slot in &mut self.tiles {
+            if free.len() >= cap {
+                break;
+            }
+            if let Some(mut t) = slot.take() {
+                if Arc::get_mut(&mut t).is_some() {
+                    free.push(t);
+                }
+            }
+        }
+    }
 }
 
 /// Largest tile rectangle side (in tiles) a grid may grow to; keeps a corrupt pose from
@@ -179,6 +251,7 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
             nty: 0,
             tiles: Vec::new(),
             fixed,
+            pool: Arc::new(TilePool::new()),
         };
         if let Some(r) = fixed {
             if r.nx <= 0 || r.ny <= 0 {
@@ -420,17 +493,43 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
         };
         let stride = self.stride;
         let cells = 1usize << (2 * self.shift);
-        let fill = &self.fill;
-        let tile = self.tiles[slot].get_or_insert_with(|| {
-            let mut v = Vec::with_capacity(cells * stride);
-            for _ in 0..cells {
-                v.extend_from_slice(fill);
+        let tile = &mut self.tiles[slot];
+        let shared = tile.as_mut().is_some_and(|t| Arc::get_mut(t).is_none());
+        match tile {
+            None => {
+                let fill = &self.fill;
+                let t = take_pooled(
+                    &self.pool,
+                    cells * stride,
+                    |d| {
+                        for c in d.chunks_exact_mut(stride) {
+                            c.copy_from_slice(fill);
+                        }
+                    },
+                    || {
+                        let mut v = Vec::with_capacity(cells * stride);
+                        for _ in 0..cells {
+                            v.extend_from_slice(fill);
+                        }
+                        Arc::from(v)
+                    },
+                );
+                *tile = Some(t);
             }
-            Arc::from(v)
-        });
-        if Arc::get_mut(tile).is_none() {
-            *tile = Arc::from(&tile[..]);
+            Some(t) if shared => {
+                let src = Arc::clone(t);
+                *t = take_pooled(
+                    &self.pool,
+                    src.len(),
+                    |d| d.copy_from_slice(&src),
+                    || Arc::from(&src[..]),
+                );
+            }
+            Some(_) => {}
         }
+        let Some(tile) = tile.as_mut() else {
+            return Err(CrlamError::Shape("tile missing after allocation".into()));
+        };
         let data = Arc::get_mut(tile)
             .ok_or_else(|| CrlamError::Shape("tile still shared after copy".into()))?;
         Ok(&mut data[off..off + stride])
@@ -497,12 +596,127 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
     }
 }
 
+/// A tile of `len` values written by `init`: a pooled one if the pool has any, else `fresh()`.
+fn take_pooled<T: Copy>(
+    pool: &TilePool<T>,
+    len: usize,
+    init: impl FnOnce(&mut [T]),
+    fresh: impl FnOnce() -> Arc<[T]>,
+) -> Arc<[T]> {
+    let pooled = pool.lock().pop();
+    match pooled {
+        Some(mut t) => match Arc::get_mut(&mut t) {
+            Some(d) if d.len() == len => {
+                init(d);
+                t
+            }
+            _ => fresh(),
+        },
+        None => fresh(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn geom() -> GridGeometry {
         GridGeometry::new([0.0, 0.0], 0.5).unwrap()
+    }
+
+    #[test]
+    fn dropped_grids_lend_their_tiles_to_the_copies_of_their_family() {
+        let rect = CellRect {
+            ix0: 0,
+            iy0: 0,
+            nx: 16,
+            ny: 16,
+        };
+        let mut a = TiledGrid::new(geom(), 8, &[1.0f32, 2.0], None).unwrap();
+        a.reserve(rect).unwrap();
+        a.get_mut(1, 1).unwrap()[0] = 5.0;
+        // A clone writes: its tile is a copy, freed to the pool when the clone is dropped.
+        let mut b = a.clone();
+        b.get_mut(2, 2).unwrap()[1] = 7.0;
+        b.get_mut(12, 12).unwrap()[0] = 9.0;
+        let b_tiles: Vec<usize> = b.tile_addresses().map(|(p, _)| p).collect();
+        let a_tiles: Vec<usize> = a.tile_addresses().map(|(p, _)| p).collect();
+        drop(b);
+        assert_eq!(a.pool.lock().len(), 2, "both of b's own tiles are pooled");
+        // Another clone reuses them: a copy of a's tile and a never-written tile from the fill,
+        // with none of b's values left in either.
+        let mut c = a.clone();
+        c.get_mut(3, 3).unwrap()[0] = 4.0;
+        c.get_mut(9, 1).unwrap()[0] = 6.0;
+        assert!(a.pool.lock().is_empty());
+        for (p, _) in c.tile_addresses() {
+            assert!(b_tiles.contains(&p) && !a_tiles.contains(&p));
+        }
+        for iy in 0..16 {
+            for ix in 0..16 {
+                if (ix, iy) != (3, 3) && (ix, iy) != (9, 1) {
+                    assert_eq!(c.get(ix, iy), a.get(ix, iy), "cell ({ix}, {iy})");
+                }
+            }
+        }
+        assert_eq!(c.get(1, 1), &[5.0, 2.0]);
+        assert_eq!(c.get(2, 2), &[1.0, 2.0]);
+        assert_eq!(c.get(3, 3), &[4.0, 2.0]);
+        assert_eq!(c.get(9, 1), &[6.0, 2.0]);
+        assert_eq!(c.get(12, 12), &[1.0, 2.0]);
+        assert_eq!(a.get(3, 3), &[1.0, 2.0]);
+        // The last grid of a family keeps nothing back.
+        drop(c);
+        let n = a.pool.lock().len();
+        assert_eq!(n, 2);
+        drop(a);
+    }
+
+    #[test]
+    fn floor_to_i64_is_floor_as_i64() {
+        let specials = [
+            0.0,
+            -0.0,
+            0.5,
+            -0.5,
+            1.0,
+            -1.0,
+            -1e-300,
+            1e-300,
+            f64::EPSILON,
+            -f64::EPSILON,
+            1.0 - f64::EPSILON / 2.0,
+            -1.0 + f64::EPSILON / 2.0,
+            4503599627370495.5,
+            -4503599627370495.5,
+            9007199254740993.0,
+            -9007199254740993.0,
+            9_223_372_036_854_775_807i64 as f64,
+            i64::MIN as f64,
+            1e19,
+            -1e19,
+            f64::MAX,
+            f64::MIN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+        ];
+        for x in specials {
+            assert_eq!(floor_to_i64(x), x.floor() as i64, "x = {x:e}");
+        }
+        // A deterministic sweep of magnitudes and fractions.
+        let mut state = 0x9e37_79b9_7f4a_7c15u64;
+        for _ in 0..200_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let x = f64::from_bits(state);
+            if x.is_finite() {
+                assert_eq!(floor_to_i64(x), x.floor() as i64, "x = {x:e}");
+                let y = (state >> 11) as f64 / (1u64 << 40) as f64 - 4096.0;
+                assert_eq!(floor_to_i64(y), y.floor() as i64, "y = {y:e}");
+            }
+        }
     }
 
     #[test]

@@ -5,7 +5,7 @@
 //! traversed length and the chord midpoint serves as the cause distance of the CRM model
 //! (crm-spec 2.1). Cells touched only at a corner (chord < [`MIN_CHORD`]) are dropped.
 
-use crate::grid::{CellRect, GridGeometry};
+use crate::grid::{floor_to_i64, CellRect, GridGeometry};
 
 mod walk;
 pub use walk::{FastWalk, FastWalkParts, GridWalk, WalkCell};
@@ -99,8 +99,8 @@ pub fn traverse_with<F: FnMut(RayCell) -> bool>(
     // Local coordinates relative to the grid origin, in cells.
     let px = (origin[0] - g.origin[0] + t_start * u[0]) * inv_res;
     let py = (origin[1] - g.origin[1] + t_start * u[1]) * inv_res;
-    let mut ix = px.floor() as i64;
-    let mut iy = py.floor() as i64;
+    let mut ix = floor_to_i64(px);
+    let mut iy = floor_to_i64(py);
     // When entering a clip box exactly on its far boundary the floor lands outside; pull back in.
     if let Some(r) = clip {
         ix = ix.clamp(r.ix0, r.ix0 + r.nx - 1);

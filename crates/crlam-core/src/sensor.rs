@@ -18,6 +18,9 @@ pub const GAUSS_CUTOFF_SIGMAS: f64 = 37.0;
 /// Φ(−8.3) < 1e-16: closer than this many σ to 0 or z_max the truncation normaliser is computed,
 /// elsewhere it equals 1 to rounding.
 pub(crate) const TRUNC_SIGMAS: f64 = 8.3;
+/// From this many σ on, [`normal_cdf`] is exactly 1 (and 0 at −x): `libm::erfc` returns 0 for
+/// arguments of 28 and more (28 √2 ≈ 39.6 σ) and 2 for −28 and less.
+const EXACT_TAIL_SIGMAS: f64 = 40.0;
 
 /// Which cause model to use.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -203,8 +206,17 @@ impl SensorModel {
         if d > TRUNC_SIGMAS * s && self.z_max - d > TRUNC_SIGMAS * s {
             return 0.0;
         }
-        let hi = normal_cdf((self.z_max - d) / s);
-        let lo = normal_cdf(-d / s);
+        // Φ(x) is 1 and Φ(−x) is 0 exactly for x ≥ EXACT_TAIL_SIGMAS: no erfc call.
+        let hi = if self.z_max - d >= EXACT_TAIL_SIGMAS * s {
+            1.0
+        } else {
+            normal_cdf((self.z_max - d) / s)
+        };
+        let lo = if d >= EXACT_TAIL_SIGMAS * s {
+            0.0
+        } else {
+            normal_cdf(-d / s)
+        };
         (hi - lo).max(1e-300).ln()
     }
 
@@ -437,6 +449,43 @@ pub fn normal_cdf(x: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn truncation_normaliser_skips_only_exact_tails() {
+        // The plain formula, both Φ computed.
+        let plain = |m: &SensorModel, d: f64| {
+            let s = m.sigma_hit;
+            (normal_cdf((m.z_max - d) / s) - normal_cdf(-d / s))
+                .max(1e-300)
+                .ln()
+        };
+        for sigma in [0.01, 0.03, 0.1, 0.2, 0.5] {
+            let mut m = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.1);
+            m.sigma_hit = sigma;
+            let s = sigma;
+            for i in 0..=20_000 {
+                let d = -1.0 + 10.0 * i as f64 / 20_000.0;
+                assert_eq!(
+                    m.log_trunc_norm(d).to_bits(),
+                    plain(&m, d).to_bits(),
+                    "sigma {sigma}, d {d}"
+                );
+            }
+            // Around both thresholds, ulp by ulp.
+            for base in [EXACT_TAIL_SIGMAS * s, 8.0 - EXACT_TAIL_SIGMAS * s] {
+                let mut d = base;
+                for _ in 0..64 {
+                    d = f64::from_bits(d.to_bits() - 1);
+                }
+                for _ in 0..128 {
+                    assert_eq!(m.log_trunc_norm(d).to_bits(), plain(&m, d).to_bits());
+                    d = f64::from_bits(d.to_bits() + 1);
+                }
+            }
+        }
+        assert_eq!(normal_cdf(EXACT_TAIL_SIGMAS), 1.0);
+        assert_eq!(normal_cdf(-EXACT_TAIL_SIGMAS), 0.0);
+    }
 
     fn quad(f: impl Fn(f64) -> f64, a: f64, b: f64, n: usize) -> f64 {
         let h = (b - a) / n as f64;

@@ -46,7 +46,9 @@ impl CrmMap {
         };
         let g = *self.grid.geometry();
         let r = t.rect;
-        let mut walks: Vec<FastWalk> = Vec::with_capacity(LANES);
+        // On the stack: a group is sixteen beams, and an allocation per group is measurable.
+        let mut walks: [FastWalk; LANES] = [const { FastWalk::ended() }; LANES];
+        let mut n = 0;
         let mut lane_of = [0usize; LANES];
         // Per lane: where the far phase ends, the reading, the end of the mapping ray (−∞
         // without one: the window lane then stops at once and the scalar kernel has the rest),
@@ -70,14 +72,9 @@ impl CrmMap {
             if !inside || !c.short_numerator.is_finite() {
                 continue;
             }
-            let j = walks.len();
-            walks.push(FastWalk::along(
-                &g,
-                w.origin,
-                job.dir,
-                length,
-                (r.ix0, r.iy0, r.nx),
-            ));
+            let j = n;
+            n += 1;
+            walks[j] = FastWalk::along(&g, w.origin, job.dir, length, (r.ix0, r.iy0, r.nx));
             lo[j] = k.far_end(w);
             lane_of[j] = i;
             z[j] = w.z;
@@ -85,9 +82,9 @@ impl CrmMap {
             (numerator[j], sup_past[j], infinity[j]) = (c.short_numerator, c.sup_past, c.infinity);
             no_return[j] = w.no_return;
         }
-        let n = walks.len();
+        let walks = &mut walks[..n];
         let mut reach = [1.0; LANES];
-        if n == 0 || !far_phase(&mut walks, &lo[..n], &mut reach[..n], &t.values) {
+        if n == 0 || !far_phase(walks, &lo[..n], &mut reach[..n], &t.values) {
             return out;
         }
         let Some(wm) = k.window_model() else {
@@ -96,7 +93,7 @@ impl CrmMap {
         let (mut reach_far, mut eta) = ([f64::NAN; LANES], [0.0; LANES]);
         let (mut at_tail, mut bailed) = ([false; LANES], [false; LANES]);
         let io = WindowLanesIo {
-            walks: &mut walks,
+            walks,
             reach: &mut reach[..n],
             z: &z[..n],
             map_length: &map_length[..n],
@@ -127,7 +124,7 @@ impl CrmMap {
         if at_tail[..n].iter().any(|&a| a) {
             let io = TailLanesIo {
                 enabled: &at_tail[..n],
-                walks: &mut walks,
+                walks,
                 reach: &mut reach[..n],
                 mass: &mut mass[..n],
                 short: &mut short[..n],
@@ -139,12 +136,12 @@ impl CrmMap {
                 return out;
             }
         }
-        for (j, walk) in walks.into_iter().enumerate() {
+        for (j, walk) in walks.iter().enumerate() {
             let i = lane_of[j];
             let entered = !reach_far[j].is_nan();
             if bailed[j] {
                 out[i] = LaneOutcome::Resume(LaneStart {
-                    walk,
+                    walk: walk.clone(),
                     reach: reach[j],
                     reach_far: entered.then_some(reach_far[j]),
                     eta_w: eta[j],

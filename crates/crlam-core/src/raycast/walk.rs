@@ -5,7 +5,7 @@
 #[cfg(doc)]
 use super::traverse_with;
 use super::{RayCell, MIN_CHORD};
-use crate::grid::GridGeometry;
+use crate::grid::{floor_to_i64, GridGeometry};
 
 /// The unclipped walk of [`traverse_with`] as an iterator, with the same cells and the same
 /// t_in / t_out bit for bit, and with each cell's linear index in a row-major window
@@ -72,8 +72,8 @@ impl GridWalk {
         let inv_res = 1.0 / res;
         let px = (origin[0] - g.origin[0] + 0.0 * u[0]) * inv_res;
         let py = (origin[1] - g.origin[1] + 0.0 * u[1]) * inv_res;
-        let ix = px.floor() as i64;
-        let iy = py.floor() as i64;
+        let ix = floor_to_i64(px);
+        let iy = floor_to_i64(py);
         let step_x: i64 = if u[0] > 0.0 { 1 } else { -1 };
         let step_y: i64 = if u[1] > 0.0 { 1 } else { -1 };
         let (ix0, iy0, nx) = window;
@@ -201,6 +201,27 @@ pub struct FastWalk {
 }
 
 impl FastWalk {
+    /// A walk with no cells (a placeholder in fixed-size sets of walks).
+    pub(crate) const fn ended() -> Self {
+        Self {
+            ix: 0,
+            iy: 0,
+            index: 0,
+            step_x: 1,
+            step_y: 1,
+            index_step_x: 1,
+            index_step_y: 1,
+            tx: f64::INFINITY,
+            ty: f64::INFINITY,
+            dtx: f64::INFINITY,
+            dty: f64::INFINITY,
+            t_in: 0.0,
+            t_end: 0.0,
+            steps_left: 0,
+            done: true,
+        }
+    }
+
     /// The walk of [`traverse_with`]`(g, origin, angle, length, None, ..)` (see the type's
     /// documentation), with window indices as in [`GridWalk::new`].
     pub fn new(
