@@ -139,6 +139,8 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         assert 'proposal_pose = "match"' in (wide / "config.toml").read_text()
         deviations = json.loads((wide / "metrics.json").read_text())["deviations_from_paper"]
         assert "proposal_pose = 'match' (paper: 'sample')" in deviations
+    with pytest.raises(SystemExit):
+        main([*args, "--match-stride", "0"])
     empty = tmp_path / "empty.clf"
     empty.write_text("")
     assert main(["slam", str(empty), "--out", str(tmp_path / "x"), "--quiet"]) == 2
@@ -155,6 +157,8 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("cause_kernel", "box"),
         ("batch_kernel", "fast"),
         ("proposal_pose", "mean"),
+        ("match_stride", 0),
+        ("match_stride", 1.5),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),
     ],
@@ -173,6 +177,8 @@ def test_the_native_filters_check_the_proposal_pose() -> None:
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="odometry", proposal_pose="match")
     with pytest.raises(ValueError, match="proposal_pose"):
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", proposal_pose="mean")
+    with pytest.raises(ValueError, match="match stride"):
+        _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", match_stride=0)
     with pytest.raises(ValueError, match="proposal_pose"):
         _native.OgmFilter(pose, n_particles=2, proposal_pose="mean")
     assert _native.OgmFilter(pose, n_particles=2, proposal_pose="match").n_particles == 2
@@ -198,3 +204,18 @@ def test_aces_smoke_first_1000_scans(data_dir: Path, tmp_path: Path) -> None:
     # Five particles and the paper's weights do not beat ACES's good short-term odometry (0.032 m here; the
     # filter gets about 0.07 m): the smoke test checks that it stays on track, not that it wins.
     assert m["relations"]["trans_mean_m"] < max(0.3, 3.0 * odo.summary()["trans_mean_m"]), (m["relations"], odo.summary())
+
+
+def test_the_match_stride_reaches_the_likelihood_mode_climb(office: Path, tmp_path: Path) -> None:
+    # The climb's beam stride changes where the climbs end, so the trajectories differ; the
+    # setting is recorded with the run. The odometry proposal has no climb: the stride is inert.
+    trajectories = {}
+    for proposal in ("likelihood_mode", "odometry"):
+        for stride in (1, 3):
+            out = tmp_path / f"{proposal}{stride}"
+            args = ["slam", str(office / "log.clf"), "--out", str(out), "--particles", "4", "--max-scans", "25", "--quiet"]
+            assert main([*args, "--proposal", proposal, "--match-stride", str(stride), "--seed", "2"]) == 0
+            assert f"\nmatch_stride = {stride}\n" in (out / "config.toml").read_text()
+            trajectories[proposal, stride] = read_tum(out / "trajectory.tum").poses
+    assert not np.array_equal(trajectories["likelihood_mode", 1], trajectories["likelihood_mode", 3])
+    np.testing.assert_array_equal(trajectories["odometry", 1], trajectories["odometry", 3])

@@ -211,6 +211,7 @@ class ClamFilter:
         angular_update: float = 0.0,
         proposal: str = "odometry",
         proposal_pose: str = "sample",
+        match_stride: int = 3,
         seed: int = 0,
     ) -> ClamFilter: ...
     def process(

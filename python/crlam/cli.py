@@ -38,6 +38,9 @@ _PROPOSAL_POSE_HELP = (
     "improved proposals (RBPF-CLAM likelihood_mode, RBPF-OGM): draw the pose from the Gaussian fitted around the "
     "match (sample, default) or keep the match, as GMapping's code does (match)"
 )
+_MATCH_STRIDE_HELP = (
+    "RBPF-CLAM likelihood_mode: climb to the mode on every n-th beam (default: 3); the lattice and the weights use every beam"
+)
 _SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
 
 
@@ -166,6 +169,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         max_range=args.max_range,
         proposal=args.proposal,
         proposal_pose=args.proposal_pose,
+        match_stride=args.match_stride,
         motion=args.motion,
         motion_params=tuple(args.motion_params) if args.motion_params else None,
         weight_stride=args.weight_stride,
@@ -248,6 +252,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             tempering=args.tempering,
             proposal=args.proposal,
             proposal_pose=args.proposal_pose,
+            match_stride=args.match_stride,
             sigma_range=args.sigma_range,
             cause_kernel=args.cause_kernel,
         )
@@ -273,6 +278,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             tempering=args.tempering,
             proposal=args.proposal,
             proposal_pose=args.proposal_pose,
+            match_stride=args.match_stride,
             linear_update=args.linear_update,
             angular_update=args.angular_update,
             sigma_range=args.sigma_range,
@@ -388,6 +394,7 @@ def build_parser() -> argparse.ArgumentParser:
         help=_PROPOSAL_HELP,
     )
     p.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
+    p.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
     p.add_argument("--motion", choices=("gaussian", "thrun"), default="gaussian", help="odometry noise model (default: gaussian)")
     p.add_argument("--motion-params", type=float, nargs="+", help="3 sigmas (gaussian) or 4 alphas (thrun)")
     p.add_argument("--weight-stride", type=_positive_int, default=1, help="every n-th beam for the weights (default: 1)")
@@ -503,6 +510,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
         q.add_argument("--proposal", choices=_PROPOSALS, default="odometry", help=_PROPOSAL_HELP)
         q.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
+        q.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"

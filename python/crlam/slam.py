@@ -58,6 +58,10 @@ class SlamConfig:
         draws the new pose from the Gaussian fitted around the match (Grisetti et al. 2007);
         ``match`` keeps the match itself, as GMapping's released code does (RBPF-CLAM then starts
         its climb from a motion-model sample, as GMapping does). Same weights either way.
+    match_stride : int
+        RBPF-CLAM's ``likelihood_mode``: the hill climbing to the mode uses every n-th beam
+        (default 3); the lattice around the mode and the weights use every beam
+        (``weight_stride``). 1 climbs on every beam (about 2x the proposal's cost).
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step) or ``thrun``
         (``motion_params`` = alpha1..alpha4).
@@ -88,6 +92,7 @@ class SlamConfig:
     resample_threshold: float = 0.5
     proposal: str = "odometry"
     proposal_pose: str = "sample"
+    match_stride: int = 3
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
     linear_update: float = 0.0
@@ -115,7 +120,7 @@ class SlamConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise bad(name, "must be a finite number > 0")
-        for name in ("weight_stride", "map_stride"):
+        for name in ("weight_stride", "map_stride", "match_stride"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise bad(name, "must be an integer >= 1")
         if not 0.0 <= self.resample_threshold <= 1.0:
@@ -231,6 +236,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             angular_update=config.angular_update,
             proposal=config.proposal,
             proposal_pose=config.proposal_pose,
+            match_stride=config.match_stride,
             seed=config.seed,
         )
     except ValueError as e:

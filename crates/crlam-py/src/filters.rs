@@ -234,7 +234,7 @@ filter_pymethods!(ClamFilter {
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
         batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
-        proposal_pose="sample", seed=0))]
+        proposal_pose="sample", match_stride=3, seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -260,6 +260,7 @@ filter_pymethods!(ClamFilter {
         angular_update: f64,
         proposal: &str,
         proposal_pose: &str,
+        match_stride: usize,
         seed: u64,
     ) -> PyResult<Self> {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
@@ -285,7 +286,17 @@ filter_pymethods!(ClamFilter {
                     "proposal_pose=\"match\" needs proposal=\"likelihood_mode\" (the odometry proposal has no match)",
                 ))
             }
-            ("likelihood_mode", rule) => ClamProposal::likelihood_mode_with(rule),
+            ("likelihood_mode", rule) => match ClamProposal::likelihood_mode_with(rule) {
+                ClamProposal::LikelihoodMode {
+                    step, iterations, ..
+                } => ClamProposal::LikelihoodMode {
+                    step,
+                    iterations,
+                    match_stride,
+                    pose: rule,
+                },
+                other => other,
+            },
             (other, _) => {
                 return Err(shape_err(format!(
                     "unknown proposal {other:?}; expected odometry or likelihood_mode"
