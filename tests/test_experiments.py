@@ -254,3 +254,24 @@ def test_workers_end_when_the_sweep_process_is_killed(tmp_path: Path) -> None:
     while _alive(child) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert not _alive(child), "the run went on without its sweep"
+
+
+def _rayon_threads(value: int) -> dict[str, str]:
+    return {"threads": os.environ.get("RAYON_NUM_THREADS", "unset"), "value": str(value)}
+
+
+def test_the_threads_setting_reaches_every_run(office_log: Path, tmp_path: Path) -> None:
+    from crlam.experiments.pool import run_jobs
+
+    jobs = [(f"j{i}", {"value": i}) for i in range(2)]
+    done, errors = run_jobs(jobs, _rayon_threads, lambda n: False, lambda n: {}, workers=2, threads=2, progress=False)
+    assert not errors and {r["threads"] for r in done.values()} == {"2"}
+    # A sweep passes its runs' thread count on, and the results do not depend on it.
+    ref = str(office_log / "groundtruth.tum")
+    trajectories = []
+    for threads in (1, 2):
+        spec = RunSpec("clam", str(office_log / "log.clf"), SlamConfig(particles=6, seed=3), reference=ref, threads=threads)
+        _, errors = run_sweep([spec], tmp_path / f"t{threads}", workers=2, progress=False)
+        assert not errors
+        trajectories.append((tmp_path / f"t{threads}" / "runs" / "clam" / "trajectory.tum").read_text())
+    assert trajectories[0] == trajectories[1]

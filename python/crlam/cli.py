@@ -263,6 +263,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             particles=args.particles,
             methods=args.methods,
             workers=args.workers,
+            threads=args.threads,
             base=base,
             progress=not args.quiet,
             report_only=args.report_only,
@@ -293,6 +294,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             ranges=args.ranges,
             base=base,
             workers=args.workers,
+            threads=args.threads,
             max_scans=args.max_scans,
             progress=not args.quiet,
             report_only=args.report_only,
@@ -504,6 +506,9 @@ def build_parser() -> argparse.ArgumentParser:
     ex.set_defaults(func=cmd_experiment)
     for q in (t1, rl):
         q.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
+        q.add_argument(
+            "--threads", type=_positive_int, default=1, help="threads of each run (default: 1; the results do not depend on it)"
+        )
         q.add_argument("--weight-stride", type=_positive_int, default=1, help="beam stride of the weights (default: 1)")
         q.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering (default: 1)")
         q.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)

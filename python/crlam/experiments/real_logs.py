@@ -55,11 +55,14 @@ def run_real_logs(
     ranges: Sequence[str] = ("full", "8"),
     base: SlamConfig | None = None,
     workers: int = 2,
+    threads: int = 1,
     max_scans: int | None = None,
     progress: bool = True,
     report_only: bool = False,
 ) -> dict[str, Any]:
     """Runs (or resumes) the grid of runs and writes the table; returns the results.
+
+    ``threads``: rayon threads of each run (the results do not depend on it; the wall times do).
 
     ``report_only`` runs nothing: the table covers the runs finished so far."""
     base = base or SlamConfig(resolution=0.1, motion="thrun")
@@ -74,7 +77,9 @@ def run_real_logs(
                     zmax = FULL_RANGE[ds] if rg == "full" else float(rg)
                     for k in range(seeds):
                         cfg = SlamConfig(**{**base.to_dict(), "method": m, "particles": n, "seed": k, "max_range": zmax})
-                        specs.append(RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans))
+                        specs.append(
+                            RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans, threads=threads)
+                        )
     done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
     rows = []
     for ds in datasets:

@@ -55,6 +55,7 @@ def run_table1(
     particles: int = 100,
     methods: Sequence[str] = ("ogm", "clam"),
     workers: int = 2,
+    threads: int = 1,
     sim_seed: int = 0,
     world_seed: int = 0,
     base: SlamConfig | None = None,
@@ -63,7 +64,8 @@ def run_table1(
 ) -> dict[str, Any]:
     """Runs (or resumes) the protocol and writes the table and figures; returns the results.
 
-    ``report_only`` runs nothing: the table and figures cover the runs finished so far."""
+    ``report_only`` runs nothing: the table and figures cover the runs finished so far.
+    ``threads``: rayon threads of each run (the results do not depend on it; the wall times do)."""
     out.mkdir(parents=True, exist_ok=True)
     sim_dir = out / "simulation"
     ensure_simulation(sim_dir, scans, sim_seed, world_seed)
@@ -73,7 +75,11 @@ def run_table1(
     for k in range(runs):
         for m in methods:
             cfg = SlamConfig(**{**base.to_dict(), "method": m, "particles": particles, "seed": k})
-            specs.append(RunSpec(f"{m}_run{k:02d}", str(sim_dir / "log.clf"), cfg, reference=str(sim_dir / "groundtruth.tum")))
+            specs.append(
+                RunSpec(
+                    f"{m}_run{k:02d}", str(sim_dir / "log.clf"), cfg, reference=str(sim_dir / "groundtruth.tum"), threads=threads
+                )
+            )
     done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
     rows: dict[str, dict[str, Any]] = {}
     for m in methods:
