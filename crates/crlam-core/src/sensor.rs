@@ -475,11 +475,11 @@ mod tests {
             for base in [EXACT_TAIL_SIGMAS * s, 8.0 - EXACT_TAIL_SIGMAS * s] {
                 let mut d = base;
                 for _ in 0..64 {
-                    d = f64::from_bits(d.to_bits() - 1);
+                    d = d.next_down();
                 }
                 for _ in 0..128 {
                     assert_eq!(m.log_trunc_norm(d).to_bits(), plain(&m, d).to_bits());
-                    d = f64::from_bits(d.to_bits() + 1);
+                    d = d.next_up();
                 }
             }
         }
