@@ -159,6 +159,9 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("proposal_pose", "mean"),
         ("match_stride", 0),
         ("match_stride", 1.5),
+        ("lattice_step", (0.01,)),
+        ("lattice_step", (0.01, 0.0)),
+        ("lattice_step", (float("nan"), 0.005)),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),
     ],
@@ -179,6 +182,8 @@ def test_the_native_filters_check_the_proposal_pose() -> None:
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", proposal_pose="mean")
     with pytest.raises(ValueError, match="match stride"):
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", match_stride=0)
+    with pytest.raises(ValueError, match="lattice"):
+        _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", lattice_step=(0.01, -0.005))
     with pytest.raises(ValueError, match="proposal_pose"):
         _native.OgmFilter(pose, n_particles=2, proposal_pose="mean")
     assert _native.OgmFilter(pose, n_particles=2, proposal_pose="match").n_particles == 2
@@ -219,3 +224,24 @@ def test_the_match_stride_reaches_the_likelihood_mode_climb(office: Path, tmp_pa
             trajectories[proposal, stride] = read_tum(out / "trajectory.tum").poses
     assert not np.array_equal(trajectories["likelihood_mode", 1], trajectories["likelihood_mode", 3])
     np.testing.assert_array_equal(trajectories["odometry", 1], trajectories["odometry", 3])
+
+
+def test_the_lattice_step_reaches_the_likelihood_mode_fit(office: Path, tmp_path: Path) -> None:
+    # The lattice decides the fitted Gaussian and the weights, so the trajectories differ; the
+    # default is the lattice of earlier versions (half the climb's first step), and the setting is
+    # recorded with the run. The odometry proposal has no lattice: the setting is inert.
+    trajectories = {}
+    for proposal in ("likelihood_mode", "odometry"):
+        for lattice in (None, ("0.01", "0.005")):
+            out = tmp_path / f"{proposal}{lattice is None}"
+            args = ["slam", str(office / "log.clf"), "--out", str(out), "--particles", "4", "--max-scans", "25", "--quiet"]
+            extra = [] if lattice is None else ["--lattice-step", *lattice]
+            assert main([*args, "--proposal", proposal, "--seed", "2", *extra]) == 0
+            want = "[0.05, 0.025]" if lattice is None else "[0.01, 0.005]"
+            assert f"\nlattice_step = {want}\n" in (out / "config.toml").read_text()
+            trajectories[proposal, lattice] = read_tum(out / "trajectory.tum").poses
+    fine = ("0.01", "0.005")
+    assert not np.array_equal(trajectories["likelihood_mode", None], trajectories["likelihood_mode", fine])
+    np.testing.assert_array_equal(trajectories["odometry", None], trajectories["odometry", fine])
+    with pytest.raises(SystemExit):
+        main(["slam", str(office / "log.clf"), "--out", str(tmp_path / "bad"), "--lattice-step", "0.01"])

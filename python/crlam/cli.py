@@ -41,6 +41,10 @@ _PROPOSAL_POSE_HELP = (
 _MATCH_STRIDE_HELP = (
     "RBPF-CLAM likelihood_mode: climb to the mode on every n-th beam (default: 3); the lattice and the weights use every beam"
 )
+_LATTICE_STEP_HELP = (
+    "RBPF-CLAM likelihood_mode: spacing (m, rad) of the 3x3x3 lattice around the mode that the Gaussian is fitted "
+    "to and the weight sums (default: 0.05 0.025; GMapping samples at 0.01 0.005)"
+)
 _SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
 
 
@@ -170,6 +174,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         proposal=args.proposal,
         proposal_pose=args.proposal_pose,
         match_stride=args.match_stride,
+        lattice_step=tuple(args.lattice_step),
         motion=args.motion,
         motion_params=tuple(args.motion_params) if args.motion_params else None,
         weight_stride=args.weight_stride,
@@ -253,6 +258,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             proposal=args.proposal,
             proposal_pose=args.proposal_pose,
             match_stride=args.match_stride,
+            lattice_step=tuple(args.lattice_step),
             sigma_range=args.sigma_range,
             cause_kernel=args.cause_kernel,
         )
@@ -280,6 +286,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             proposal=args.proposal,
             proposal_pose=args.proposal_pose,
             match_stride=args.match_stride,
+            lattice_step=tuple(args.lattice_step),
             linear_update=args.linear_update,
             angular_update=args.angular_update,
             sigma_range=args.sigma_range,
@@ -397,6 +404,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
     p.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
+    p.add_argument(
+        "--lattice-step", type=_positive_float, nargs=2, default=[0.05, 0.025], metavar=("DXY", "DTHETA"), help=_LATTICE_STEP_HELP
+    )
     p.add_argument("--motion", choices=("gaussian", "thrun"), default="gaussian", help="odometry noise model (default: gaussian)")
     p.add_argument("--motion-params", type=float, nargs="+", help="3 sigmas (gaussian) or 4 alphas (thrun)")
     p.add_argument("--weight-stride", type=_positive_int, default=1, help="every n-th beam for the weights (default: 1)")
@@ -516,6 +526,14 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--proposal", choices=_PROPOSALS, default="odometry", help=_PROPOSAL_HELP)
         q.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
         q.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
+        q.add_argument(
+            "--lattice-step",
+            type=_positive_float,
+            nargs=2,
+            default=[0.05, 0.025],
+            metavar=("DXY", "DTHETA"),
+            help=_LATTICE_STEP_HELP,
+        )
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"

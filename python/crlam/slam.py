@@ -62,6 +62,12 @@ class SlamConfig:
         RBPF-CLAM's ``likelihood_mode``: the hill climbing to the mode uses every n-th beam
         (default 3); the lattice around the mode and the weights use every beam
         (``weight_stride``). 1 climbs on every beam (about 2x the proposal's cost).
+    lattice_step : tuple of float
+        RBPF-CLAM's ``likelihood_mode``: spacing (m, rad) of the 3×3×3 lattice of poses around
+        the mode on which the Gaussian is fitted and whose sum is the weight (default
+        (0.05, 0.025), half the climb's first step). A lattice much wider than the likelihood's
+        peak sees only the mode: the fitted Gaussian is then the mode plus a floor of a tenth of
+        the spacing, and the weight the peak height. GMapping samples at (0.01, 0.005).
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step) or ``thrun``
         (``motion_params`` = alpha1..alpha4).
@@ -93,6 +99,7 @@ class SlamConfig:
     proposal: str = "odometry"
     proposal_pose: str = "sample"
     match_stride: int = 3
+    lattice_step: tuple[float, float] = (0.05, 0.025)
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
     linear_update: float = 0.0
@@ -123,6 +130,10 @@ class SlamConfig:
         for name in ("weight_stride", "map_stride", "match_stride"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise bad(name, "must be an integer >= 1")
+        if not (
+            len(self.lattice_step) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in self.lattice_step)
+        ):
+            raise bad("lattice_step", "needs 2 finite spacings > 0 (m, rad)")
         if not 0.0 <= self.resample_threshold <= 1.0:
             raise bad("resample_threshold", "must be in [0, 1]")
         if self.proposal not in ("odometry", "likelihood_mode"):
@@ -237,6 +248,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             proposal=config.proposal,
             proposal_pose=config.proposal_pose,
             match_stride=config.match_stride,
+            lattice_step=(float(config.lattice_step[0]), float(config.lattice_step[1])),
             seed=config.seed,
         )
     except ValueError as e:

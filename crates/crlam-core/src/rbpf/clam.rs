@@ -43,6 +43,11 @@ pub enum ClamProposal {
         iterations: usize,
         /// Beam stride used while matching (the final weight uses `weight_stride`).
         match_stride: usize,
+        /// Spacing (m, m, rad) of the 3×3×3 lattice around the mode that the Gaussian is fitted
+        /// to and whose sum is the weight. Half the initial step by default; a lattice much wider
+        /// than the likelihood's peak sees only the mode, so the fit degenerates to the mode plus
+        /// the floor (a tenth of the spacing) and the weight to the peak height.
+        lattice: [f64; 3],
         /// Draw from the fitted Gaussian (default) or keep the climb's mode.
         pose: ProposalPose,
     },
@@ -50,7 +55,7 @@ pub enum ClamProposal {
 
 impl ClamProposal {
     /// Defaults of the improved proposal: 0.1 m / 0.05 rad steps, 4 halvings, every 3rd beam,
-    /// a draw from the fitted Gaussian.
+    /// a lattice at half the step (0.05 m / 0.025 rad), a draw from the fitted Gaussian.
     pub fn likelihood_mode() -> Self {
         Self::likelihood_mode_with(ProposalPose::Sample)
     }
@@ -61,6 +66,7 @@ impl ClamProposal {
             step: [0.1, 0.1, 0.05],
             iterations: 4,
             match_stride: 3,
+            lattice: [0.05, 0.05, 0.025],
             pose,
         }
     }
@@ -158,13 +164,17 @@ impl ClamConfig {
             return Err(config_err("init_sigma", "must be finite and >= 0"));
         }
         if let ClamProposal::LikelihoodMode {
-            step, match_stride, ..
+            step,
+            match_stride,
+            lattice,
+            ..
         } = self.proposal
         {
-            if match_stride == 0 || step.iter().any(|s| !(s.is_finite() && *s > 0.0)) {
+            let positive = |v: &[f64; 3]| v.iter().all(|s| s.is_finite() && *s > 0.0);
+            if match_stride == 0 || !positive(&step) || !positive(&lattice) {
                 return Err(config_err(
                     "proposal",
-                    "steps must be > 0 and the match stride >= 1",
+                    "steps and lattice spacings must be finite and > 0, the match stride >= 1",
                 ));
             }
         }

@@ -42,6 +42,7 @@ pub(crate) fn propose(
             step,
             iterations,
             match_stride,
+            lattice: fine,
             pose: pose_rule,
         } => {
             let match_opts = scan_opts(cfg, match_stride);
@@ -58,8 +59,7 @@ pub(crate) fn propose(
             let mode = hill_climb(guess, step, iterations, |x| {
                 Ok(loglik(x, &match_opts, sc)? + prior(x))
             })?;
-            // Lattice around the mode, at half the initial step: likelihood × motion density.
-            let fine = [step[0] / 2.0, step[1] / 2.0, step[2] / 2.0];
+            // Lattice around the mode: likelihood × motion density.
             let mut pts = Vec::with_capacity(27);
             let mut lw = Vec::with_capacity(27);
             for dx in -1..=1 {
