@@ -212,7 +212,7 @@ class ClamFilter:
         proposal: str = "odometry",
         proposal_pose: str = "sample",
         match_stride: int = 3,
-        lattice_step: tuple[float, float] = (0.05, 0.025),
+        lattice_step: tuple[float, float] = ...,  # (0.05, 0.025)
         seed: int = 0,
     ) -> ClamFilter: ...
     def process(

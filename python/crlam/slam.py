@@ -130,9 +130,8 @@ class SlamConfig:
         for name in ("weight_stride", "map_stride", "match_stride"):
             if not (isinstance(getattr(self, name), int) and getattr(self, name) >= 1):
                 raise bad(name, "must be an integer >= 1")
-        if not (
-            len(self.lattice_step) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in self.lattice_step)
-        ):
+        spacings = self.lattice_step
+        if not (len(spacings) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in spacings)):
             raise bad("lattice_step", "needs 2 finite spacings > 0 (m, rad)")
         if not 0.0 <= self.resample_threshold <= 1.0:
             raise bad("resample_threshold", "must be in [0, 1]")

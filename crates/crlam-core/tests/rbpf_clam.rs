@@ -268,7 +268,11 @@ fn bad_inputs_are_errors() {
         ..config(ClamProposal::Odometry)
     };
     assert!(RbpfClam::new(cfg, [0.0; 3]).is_err());
-    for lattice in [[0.01, 0.01, 0.0], [0.01, f64::NAN, 0.005], [-0.01, 0.01, 0.005]] {
+    for lattice in [
+        [0.01, 0.01, 0.0],
+        [0.01, f64::NAN, 0.005],
+        [-0.01, 0.01, 0.005],
+    ] {
         let proposal = match ClamProposal::likelihood_mode() {
             ClamProposal::LikelihoodMode {
                 step,
@@ -285,7 +289,10 @@ fn bad_inputs_are_errors() {
             },
             other => other,
         };
-        assert!(RbpfClam::new(config(proposal), [0.0; 3]).is_err(), "{lattice:?}");
+        assert!(
+            RbpfClam::new(config(proposal), [0.0; 3]).is_err(),
+            "{lattice:?}"
+        );
     }
     let mut f = RbpfClam::new(config(ClamProposal::Odometry), [1.0, 1.0, 0.0]).unwrap();
     let s = ScanInput {

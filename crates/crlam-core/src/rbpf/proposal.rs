@@ -197,6 +197,44 @@ mod tests {
         }
     }
 
+    /// A lattice much wider than the peak sees only its centre: the draws are the mode plus the
+    /// covariance floor (a tenth of the spacing per axis), so the spacing sets their spread.
+    #[test]
+    fn a_lattice_wider_than_the_peak_draws_the_mode_plus_the_floor() {
+        let mode = [1.0, -2.0, 0.3];
+        for fine in [[0.05, 0.05, 0.025], [0.1, 0.1, 0.05]] {
+            let (mut pts, mut w) = (Vec::new(), Vec::new());
+            for dx in -1..=1 {
+                for dy in -1..=1 {
+                    for dt in -1..=1 {
+                        let off = [dx as f64, dy as f64, dt as f64];
+                        pts.push([
+                            mode[0] + off[0] * fine[0],
+                            mode[1] + off[1] * fine[1],
+                            mode[2] + off[2] * fine[2],
+                        ]);
+                        // Neighbours 200 nats down: exp underflows to 0 for all but the centre.
+                        w.push((-200.0 * (off[0].abs() + off[1].abs() + off[2].abs())).exp());
+                    }
+                }
+            }
+            let s: f64 = w.iter().sum();
+            let mut rng = Rng::new(7);
+            let n = 20_000;
+            let mut sq = [0.0f64; 3];
+            for _ in 0..n {
+                let x = sample_fitted_gaussian(&pts, &w, s, fine, &mut rng);
+                for a in 0..3 {
+                    sq[a] += (x[a] - mode[a]).powi(2);
+                }
+            }
+            for a in 0..3 {
+                let sd = (sq[a] / n as f64).sqrt();
+                assert!((sd / (0.1 * fine[a]) - 1.0).abs() < 0.03, "axis {a}: {sd}");
+            }
+        }
+    }
+
     #[test]
     fn hill_climb_finds_a_quadratic_peak() {
         let target = [0.23, -0.11, 0.07];
