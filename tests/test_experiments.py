@@ -137,6 +137,9 @@ def test_real_logs_harness_on_a_slice_of_aces(data_dir: Path, tmp_path: Path) ->
     assert not res["errors"], res["errors"]
     assert {(r["method"], r["particles"]) for r in res["rows"]} == {("clam", 3), ("ogm", 3)}
     assert all(math.isfinite(r["trans_best_path_m"]) for r in res["rows"])
+    # RBPF-OGM draws from its improved proposal and records the means; RBPF-CLAM's odometry proposal does not.
+    means = {r["method"]: r["trans_best_path_means_m"] for r in res["rows"]}
+    assert math.isfinite(means["ogm"]) and math.isnan(means["clam"])
     table = (tmp_path / "table.md").read_text()
     assert "RBPF-CLAM" in table and "RBPF-OGM" in table and "Cartographer" in table
 

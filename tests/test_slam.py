@@ -117,6 +117,59 @@ def test_best_path_trajectory_follows_the_fill_rule(office: Path, tmp_path: Path
     assert np.array_equal(stamps, run.trajectory()[0])
 
 
+def test_best_path_means_are_the_proposal_means_of_the_same_lineage(office: Path, tmp_path: Path) -> None:
+    scans = list(read_scans(office / "log.clf"))[:60]
+
+    def feed(config: SlamConfig) -> SlamRun:
+        run = SlamRun(config)
+        for s in scans:
+            run.step(s.odom, s.angles, s.ranges, s.laser_offset, s.timestamp)
+        return run
+
+    triggers = {"linear_update": 0.3, "angular_update": 0.3, "particles": 6, "seed": 3}
+    # The odometry proposal and a kept match have no means apart from their poses.
+    assert feed(SlamConfig(**triggers)).best_path_means_trajectory() is None
+    assert feed(SlamConfig(proposal="likelihood_mode", proposal_pose="match", **triggers)).best_path_means_trajectory() is None
+    for method in ("clam", "ogm"):
+        extra = {"proposal": "likelihood_mode"} if method == "clam" else {}
+        run = feed(SlamConfig(method=method, **extra, **triggers))
+        assert run.filter is not None
+        means_traj = run.best_path_means_trajectory()
+        assert means_traj is not None
+        stamps, means = means_traj
+        _, path = run.best_path_trajectory()
+        processed = np.array(run.processed)
+        assert 2 <= processed.sum() < len(scans)
+        np.testing.assert_array_equal(means[processed], run.filter.best_path_means())
+        assert np.array_equal(stamps, run.trajectory()[0])
+        k = np.flatnonzero(processed)
+        # The first scan is not proposed; every later pose is a draw near (not at) its mean.
+        np.testing.assert_array_equal(means[k[0]], path[k[0]])
+        gap = np.hypot(*(means[k[1:], :2] - path[k[1:], :2]).T)
+        assert np.all(gap > 0) and np.all(gap < 0.2), (method, gap)
+        # Between processed scans, the same odometry fill as the path's.
+        i = int(np.argmin(processed[1:])) + 1
+        j = int(np.flatnonzero(processed[:i])[-1])
+        np.testing.assert_allclose(means[i], compose(means[j], between(scans[j].odom, scans[i].odom)), atol=1e-12)
+    out = tmp_path / "run"
+    gt = read_tum(office / "groundtruth.tum")
+    write_relations(tmp_path / "gt.relations", gt.timestamps[:-10], gt.timestamps[10:], between(gt.poses[:-10], gt.poses[10:]))
+    run_slam_log(
+        office / "log.clf",
+        out,
+        SlamConfig(proposal="likelihood_mode", **triggers),
+        reference=office / "groundtruth.tum",
+        relations=tmp_path / "gt.relations",
+        max_scans=60,
+        progress=False,
+    )
+    written = read_tum(out / "trajectory_best_path_means.tum")
+    assert written.poses.shape == (60, 3)
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["relations_best_path_means"]["n"] == m["relations_best_path"]["n"] > 0
+    assert m["reference_best_path_means"]["rmse_position_m"] != m["reference_best_path"]["rmse_position_m"]
+
+
 def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "run"
     assert main(["slam", str(office / "log.clf"), "--out", str(out), "--particles", "3", "--max-scans", "30", "--quiet"]) == 0

@@ -207,7 +207,14 @@ def cmd_slam(args: argparse.Namespace) -> int:
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
         f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {res.out_dir}"
     )
-    for key in ("reference", "reference_best_path", "relations", "relations_best_path"):
+    for key in (
+        "reference",
+        "reference_best_path",
+        "reference_best_path_means",
+        "relations",
+        "relations_best_path",
+        "relations_best_path_means",
+    ):
         if key in m:
             print(f"{key}: " + ", ".join(f"{k}={v:.4g}" for k, v in m[key].items() if isinstance(v, float)))
     return 0

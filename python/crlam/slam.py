@@ -314,10 +314,27 @@ class SlamRun:
         """
         if self.filter is None:
             raise ConfigError("no scan has been processed yet")
-        path = np.asarray(self.filter.best_path(), dtype=np.float64)
+        return self._fill_path(np.asarray(self.filter.best_path(), dtype=np.float64), "best path")
+
+    def best_path_means_trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """As :meth:`best_path_trajectory`, with each processed pose replaced by the mean of the proposal it was drawn from.
+
+        The same lineage without the proposal's draw jitter. ``None`` unless the filter draws its
+        poses from a fitted proposal (``proposal="likelihood_mode"`` for RBPF-CLAM, any RBPF-OGM
+        run with ``proposal_pose="sample"``).
+        """
+        if self.filter is None:
+            raise ConfigError("no scan has been processed yet")
+        means = self.filter.best_path_means()
+        if means is None:
+            return None
+        return self._fill_path(np.asarray(means, dtype=np.float64), "best path means")
+
+    def _fill_path(self, path: NDArray[np.float64], what: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """One pose per processed scan -> one per scan (the fill rule of :meth:`trajectory`)."""
         processed = np.array(self.processed, dtype=bool)
         if path.shape[0] != int(processed.sum()):
-            raise CrlamError(f"best path has {path.shape[0]} poses for {int(processed.sum())} processed scans")
+            raise CrlamError(f"{what} has {path.shape[0]} poses for {int(processed.sum())} processed scans")
         odom = np.array(self.odometry).reshape(-1, 3)
         last = np.maximum.accumulate(np.where(processed, np.arange(len(processed)), 0))
         anchor = path[np.cumsum(processed) - 1]

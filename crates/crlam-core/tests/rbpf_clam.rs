@@ -4,7 +4,7 @@
 use crlam_core::crm::CrmConfig;
 use crlam_core::grid::GridGeometry;
 use crlam_core::motion::MotionModel;
-use crlam_core::pose::{between, compose, Pose};
+use crlam_core::pose::{between, compose, wrap, Pose};
 use crlam_core::rbpf::{ClamConfig, ClamProposal, ProposalPose, RbpfClam, ScanInput};
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
@@ -347,6 +347,65 @@ fn best_path_is_the_history_of_the_best_particle() {
     assert!(
         path_err < 0.5 * odo_err,
         "path {path_err:.3} m vs odometry {odo_err:.3} m"
+    );
+}
+
+#[test]
+fn best_path_means_are_the_proposal_means_of_the_best_lineage() {
+    let run = simulate(80);
+    let truth_processed = |f: &mut RbpfClam| -> Vec<Pose> {
+        let mut out = Vec::new();
+        for ((o, r), t) in run.odom.iter().zip(&run.ranges).zip(&run.truth) {
+            let s = ScanInput {
+                odom: *o,
+                angles: &run.angles,
+                ranges: r,
+                laser_offset: [0.0; 3],
+            };
+            if f.process(&s).unwrap().processed {
+                out.push(*t);
+            }
+        }
+        out
+    };
+    // Only a drawn improved proposal records means.
+    for proposal in [
+        ClamProposal::Odometry,
+        ClamProposal::likelihood_mode_with(ProposalPose::Match),
+    ] {
+        let mut f = RbpfClam::new(config(proposal), run.truth[0]).unwrap();
+        truth_processed(&mut f);
+        assert_eq!(f.best_path_means(), None);
+    }
+    let mut f = RbpfClam::new(config(ClamProposal::likelihood_mode()), run.truth[0]).unwrap();
+    let truth = truth_processed(&mut f);
+    let path = f.best_path();
+    let means = f.best_path_means().expect("likelihood_mode records means");
+    assert_eq!(means.len(), path.len());
+    // The first scan is not proposed: its mean is the pose.
+    assert_eq!(means[0], path[0]);
+    // Every later pose is a draw around its mean: distinct, and within a few floor sigmas
+    // (0.1 x lattice spacing = 5 mm, 2.5 mrad) plus the fitted spread.
+    let mut gaps = Vec::new();
+    for (k, (m, p)) in means.iter().zip(&path).enumerate().skip(1) {
+        assert_ne!(m, p, "step {k}");
+        let gap = (m[0] - p[0]).hypot(m[1] - p[1]);
+        assert!(
+            gap < 0.1 && wrap(m[2] - p[2]).abs() < 0.05,
+            "step {k}: {gap}"
+        );
+        gaps.push(gap);
+    }
+    let mean_gap = gaps.iter().sum::<f64>() / gaps.len() as f64;
+    assert!(
+        mean_gap > 1e-3,
+        "draws should scatter around the means: {mean_gap}"
+    );
+    let err_means = mean_position_error(&means, &truth);
+    let err_path = mean_position_error(&path, &truth);
+    assert!(
+        err_means < err_path + 0.01,
+        "means {err_means:.4} m vs drawn path {err_path:.4} m"
     );
 }
 

@@ -214,6 +214,20 @@ fn beats_raw_odometry_on_a_loop() {
         .sum::<f64>()
         / n_proc as f64;
     assert!(e_path < 0.1, "best path {e_path} m");
+    // The proposal means of the same lineage: the first scan's is its pose, later ones are the
+    // fitted Gaussians' means the poses were drawn around.
+    let means = f.best_path_means().expect("drawn poses record their means");
+    assert_eq!(means.len(), n_proc);
+    assert_eq!(means[0], path[0]);
+    assert!(means.iter().zip(&path).skip(1).any(|(m, p)| m != p));
+    let e_means = means
+        .iter()
+        .zip(&truth_processed)
+        .map(|(p, t)| position_error(*p, *t))
+        .sum::<f64>()
+        / n_proc as f64;
+    eprintln!("best path {e_path:.4} m, its proposal means {e_means:.4} m");
+    assert!(e_means < 0.1, "best path means {e_means} m");
 }
 
 #[test]
@@ -261,8 +275,10 @@ fn proposal_pose_match_keeps_the_match_with_the_same_weights() {
     assert_eq!(fs.n_processed(), 2);
     assert_eq!(fs.log_weights(), fm.log_weights());
     assert!(fs.poses().iter().zip(fm.poses()).all(|(a, b)| *a != b));
-    // Over the whole loop the match rule tracks as well as the draw.
+    // Over the whole loop the match rule tracks as well as the draw; its poses are its means,
+    // so it records none.
     let (f, steps) = run_filter(&run, matched);
+    assert_eq!(f.best_path_means(), None);
     let odo = odometry_in_world(&run);
     let n = run.truth.len() as f64;
     let mean = |est: &mut dyn Iterator<Item = Pose>| {

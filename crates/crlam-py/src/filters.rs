@@ -198,6 +198,15 @@ macro_rules! filter_pymethods {
                 poses_array(py, ParticleFilter::best_path(&self.inner))
             }
 
+            /// The proposal means along the best particle's path, shape (n_processed, 3); None
+            /// unless the poses are drawn from a fitted proposal (the likelihood-mode / improved
+            /// proposal with pose "sample").
+            fn best_path_means<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+                ParticleFilter::best_path_means(&self.inner)
+                    .map(|p| poses_array(py, p))
+                    .transpose()
+            }
+
             /// Particle log-weights (unnormalised), shape (n,).
             fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
                 Array1::from_vec(ParticleFilter::log_weights(&self.inner)).into_pyarray(py)

@@ -4,6 +4,8 @@ The folder holds ``config.toml`` (every resolved setting), ``trajectory.tum`` (o
 scan of the log, in file order, stamped with the scan's ipc timestamp), ``metrics.json``,
 ``trajectory_best_path.tum`` (the same from the final best particle's path, GMapping's trajectory;
 its errors are reported as ``reference_best_path`` / ``relations_best_path``),
+``trajectory_best_path_means.tum`` when the poses are drawn from a fitted proposal (the same
+lineage with each pose replaced by its proposal's mean; ``*_best_path_means`` errors),
 ``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best particle's map), ``trajectory.png`` (the
 trajectory over the map) and, with a reference, ``errors.png`` (error against time), with a
 relations file ``relations_errors.png`` (every relation's error against the time of its first
@@ -147,6 +149,15 @@ def run_slam_log(
         path_poses,
         header=f"crlam {config.method} final best particle's path over {Path(log_path).name}",
     )
+    path_means = run.best_path_means_trajectory()
+    means_poses = None if path_means is None else path_means[1]
+    if means_poses is not None:
+        write_tum(
+            out / "trajectory_best_path_means.tum",
+            stamps,
+            means_poses,
+            header=f"crlam {config.method} proposal means along the final best particle's path over {Path(log_path).name}",
+        )
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
     metrics: dict[str, Any] = {
@@ -176,6 +187,8 @@ def run_slam_log(
         metrics["reference"] = {"path": str(reference), **errs.summary()}
         path_errs = reference_errors(stamps, path_poses, ref.timestamps, ref.poses)
         metrics["reference_best_path"] = path_errs.summary()
+        if means_poses is not None:
+            metrics["reference_best_path_means"] = reference_errors(stamps, means_poses, ref.timestamps, ref.poses).summary()
         ref_poses = (ref.timestamps, ref.poses, errs)
     if relations is not None:
         # A run cut short by --max-scans cannot cover every relation; the others are counted.
@@ -185,6 +198,8 @@ def run_slam_log(
         metrics["relations"] = {"path": str(relations), **rel_errors.summary()}
         rel_path = relations_error(stamps, path_poses, rels, on_missing=on_missing)
         metrics["relations_best_path"] = rel_path.summary()
+        if means_poses is not None:
+            metrics["relations_best_path_means"] = relations_error(stamps, means_poses, rels, on_missing=on_missing).summary()
         rel_figure = {"weighted mean": rel_errors, "best particle's path": rel_path}
     from crlam.experiments.known_poses import unknown_mask
     from crlam.mapping import ConfidenceRichMap

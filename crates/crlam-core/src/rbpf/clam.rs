@@ -256,6 +256,19 @@ impl RbpfClam {
                 }
             })
             .collect();
+        // Only a drawn improved proposal has a mean worth a path of its own: the odometry
+        // proposal's mean is dead reckoning, and `Match` keeps the mode itself.
+        let paths = if matches!(
+            cfg.proposal,
+            ClamProposal::LikelihoodMode {
+                pose: ProposalPose::Sample,
+                ..
+            }
+        ) {
+            PathTree::recording_means()
+        } else {
+            PathTree::default()
+        };
         Ok(Self {
             cfg,
             particles,
@@ -268,7 +281,7 @@ impl RbpfClam {
             best: 0,
             n_resamples: 0,
             n_processed: 0,
-            paths: PathTree::default(),
+            paths,
         })
     }
 
@@ -304,6 +317,12 @@ impl RbpfClam {
     /// The best particle's pose at every processed scan, first to last (GMapping's trajectory).
     pub fn best_path(&self) -> Vec<Pose> {
         self.paths.path(self.particles[self.best].path)
+    }
+
+    /// The proposal means along the best particle's path (see [`PathTree`]): `None` unless the
+    /// proposal is the likelihood mode with drawn poses.
+    pub fn best_path_means(&self) -> Option<Vec<Pose>> {
+        self.paths.mean_path(self.particles[self.best].path)
     }
 
     /// (bytes of distinct map tiles over all particles, distinct tiles, tile references): what the
@@ -343,7 +362,8 @@ impl RbpfClam {
         } else {
             PendingUpdate::None
         };
-        let results: Vec<Result<()>> = self
+        // Each particle's proposal mean, for the path tree.
+        let results: Vec<Result<Pose>> = self
             .particles
             .par_iter_mut()
             .enumerate()
@@ -354,6 +374,7 @@ impl RbpfClam {
                     if cfg.proposal == ClamProposal::Odometry {
                         // Weight and map update share one walk of every beam (same pre-scan
                         // beliefs); a deferred update weighs alone, with the same weight.
+                        let mean = compose(p.pose, u);
                         let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
                         let sensor = compose(pose, scan.laser_offset);
                         let ll = if pending == PendingUpdate::Deferred {
@@ -374,21 +395,25 @@ impl RbpfClam {
                         };
                         p.pose = pose;
                         p.log_w += ll / cfg.tempering;
-                        return Ok(());
+                        return Ok(mean);
                     }
-                    let (pose, dlogw) = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
-                    p.pose = pose;
-                    p.log_w += dlogw;
+                    let proposed = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
+                    p.pose = proposed.pose;
+                    p.log_w += proposed.dlogw;
                     if pending == PendingUpdate::None {
                         update_map_at_pose(cfg, p, scan, sc)?;
                     }
-                    Ok(())
+                    Ok(proposed.mean)
                 })
             })
             .collect();
-        results.into_iter().collect::<Result<Vec<()>>>()?;
-        self.paths
-            .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
+        let means = results.into_iter().collect::<Result<Vec<Pose>>>()?;
+        self.paths.advance(
+            self.particles
+                .iter_mut()
+                .zip(means)
+                .map(|(p, mean)| (&mut p.path, p.pose, mean)),
+        );
         let step_out = self.reweight_and_resample(pending, scan)?;
         self.tracker.processed(scan.odom);
         self.estimate_odom = scan.odom;
@@ -404,8 +429,11 @@ impl RbpfClam {
             .map(|p| with_thread_scratch(|sc| update_map_at_pose(cfg, p, scan, sc)))
             .collect();
         results.into_iter().collect::<Result<Vec<()>>>()?;
-        self.paths
-            .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
+        self.paths.advance(
+            self.particles
+                .iter_mut()
+                .map(|p| (&mut p.path, p.pose, p.pose)),
+        );
         let w = vec![1.0 / self.particles.len() as f64; self.particles.len()];
         let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
         self.estimate = if self.cfg.init_sigma == [0.0; 3] {

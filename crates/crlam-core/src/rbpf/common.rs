@@ -214,6 +214,9 @@ pub trait ParticleFilter {
     fn map_memory(&self) -> (usize, usize, usize);
     /// The best particle's pose at every processed scan (the first one included), in order.
     fn best_path(&self) -> Vec<crate::pose::Pose>;
+    /// The proposal means along the best particle's path, when the filter draws its poses from a
+    /// fitted proposal (see [`crate::rbpf::PathTree`]).
+    fn best_path_means(&self) -> Option<Vec<crate::pose::Pose>>;
 }
 
 /// Implements [`ParticleFilter`] for a filter type with inherent methods of the same names plus
@@ -253,6 +256,9 @@ macro_rules! impl_particle_filter {
             }
             fn best_path(&self) -> Vec<$crate::pose::Pose> {
                 <$t>::best_path(self)
+            }
+            fn best_path_means(&self) -> Option<Vec<$crate::pose::Pose>> {
+                <$t>::best_path_means(self)
             }
         }
     };

@@ -5,6 +5,11 @@
 //! one node per particle (28 bytes), whatever the path length. The path of the final best
 //! particle is the trajectory GMapping reports: a pose sequence that one map explains, unlike the
 //! per-step weighted mean, which can average poses of lineages that later died.
+//!
+//! A tree made with [`PathTree::recording_means`] also keeps, per node, the mean of the proposal
+//! the pose was drawn from (an improved proposal's fitted Gaussian). The drawn pose carries the
+//! proposal's spread as step-to-step jitter; the mean is the filter's best guess of where that
+//! lineage was at that scan, so the path of means is the smoother estimate of the same lineage.
 
 use crate::pose::Pose;
 
@@ -19,38 +24,71 @@ pub const NO_NODE: NodeId = NodeId::MAX;
 pub struct PathTree {
     poses: Vec<Pose>,
     parents: Vec<NodeId>,
+    /// Proposal means, one per node, when recorded (24 more bytes a node).
+    means: Option<Vec<Pose>>,
 }
 
 impl PathTree {
+    /// A tree that also records each node's proposal mean (see the module docs).
+    pub fn recording_means() -> Self {
+        Self {
+            means: Some(Vec::new()),
+            ..Self::default()
+        }
+    }
+
+    /// Whether proposal means are recorded.
+    pub fn records_means(&self) -> bool {
+        self.means.is_some()
+    }
+
     /// Adds `pose` as the child of `parent` ([`NO_NODE`] for a root) and returns its node.
     ///
     /// # Panics
     /// Never for real runs: 2^32 − 1 nodes would need, e.g., 1,000 particles over 4 million
     /// processed scans; reaching it is a logic error, not bad input.
     pub fn push(&mut self, parent: NodeId, pose: Pose) -> NodeId {
+        self.push_with_mean(parent, pose, pose)
+    }
+
+    /// Adds `pose`, drawn from a proposal with mean `mean`, as the child of `parent`; `mean` is
+    /// dropped unless the tree records means. Panics as [`PathTree::push`].
+    pub fn push_with_mean(&mut self, parent: NodeId, pose: Pose, mean: Pose) -> NodeId {
         let id = NodeId::try_from(self.poses.len()).expect("path tree is full");
         assert!(id != NO_NODE, "path tree is full");
         debug_assert!(parent == NO_NODE || parent < id);
         self.poses.push(pose);
         self.parents.push(parent);
+        if let Some(means) = &mut self.means {
+            means.push(mean);
+        }
         id
     }
 
-    /// Appends each particle's current pose to its path: call once per processed scan, after the
-    /// proposals and before resampling, so that children inherit the pose their parent was
-    /// weighed at.
-    pub fn advance<'a>(&mut self, particles: impl Iterator<Item = (&'a mut NodeId, Pose)>) {
-        for (node, pose) in particles {
-            *node = self.push(*node, pose);
+    /// Appends each particle's current pose (and its proposal mean) to its path: call once per
+    /// processed scan, after the proposals and before resampling, so that children inherit the
+    /// pose their parent was weighed at.
+    pub fn advance<'a>(&mut self, particles: impl Iterator<Item = (&'a mut NodeId, Pose, Pose)>) {
+        for (node, pose, mean) in particles {
+            *node = self.push_with_mean(*node, pose, mean);
         }
     }
 
     /// The poses from the root down to `leaf` (empty for [`NO_NODE`]).
     pub fn path(&self, leaf: NodeId) -> Vec<Pose> {
+        self.walk(leaf, &self.poses)
+    }
+
+    /// The proposal means from the root down to `leaf`, when the tree records them.
+    pub fn mean_path(&self, leaf: NodeId) -> Option<Vec<Pose>> {
+        self.means.as_ref().map(|m| self.walk(leaf, m))
+    }
+
+    fn walk(&self, leaf: NodeId, values: &[Pose]) -> Vec<Pose> {
         let mut out = Vec::new();
         let mut node = leaf;
         while node != NO_NODE {
-            out.push(self.poses[node as usize]);
+            out.push(values[node as usize]);
             node = self.parents[node as usize];
         }
         out.reverse();
@@ -70,6 +108,10 @@ impl PathTree {
     pub fn memory_bytes(&self) -> usize {
         self.poses.capacity() * std::mem::size_of::<Pose>()
             + self.parents.capacity() * std::mem::size_of::<NodeId>()
+            + self
+                .means
+                .as_ref()
+                .map_or(0, |m| m.capacity() * std::mem::size_of::<Pose>())
     }
 }
 
@@ -93,5 +135,36 @@ mod tests {
         );
         assert!(t.path(NO_NODE).is_empty());
         assert_eq!(t.len(), 5);
+        assert!(!t.records_means());
+        assert_eq!(t.mean_path(c2), None);
+    }
+
+    #[test]
+    fn means_follow_the_same_lineage_as_the_poses() {
+        let mut t = PathTree::recording_means();
+        let mut nodes = [NO_NODE; 2];
+        // Step 1: two particles; step 2: particle 1 is a copy of particle 0 (resampled).
+        t.advance(
+            nodes
+                .iter_mut()
+                .enumerate()
+                .map(|(i, n)| (n, [i as f64, 0.0, 0.0], [i as f64 + 0.5, 0.0, 0.0])),
+        );
+        nodes[1] = nodes[0];
+        t.advance(
+            nodes
+                .iter_mut()
+                .enumerate()
+                .map(|(i, n)| (n, [10.0 + i as f64, 0.0, 0.0], [20.0 + i as f64, 0.0, 0.0])),
+        );
+        assert_eq!(t.path(nodes[1]), vec![[0.0; 3], [11.0, 0.0, 0.0]]);
+        assert_eq!(
+            t.mean_path(nodes[1]),
+            Some(vec![[0.5, 0.0, 0.0], [21.0, 0.0, 0.0]])
+        );
+        assert_eq!(t.mean_path(NO_NODE), Some(vec![]));
+        // A root pushed without a mean is its own mean.
+        let r = t.push(NO_NODE, [7.0, 1.0, 0.0]);
+        assert_eq!(t.mean_path(r), Some(vec![[7.0, 1.0, 0.0]]));
     }
 }

@@ -252,15 +252,24 @@ struct StepContext<'a> {
     step: u64,
 }
 
-/// Steps 1–4 of the module doc for one particle. Returns whether the match was accepted.
-fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Result<bool> {
+/// What one particle's step did.
+struct ParticleStep {
+    /// The scan match was accepted (else the motion-model sample was kept).
+    accepted: bool,
+    /// The mean of the distribution the new pose was drawn from (the fitted Gaussian's mean, or
+    /// the pose itself when nothing was fitted or the match is kept).
+    mean: Pose,
+}
+
+/// Steps 1–4 of the module doc for one particle.
+fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Result<ParticleStep> {
     let mut rng = Rng::stream(ctx.cfg.seed, ctx.step, index as u64);
     let prev = p.pose;
     let start = ctx.cfg.motion.sample(prev, ctx.u, ctx.n_steps, &mut rng);
     let surface = ctx.matcher.surface(&p.map, ctx.prepared, start);
     let (matched, score) = ctx.matcher.optimize(&surface, ctx.prepared, start)?;
     let accepted = score > ctx.cfg.proposal.min_score;
-    let (pose, delta_log_w) = if accepted {
+    let (pose, mean, delta_log_w) = if accepted {
         let prior = MotionPrior::new(
             &ctx.cfg.motion,
             prev,
@@ -276,14 +285,14 @@ fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Res
             &ctx.cfg.proposal,
             &mut rng,
         )?;
-        let pose = match ctx.cfg.proposal.pose {
-            ProposalPose::Sample => draw.pose,
-            ProposalPose::Match => matched,
+        let (pose, mean) = match ctx.cfg.proposal.pose {
+            ProposalPose::Sample => (draw.pose, draw.mean),
+            ProposalPose::Match => (matched, matched),
         };
-        (pose, draw.log_normalizer)
+        (pose, mean, draw.log_normalizer)
     } else {
         let fit = ctx.matcher.evaluate(&surface, ctx.prepared, start)?;
-        (start, fit.log_likelihood)
+        (start, start, fit.log_likelihood)
     };
     p.pose = pose;
     p.log_w += delta_log_w;
@@ -292,7 +301,7 @@ fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Res
         ctx.map_angles,
         ctx.map_ranges,
     )?;
-    Ok(accepted)
+    Ok(ParticleStep { accepted, mean })
 }
 
 /// The GMapping-style RBPF.
@@ -342,6 +351,7 @@ impl RbpfOgm {
                 }
             })
             .collect();
+        let cfg_draws = cfg.proposal.pose == ProposalPose::Sample;
         Ok(Self {
             matcher: ScanMatcher::new(cfg.matcher)?,
             cfg,
@@ -353,7 +363,12 @@ impl RbpfOgm {
             estimate: initial_pose,
             n_resamples: 0,
             last_match_failures: 0,
-            paths: PathTree::default(),
+            // Only drawn poses have a mean distinct from the pose.
+            paths: if cfg_draws {
+                PathTree::recording_means()
+            } else {
+                PathTree::default()
+            },
         })
     }
 
@@ -377,7 +392,8 @@ impl RbpfOgm {
         let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
         if !self.initialized {
             self.initialize(scan, &angles, &ranges)?;
-            self.advance_paths();
+            let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
+            self.advance_paths(poses);
             self.tracker.processed(scan.odom);
             self.n_processed += 1;
             return Ok(FilterStep {
@@ -407,16 +423,16 @@ impl RbpfOgm {
             laser_offset: scan.laser_offset,
             step: self.step,
         };
-        let accepted: Vec<bool> = self
+        let steps: Vec<ParticleStep> = self
             .particles
             .par_iter_mut()
             .enumerate()
             .map(|(i, p)| advance_particle(&ctx, i, p))
             .collect::<Result<_>>()?;
-        self.last_match_failures = accepted.iter().filter(|a| !**a).count();
+        self.last_match_failures = steps.iter().filter(|s| !s.accepted).count();
         self.tracker.processed(scan.odom);
         self.n_processed += 1;
-        self.advance_paths();
+        self.advance_paths(steps.into_iter().map(|s| s.mean).collect());
         let (neff, resampled) = self.reweight_and_resample();
         Ok(FilterStep {
             processed: true,
@@ -532,14 +548,25 @@ impl RbpfOgm {
         self.estimate
     }
 
-    fn advance_paths(&mut self) {
-        self.paths
-            .advance(self.particles.iter_mut().map(|p| (&mut p.path, p.pose)));
+    /// Appends each particle's pose and proposal mean (`means[i]` for particle i) to the paths.
+    fn advance_paths(&mut self, means: Vec<Pose>) {
+        self.paths.advance(
+            self.particles
+                .iter_mut()
+                .zip(means)
+                .map(|(p, mean)| (&mut p.path, p.pose, mean)),
+        );
     }
 
     /// The best particle's pose at every processed scan, first to last (GMapping's trajectory).
     pub fn best_path(&self) -> Vec<Pose> {
         self.paths.path(self.particles[self.best_index()].path)
+    }
+
+    /// The proposal means along the best particle's path (see [`PathTree`]): `None` when the
+    /// proposal keeps the match.
+    pub fn best_path_means(&self) -> Option<Vec<Pose>> {
+        self.paths.mean_path(self.particles[self.best_index()].path)
     }
 
     /// Index of the highest-weight particle (the lowest index among ties).

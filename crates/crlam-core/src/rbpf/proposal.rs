@@ -10,6 +10,18 @@ use crate::rbpf::clam::{scan_opts, ClamConfig, ClamParticle, ClamProposal};
 use crate::rbpf::common::{ProposalPose, ScanInput};
 use crate::rng::Rng;
 
+/// A particle's proposed move.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) struct Proposed {
+    /// The new pose (drawn, or the mode with [`ProposalPose::Match`]).
+    pub pose: Pose,
+    /// The mean of the distribution `pose` was drawn from: the fitted Gaussian's mean, or `pose`
+    /// itself where nothing is fitted (odometry fallback, `Match`).
+    pub mean: Pose,
+    /// The log-weight increment (tempered).
+    pub dlogw: f64,
+}
+
 /// Proposes the particle's new pose and the log-weight increment.
 pub(crate) fn propose(
     cfg: &ClamConfig,
@@ -19,7 +31,7 @@ pub(crate) fn propose(
     scan: &ScanInput,
     rng: &mut Rng,
     sc: &mut CrmScratch,
-) -> Result<(Pose, f64)> {
+) -> Result<Proposed> {
     let weight_opts = scan_opts(cfg, cfg.weight_stride);
     let loglik = |pose: Pose, opts: &ScanOptions, sc: &mut CrmScratch| -> Result<f64> {
         let sensor = compose(pose, scan.laser_offset);
@@ -36,7 +48,12 @@ pub(crate) fn propose(
     match cfg.proposal {
         ClamProposal::Odometry => {
             let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
-            Ok((pose, loglik(pose, &weight_opts, sc)? / cfg.tempering))
+            let dlogw = loglik(pose, &weight_opts, sc)? / cfg.tempering;
+            Ok(Proposed {
+                pose,
+                mean: compose(p.pose, u),
+                dlogw,
+            })
         }
         ClamProposal::LikelihoodMode {
             step,
@@ -80,16 +97,31 @@ pub(crate) fn propose(
             if !m.is_finite() {
                 // No lattice point is plausible under the motion model: fall back to odometry.
                 let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
-                return Ok((pose, loglik(pose, &weight_opts, sc)? / cfg.tempering));
+                let dlogw = loglik(pose, &weight_opts, sc)? / cfg.tempering;
+                return Ok(Proposed {
+                    pose,
+                    mean: pose,
+                    dlogw,
+                });
             }
             let w: Vec<f64> = lw.iter().map(|l| (l - m).exp()).collect();
             let s: f64 = w.iter().sum();
-            let log_norm = m + s.ln();
-            let pose = match pose_rule {
-                ProposalPose::Sample => sample_fitted_gaussian(&pts, &w, s, fine, rng),
-                ProposalPose::Match => mode,
-            };
-            Ok((pose, log_norm / cfg.tempering))
+            let dlogw = (m + s.ln()) / cfg.tempering;
+            Ok(match pose_rule {
+                ProposalPose::Sample => {
+                    let fit = FittedGaussian::fit(&pts, &w, s, fine);
+                    Proposed {
+                        pose: fit.draw(rng),
+                        mean: fit.mean,
+                        dlogw,
+                    }
+                }
+                ProposalPose::Match => Proposed {
+                    pose: mode,
+                    mean: mode,
+                    dlogw,
+                },
+            })
         }
     }
 }
@@ -128,36 +160,51 @@ fn hill_climb<F: FnMut(Pose) -> Result<f64>>(
     Ok(best)
 }
 
-/// Samples from the Gaussian fitted to weighted lattice points (circular in θ), with the
-/// covariance floored at a tenth of the lattice spacing so it stays positive definite.
-fn sample_fitted_gaussian(pts: &[Pose], w: &[f64], s: f64, fine: [f64; 3], rng: &mut Rng) -> Pose {
-    let (mut mx, mut my, mut ss, mut cc) = (0.0, 0.0, 0.0, 0.0);
-    for (p, &wi) in pts.iter().zip(w) {
-        mx += wi * p[0];
-        my += wi * p[1];
-        ss += wi * p[2].sin();
-        cc += wi * p[2].cos();
-    }
-    let mean = [mx / s, my / s, ss.atan2(cc)];
-    let mut cov = [[0.0f64; 3]; 3];
-    for (p, &wi) in pts.iter().zip(w) {
-        let d = [p[0] - mean[0], p[1] - mean[1], wrap(p[2] - mean[2])];
-        for a in 0..3 {
-            for b in 0..3 {
-                cov[a][b] += wi * d[a] * d[b] / s;
+/// The Gaussian fitted to weighted lattice points (circular in θ), with the covariance floored at
+/// a tenth of the lattice spacing so it stays positive definite.
+struct FittedGaussian {
+    mean: Pose,
+    /// Lower Cholesky factor of the covariance.
+    chol: [[f64; 3]; 3],
+}
+
+impl FittedGaussian {
+    fn fit(pts: &[Pose], w: &[f64], s: f64, fine: [f64; 3]) -> Self {
+        let (mut mx, mut my, mut ss, mut cc) = (0.0, 0.0, 0.0, 0.0);
+        for (p, &wi) in pts.iter().zip(w) {
+            mx += wi * p[0];
+            my += wi * p[1];
+            ss += wi * p[2].sin();
+            cc += wi * p[2].cos();
+        }
+        let mean = [mx / s, my / s, ss.atan2(cc)];
+        let mut cov = [[0.0f64; 3]; 3];
+        for (p, &wi) in pts.iter().zip(w) {
+            let d = [p[0] - mean[0], p[1] - mean[1], wrap(p[2] - mean[2])];
+            for a in 0..3 {
+                for b in 0..3 {
+                    cov[a][b] += wi * d[a] * d[b] / s;
+                }
             }
         }
+        for a in 0..3 {
+            cov[a][a] += (0.1 * fine[a]).powi(2);
+        }
+        Self {
+            mean,
+            chol: cholesky3(cov),
+        }
     }
-    for a in 0..3 {
-        cov[a][a] += (0.1 * fine[a]).powi(2);
+
+    fn draw(&self, rng: &mut Rng) -> Pose {
+        let (m, l) = (self.mean, self.chol);
+        let z = [rng.normal(), rng.normal(), rng.normal()];
+        [
+            m[0] + l[0][0] * z[0],
+            m[1] + l[1][0] * z[0] + l[1][1] * z[1],
+            wrap(m[2] + l[2][0] * z[0] + l[2][1] * z[1] + l[2][2] * z[2]),
+        ]
     }
-    let l = cholesky3(cov);
-    let z = [rng.normal(), rng.normal(), rng.normal()];
-    [
-        mean[0] + l[0][0] * z[0],
-        mean[1] + l[1][0] * z[0] + l[1][1] * z[1],
-        wrap(mean[2] + l[2][0] * z[0] + l[2][1] * z[1] + l[2][2] * z[2]),
-    ]
 }
 
 /// Lower Cholesky factor of a symmetric positive (semi-)definite 3×3 matrix (non-positive
@@ -220,10 +267,12 @@ mod tests {
             }
             let s: f64 = w.iter().sum();
             let mut rng = Rng::new(7);
+            let fit = FittedGaussian::fit(&pts, &w, s, fine);
+            assert_eq!(fit.mean, mode);
             let n = 20_000;
             let mut sq = [0.0f64; 3];
             for _ in 0..n {
-                let x = sample_fitted_gaussian(&pts, &w, s, fine, &mut rng);
+                let x = fit.draw(&mut rng);
                 for a in 0..3 {
                     sq[a] += (x[a] - mode[a]).powi(2);
                 }
