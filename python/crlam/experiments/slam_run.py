@@ -198,9 +198,11 @@ def run_slam_log(
         metrics["relations"] = {"path": str(relations), **rel_errors.summary()}
         rel_path = relations_error(stamps, path_poses, rels, on_missing=on_missing)
         metrics["relations_best_path"] = rel_path.summary()
-        if means_poses is not None:
-            metrics["relations_best_path_means"] = relations_error(stamps, means_poses, rels, on_missing=on_missing).summary()
         rel_figure = {"weighted mean": rel_errors, "best particle's path": rel_path}
+        if means_poses is not None:
+            rel_means = relations_error(stamps, means_poses, rels, on_missing=on_missing)
+            metrics["relations_best_path_means"] = rel_means.summary()
+            rel_figure["best path's proposal means"] = rel_means
     from crlam.experiments.known_poses import unknown_mask
     from crlam.mapping import ConfidenceRichMap
 
