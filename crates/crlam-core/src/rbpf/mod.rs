@@ -9,6 +9,7 @@ pub mod clam;
 pub mod common;
 pub mod lineage;
 pub mod match_surface;
+mod motion_prior;
 pub mod ogm;
 mod proposal;
 pub mod scanmatch;

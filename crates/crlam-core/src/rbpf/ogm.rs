@@ -27,6 +27,7 @@ use super::common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ProposalPose, ScanInput, UpdateTrigger,
 };
 use super::lineage::{NodeId, PathTree, NO_NODE};
+use super::motion_prior::MotionPrior;
 use super::scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
 use crate::error::{config_err, Result};
 use crate::grid::{check_pose, GridGeometry};
@@ -188,55 +189,6 @@ pub struct OgmMemoryStats {
     pub allocated_tiles: usize,
     pub shared_tiles: usize,
     pub bytes_allocated: usize,
-}
-
-/// Gaussian approximation of p(x | x', u) evaluated by the improved proposal: independent
-/// normals on the residual from x' ⊕ u along and across the direction of travel and in heading.
-/// Exact (up to the floor) for [`MotionModel::Gaussian`]; for Thrun's model it linearises the
-/// rot1/trans/rot2 noise and drops the across/heading correlation.
-struct MotionPrior {
-    mean: Pose,
-    /// sin and cos of the direction of the along axis.
-    frame: (f64, f64),
-    sigma: [f64; 3],
-}
-
-impl MotionPrior {
-    fn new(model: &MotionModel, prev: Pose, u: Pose, n_steps: usize, floor: [f64; 3]) -> Self {
-        let (phi, raw) = match *model {
-            MotionModel::Gaussian { sigma } => {
-                let k = (n_steps.max(1) as f64).sqrt();
-                (prev[2], sigma.map(|s| k * s))
-            }
-            MotionModel::Thrun { alpha } => {
-                let (r1, t, r2) = crate::motion::decompose(u);
-                let s1 = (alpha[0] * r1 * r1 + alpha[1] * t * t).sqrt();
-                let st = (alpha[2] * t * t + alpha[3] * (r1 * r1 + r2 * r2)).sqrt();
-                let s2 = (alpha[0] * r2 * r2 + alpha[1] * t * t).sqrt();
-                (prev[2] + r1, [st, t.abs() * s1, s1.hypot(s2)])
-            }
-        };
-        Self {
-            mean: compose(prev, u),
-            frame: phi.sin_cos(),
-            sigma: [
-                raw[0].hypot(floor[0]),
-                raw[1].hypot(floor[1]),
-                raw[2].hypot(floor[2]),
-            ],
-        }
-    }
-
-    fn log_density(&self, x: Pose) -> f64 {
-        let (s, c) = self.frame;
-        let (dx, dy) = (x[0] - self.mean[0], x[1] - self.mean[1]);
-        let r = [c * dx + s * dy, -s * dx + c * dy, wrap(x[2] - self.mean[2])];
-        (0..3)
-            .map(|i| {
-                -0.5 * (r[i] / self.sigma[i]).powi(2) - self.sigma[i].ln() - 0.918_938_533_204_672_8
-            })
-            .sum()
-    }
 }
 
 /// Everything a particle needs for one processed scan (shared, read-only).
@@ -637,37 +589,3 @@ impl RbpfOgm {
 }
 
 crate::rbpf::common::impl_particle_filter!(RbpfOgm);
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn motion_prior_peaks_at_the_prediction_and_is_proper_without_motion() {
-        let m = OgmFilterConfig::gmapping_motion();
-        let prev = [1.0, 2.0, 0.3];
-        let u = [0.5, 0.0, 0.1];
-        let p = MotionPrior::new(&m, prev, u, 1, [0.01; 3]);
-        let at = p.log_density(compose(prev, u));
-        assert!(at > p.log_density(compose(prev, [0.55, 0.0, 0.1])));
-        assert!(at > p.log_density(compose(prev, [0.5, 0.02, 0.1])));
-        let still = MotionPrior::new(&m, prev, [0.0; 3], 1, [0.01; 3]);
-        assert!(still.log_density([1.01, 2.0, 0.3]).is_finite());
-    }
-
-    #[test]
-    fn gaussian_prior_matches_the_model_density() {
-        let m = MotionModel::Gaussian {
-            sigma: [0.02, 0.03, 0.01],
-        };
-        let prev = [0.5, -1.0, 2.0];
-        let u = [0.3, 0.1, -0.2];
-        let p = MotionPrior::new(&m, prev, u, 2, [1e-9; 3]);
-        for d in [[0.01, 0.0, 0.0], [0.0, -0.02, 0.01], [0.03, 0.01, -0.02]] {
-            let x = compose(prev, [u[0] + d[0], u[1] + d[1], u[2] + d[2]]);
-            let a = p.log_density(x);
-            let b = m.log_density(prev, x, u, 2);
-            assert!((a - b).abs() < 1e-6, "{a} vs {b}");
-        }
-    }
-}
