@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import re
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -92,19 +93,21 @@ def test_triggers_carry_odometry_between_processed_scans(office: Path, tmp_path:
     assert read_tum(tmp_path / "trajectory.tum").poses.shape == (120, 3)
 
 
+def _feed(scans: list[Any], config: SlamConfig) -> SlamRun:
+    """A SlamRun fed every scan of ``scans``."""
+    run = SlamRun(config)
+    for s in scans:
+        run.step(s.odom, s.angles, s.ranges, s.laser_offset, s.timestamp)
+    return run
+
+
 def test_best_path_trajectory_follows_the_fill_rule(office: Path, tmp_path: Path) -> None:
     scans = list(read_scans(office / "log.clf"))[:60]
 
-    def feed(config: SlamConfig) -> SlamRun:
-        run = SlamRun(config)
-        for s in scans:
-            run.step(s.odom, s.angles, s.ranges, s.laser_offset, s.timestamp)
-        return run
-
     # One particle: its path and the weighted mean are the same poses.
-    one = feed(SlamConfig(particles=1, linear_update=0.3, angular_update=0.3))
+    one = _feed(scans, SlamConfig(particles=1, linear_update=0.3, angular_update=0.3))
     np.testing.assert_allclose(one.best_path_trajectory()[1], one.trajectory()[1], atol=1e-9)
-    run = feed(SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3))
+    run = _feed(scans, SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3))
     assert run.filter is not None
     processed = np.array(run.processed)
     assert 2 <= processed.sum() < len(scans)
@@ -120,19 +123,14 @@ def test_best_path_trajectory_follows_the_fill_rule(office: Path, tmp_path: Path
 def test_best_path_means_are_the_proposal_means_of_the_same_lineage(office: Path, tmp_path: Path) -> None:
     scans = list(read_scans(office / "log.clf"))[:60]
 
-    def feed(config: SlamConfig) -> SlamRun:
-        run = SlamRun(config)
-        for s in scans:
-            run.step(s.odom, s.angles, s.ranges, s.laser_offset, s.timestamp)
-        return run
-
     triggers = {"linear_update": 0.3, "angular_update": 0.3, "particles": 6, "seed": 3}
     # The odometry proposal and a kept match have no means apart from their poses.
-    assert feed(SlamConfig(**triggers)).best_path_means_trajectory() is None
-    assert feed(SlamConfig(proposal="likelihood_mode", proposal_pose="match", **triggers)).best_path_means_trajectory() is None
+    assert _feed(scans, SlamConfig(**triggers)).best_path_means_trajectory() is None
+    kept_match = SlamConfig(proposal="likelihood_mode", proposal_pose="match", **triggers)
+    assert _feed(scans, kept_match).best_path_means_trajectory() is None
     for method in ("clam", "ogm"):
         extra = {"proposal": "likelihood_mode"} if method == "clam" else {}
-        run = feed(SlamConfig(method=method, **extra, **triggers))
+        run = _feed(scans, SlamConfig(method=method, **extra, **triggers))
         assert run.filter is not None
         means_traj = run.best_path_means_trajectory()
         assert means_traj is not None
