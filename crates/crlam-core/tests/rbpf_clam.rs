@@ -312,12 +312,14 @@ fn bad_inputs_are_errors() {
     let _ = compose([0.0; 3], [0.0; 3]);
 }
 
-#[test]
-fn best_path_is_the_history_of_the_best_particle() {
-    let run = simulate(80);
-    let mut f = RbpfClam::new(config(ClamProposal::Odometry), run.truth[0]).unwrap();
-    let mut poses_at_step: Vec<Vec<Pose>> = Vec::new();
-    let mut truth_at_step = Vec::new();
+/// Feeds every scan of `run` to `f`; calls `at_processed` after each processed scan and returns
+/// the true poses of the processed scans.
+fn feed_processed(
+    run: &Run,
+    f: &mut RbpfClam,
+    mut at_processed: impl FnMut(&RbpfClam),
+) -> Vec<Pose> {
+    let mut truth = Vec::new();
     for ((o, r), t) in run.odom.iter().zip(&run.ranges).zip(&run.truth) {
         let s = ScanInput {
             odom: *o,
@@ -326,10 +328,21 @@ fn best_path_is_the_history_of_the_best_particle() {
             laser_offset: [0.0; 3],
         };
         if f.process(&s).unwrap().processed {
-            poses_at_step.push(f.particles().iter().map(|p| p.pose).collect());
-            truth_at_step.push(*t);
+            at_processed(f);
+            truth.push(*t);
         }
     }
+    truth
+}
+
+#[test]
+fn best_path_is_the_history_of_the_best_particle() {
+    let run = simulate(80);
+    let mut f = RbpfClam::new(config(ClamProposal::Odometry), run.truth[0]).unwrap();
+    let mut poses_at_step: Vec<Vec<Pose>> = Vec::new();
+    let truth_at_step = feed_processed(&run, &mut f, |f| {
+        poses_at_step.push(f.particles().iter().map(|p| p.pose).collect())
+    });
     let path = f.best_path();
     assert_eq!(path.len(), f.n_processed());
     assert!(
@@ -353,21 +366,7 @@ fn best_path_is_the_history_of_the_best_particle() {
 #[test]
 fn best_path_means_are_the_proposal_means_of_the_best_lineage() {
     let run = simulate(80);
-    let truth_processed = |f: &mut RbpfClam| -> Vec<Pose> {
-        let mut out = Vec::new();
-        for ((o, r), t) in run.odom.iter().zip(&run.ranges).zip(&run.truth) {
-            let s = ScanInput {
-                odom: *o,
-                angles: &run.angles,
-                ranges: r,
-                laser_offset: [0.0; 3],
-            };
-            if f.process(&s).unwrap().processed {
-                out.push(*t);
-            }
-        }
-        out
-    };
+    let truth_processed = |f: &mut RbpfClam| feed_processed(&run, f, |_| {});
     // Only a drawn improved proposal records means.
     for proposal in [
         ClamProposal::Odometry,
