@@ -152,11 +152,13 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(
 
     argv = ["experiment", "real-logs", "--out", str(tmp_path), "--datasets", "aces", "--methods", "ogm"]
     argv += ["--particles", "2", "--seeds", "1", "--ranges", "8", "--max-scans", "200", "--workers", "1"]
+    argv += ["--motion-params", "0.1", "0.1", "0.002", "0.1"]
     assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet"]) == 0
     (run,) = (tmp_path / "runs").iterdir()
     metrics = json.loads((run / "metrics.json").read_text())
     config = (run / "config.toml").read_text()
     assert "linear_update = 1.0" in config and "angular_update = 0.5" in config
+    assert 'motion = "thrun"' in config and "motion_params = [0.1, 0.1, 0.002, 0.1]" in config
     assert 0 < metrics["n_processed"] < metrics["n_scans"] == 200
     # --report-only with one more seed: the table has the finished run, nothing new is run.
     argv[argv.index("--seeds") + 1] = "2"
@@ -168,6 +170,10 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(
     triggers = ["--linear-update", "1.0", "--angular-update", "0.5", "--quiet", "--report-only"]
     assert main([*argv, *triggers, "--proposal-pose", "match"]) == 2
     assert "proposal_pose: stored 'sample', requested 'match'" in capsys.readouterr().err
+    # ... and so is resuming it with another odometry model.
+    other = [*argv[: argv.index("--motion-params")], "--motion-params", "0.1", "0.1", "0.1", "0.1"]
+    assert main([*other, *triggers]) == 2
+    assert "motion_params" in capsys.readouterr().err
     # With RBPF-CLAM runs in the sweep, 'match' needs the likelihood-mode proposal.
     clam = [*argv[: argv.index("--methods")], "--methods", "ogm", "clam", *argv[argv.index("--methods") + 2 :]]
     assert main([*clam, *triggers, "--proposal-pose", "match"]) == 2

@@ -213,6 +213,9 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("lattice_step", (0.01,)),
         ("lattice_step", (0.01, 0.0)),
         ("lattice_step", (float("nan"), 0.005)),
+        ("motion_outlier", 1.0),
+        ("motion_outlier", -0.1),
+        ("motion_outlier", float("nan")),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),
     ],
@@ -235,6 +238,8 @@ def test_the_native_filters_check_the_proposal_pose() -> None:
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", match_stride=0)
     with pytest.raises(ValueError, match="lattice"):
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", lattice_step=(0.01, -0.005))
+    with pytest.raises(ValueError, match="motion_outlier"):
+        _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", motion_outlier=1.0)
     with pytest.raises(ValueError, match="proposal_pose"):
         _native.OgmFilter(pose, n_particles=2, proposal_pose="mean")
     assert _native.OgmFilter(pose, n_particles=2, proposal_pose="match").n_particles == 2
@@ -296,3 +301,22 @@ def test_the_lattice_step_reaches_the_likelihood_mode_fit(office: Path, tmp_path
     np.testing.assert_array_equal(trajectories["odometry", None], trajectories["odometry", fine])
     with pytest.raises(SystemExit):
         main(["slam", str(office / "log.clf"), "--out", str(tmp_path / "bad"), "--lattice-step", "0.01"])
+
+
+def test_the_motion_outlier_reaches_the_likelihood_mode_climb(office: Path, tmp_path: Path) -> None:
+    # A floor under the motion density changes the climb's target and the lattice, so the
+    # trajectories differ; 0 is the motion model alone, bit for bit the run without the option,
+    # and the setting is recorded with the run. The odometry proposal has no climb: inert.
+    trajectories = {}
+    for proposal in ("likelihood_mode", "odometry"):
+        for eps in (None, "0", "0.2"):
+            out = tmp_path / f"{proposal}{eps}"
+            args = ["slam", str(office / "log.clf"), "--out", str(out), "--particles", "4", "--max-scans", "25", "--quiet"]
+            extra = [] if eps is None else ["--motion-outlier", eps]
+            assert main([*args, "--proposal", proposal, "--seed", "2", *extra]) == 0
+            want = "0.2" if eps == "0.2" else "0.0"
+            assert f"\nmotion_outlier = {want}\n" in (out / "config.toml").read_text()
+            trajectories[proposal, eps] = read_tum(out / "trajectory.tum").poses
+    np.testing.assert_array_equal(trajectories["likelihood_mode", None], trajectories["likelihood_mode", "0"])
+    assert not np.array_equal(trajectories["likelihood_mode", None], trajectories["likelihood_mode", "0.2"])
+    np.testing.assert_array_equal(trajectories["odometry", None], trajectories["odometry", "0.2"])

@@ -213,6 +213,7 @@ class ClamFilter:
         proposal_pose: str = "sample",
         match_stride: int = 3,
         lattice_step: tuple[float, float] = ...,  # (0.05, 0.025)
+        motion_outlier: float = 0.0,
         seed: int = 0,
     ) -> ClamFilter: ...
     def process(

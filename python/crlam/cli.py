@@ -63,6 +63,15 @@ def _add_lattice_step(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--lattice-step", type=_positive_float, nargs=2, default=[0.05, 0.025], metavar=("DXY", "DTHETA"), help=_LATTICE_STEP_HELP
     )
+    parser.add_argument(
+        "--motion-outlier",
+        type=_nonnegative_float,
+        default=0.0,
+        metavar="EPS",
+        help="RBPF-CLAM likelihood_mode: probability that an odometry increment is an outlier; the climb's motion "
+        "density gets a floor of log EPS, so a large likelihood gain (a loop closure) can move the pose however "
+        "tight the motion model (default: 0, off)",
+    )
 
 
 def _positive_int(text: str) -> int:
@@ -182,6 +191,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         proposal_pose=args.proposal_pose,
         match_stride=args.match_stride,
         lattice_step=tuple(args.lattice_step),
+        motion_outlier=args.motion_outlier,
         motion=args.motion,
         motion_params=tuple(args.motion_params) if args.motion_params else None,
         weight_stride=args.weight_stride,
@@ -273,6 +283,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             proposal_pose=args.proposal_pose,
             match_stride=args.match_stride,
             lattice_step=tuple(args.lattice_step),
+            motion_outlier=args.motion_outlier,
             sigma_range=args.sigma_range,
             cause_kernel=args.cause_kernel,
         )
@@ -295,12 +306,14 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             method=_base_method(args.methods),
             resolution=args.resolution,
             motion="thrun",
+            motion_params=tuple(args.motion_params) if args.motion_params else None,
             weight_stride=args.weight_stride,
             tempering=args.tempering,
             proposal=args.proposal,
             proposal_pose=args.proposal_pose,
             match_stride=args.match_stride,
             lattice_step=tuple(args.lattice_step),
+            motion_outlier=args.motion_outlier,
             linear_update=args.linear_update,
             angular_update=args.angular_update,
             sigma_range=args.sigma_range,
@@ -488,6 +501,15 @@ def build_parser() -> argparse.ArgumentParser:
         type=float,
         default=0.0,
         help="... or this rotation in rad (default: every scan; GMapping's default is 0.5)",
+    )
+    rl.add_argument(
+        "--motion-params",
+        type=_nonnegative_float,
+        nargs=4,
+        default=None,
+        metavar=("A1", "A2", "A3", "A4"),
+        help="alpha1..alpha4 of the odometry model (thrun; default: 0.1 each). alpha3 scales the variance of the "
+        "travelled distance: 0.002 is a 4.5 %% standard deviation",
     )
     ig = exp.add_parser(
         "iig",

@@ -68,6 +68,12 @@ class SlamConfig:
         (0.05, 0.025), half the climb's first step). A lattice much wider than the likelihood's
         peak sees only the mode: the fitted Gaussian is then the mode plus a floor of a tenth of
         the spacing, and the weight the peak height. GMapping samples at (0.01, 0.005).
+    motion_outlier : float
+        RBPF-CLAM's ``likelihood_mode``: probability ε that an odometry increment is an outlier
+        (default 0: off). The climb and the lattice then use (1 − ε)·p(x | x', u) + ε·u₀, u₀ = 1
+        per m²·rad: the motion model near the odometry guess and a floor of log ε farther away,
+        so a tight motion model still lets a scan with a larger likelihood gain move the pose
+        (a loop closure, a wheel slip).
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step) or ``thrun``
         (``motion_params`` = alpha1..alpha4).
@@ -100,6 +106,7 @@ class SlamConfig:
     proposal_pose: str = "sample"
     match_stride: int = 3
     lattice_step: tuple[float, float] = (0.05, 0.025)
+    motion_outlier: float = 0.0
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
     linear_update: float = 0.0
@@ -133,6 +140,8 @@ class SlamConfig:
         spacings = self.lattice_step
         if not (len(spacings) == 2 and all(isinstance(v, (int, float)) and math.isfinite(v) and v > 0 for v in spacings)):
             raise bad("lattice_step", "needs 2 finite spacings > 0 (m, rad)")
+        if not (isinstance(self.motion_outlier, (int, float)) and 0.0 <= self.motion_outlier < 1.0):
+            raise bad("motion_outlier", "must be in [0, 1)")
         if not 0.0 <= self.resample_threshold <= 1.0:
             raise bad("resample_threshold", "must be in [0, 1]")
         if self.proposal not in ("odometry", "likelihood_mode"):
@@ -248,6 +257,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             proposal_pose=config.proposal_pose,
             match_stride=config.match_stride,
             lattice_step=(float(config.lattice_step[0]), float(config.lattice_step[1])),
+            motion_outlier=float(config.motion_outlier),
             seed=config.seed,
         )
     except ValueError as e:

@@ -279,6 +279,7 @@ fn bad_inputs_are_errors() {
                 iterations,
                 match_stride,
                 pose,
+                motion_outlier,
                 ..
             } => ClamProposal::LikelihoodMode {
                 step,
@@ -286,6 +287,7 @@ fn bad_inputs_are_errors() {
                 match_stride,
                 lattice,
                 pose,
+                motion_outlier,
             },
             other => other,
         };
@@ -462,4 +464,58 @@ fn deferred_map_updates_change_nothing_bit_for_bit() {
             assert_eq!(p.map.beliefs(rect), q.map.beliefs(rect));
         }
     }
+}
+
+/// One odometry increment slips by 0.4 m (a wheel slip). Under the motion model alone (σ 2 cm)
+/// the climb's target keeps the pose near the bad guess; with `motion_outlier` the motion density
+/// has a floor of log ε, the scan's likelihood gain is far above it, and the climb moves the pose
+/// back.
+#[test]
+fn motion_outlier_lets_the_climb_leave_a_slipped_odometry_guess() {
+    let clean = simulate(150);
+    let mut run = simulate(150);
+    let slip = 70;
+    for o in &mut run.odom[slip..] {
+        // The same offset for every later reading: only the increment into `slip` is wrong.
+        let h = run.truth[slip - 1][2];
+        *o = [o[0] + 0.4 * h.cos(), o[1] + 0.4 * h.sin(), o[2]];
+    }
+    let with = |run: &Run, motion_outlier: f64| {
+        let proposal = match ClamProposal::likelihood_mode() {
+            ClamProposal::LikelihoodMode {
+                step,
+                iterations,
+                match_stride,
+                lattice,
+                pose,
+                ..
+            } => ClamProposal::LikelihoodMode {
+                step,
+                iterations,
+                match_stride,
+                lattice,
+                pose,
+                motion_outlier,
+            },
+            other => other,
+        };
+        let est = run_filter(
+            run,
+            ClamConfig {
+                n_particles: 8,
+                ..config(proposal)
+            },
+        );
+        let after = slip + 5;
+        mean_position_error(&est[after..], &run.truth[after..])
+    };
+    let (plain, robust) = (with(&run, 0.0), with(&run, 1e-3));
+    let no_slip = with(&clean, 1e-3);
+    eprintln!("after the slip: plain {plain:.3} m, robust {robust:.3} m; robust without it {no_slip:.3} m");
+    // The robust prior is back at its error without the slip; the plain one carries the slip.
+    assert!(
+        robust < no_slip_robust + 0.03,
+        "robust prior: {robust:.3} m"
+    );
+    assert!(plain > no_slip + 0.15, "plain prior: {plain:.3} m");
 }

@@ -243,7 +243,7 @@ filter_pymethods!(ClamFilter {
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
         batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
-        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), seed=0))]
+        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -271,6 +271,7 @@ filter_pymethods!(ClamFilter {
         proposal_pose: &str,
         match_stride: usize,
         lattice_step: (f64, f64),
+        motion_outlier: f64,
         seed: u64,
     ) -> PyResult<Self> {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
@@ -305,6 +306,7 @@ filter_pymethods!(ClamFilter {
                     match_stride,
                     lattice: [lattice_step.0, lattice_step.0, lattice_step.1],
                     pose: rule,
+                    motion_outlier,
                 },
                 other => other,
             },

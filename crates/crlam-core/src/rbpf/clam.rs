@@ -50,6 +50,13 @@ pub enum ClamProposal {
         lattice: [f64; 3],
         /// Draw from the fitted Gaussian (default) or keep the climb's mode.
         pose: ProposalPose,
+        /// Probability ε that the odometry increment is an outlier. The climb and the lattice
+        /// then use the robust motion density (1 − ε)·p(x | x', u) + ε·u₀, with u₀ = 1 per
+        /// m²·rad (a uniform over a 1 m × 1 m × 1 rad box): within a few σ of the odometry
+        /// guess it is the motion model, farther away a floor of log ε, so a scan whose
+        /// likelihood gains more than that may move the pose as far as the climb reaches (a loop
+        /// closure), however tight the motion model. 0 (default): the motion model alone.
+        motion_outlier: f64,
     },
 }
 
@@ -68,6 +75,7 @@ impl ClamProposal {
             match_stride: 3,
             lattice: [0.05, 0.05, 0.025],
             pose,
+            motion_outlier: 0.0,
         }
     }
 }
@@ -167,6 +175,7 @@ impl ClamConfig {
             step,
             match_stride,
             lattice,
+            motion_outlier,
             ..
         } = self.proposal
         {
@@ -175,6 +184,12 @@ impl ClamConfig {
                 return Err(config_err(
                     "proposal",
                     "steps and lattice spacings must be finite and > 0, the match stride >= 1",
+                ));
+            }
+            if !(0.0..1.0).contains(&motion_outlier) {
+                return Err(config_err(
+                    "motion_outlier",
+                    format!("must be in [0, 1), got {motion_outlier}"),
                 ));
             }
         }

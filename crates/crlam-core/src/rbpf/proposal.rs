@@ -61,6 +61,7 @@ pub(crate) fn propose(
             match_stride,
             lattice: fine,
             pose: pose_rule,
+            motion_outlier,
         } => {
             let match_opts = scan_opts(cfg, match_stride);
             // With `Match` nothing is drawn after the climb, so the climb must start from a
@@ -72,7 +73,12 @@ pub(crate) fn propose(
             };
             // The target is the proposal's own density, likelihood × motion prior: the prior keeps
             // the climb from sliding along corridors of a poorly converged map.
-            let prior = |x: Pose| cfg.motion.log_density(p.pose, x, u, n_steps);
+            let prior = |x: Pose| {
+                robust_log_density(
+                    cfg.motion.log_density(p.pose, x, u, n_steps),
+                    motion_outlier,
+                )
+            };
             let mode = hill_climb(guess, step, iterations, |x| {
                 Ok(loglik(x, &match_opts, sc)? + prior(x))
             })?;
@@ -124,6 +130,16 @@ pub(crate) fn propose(
             })
         }
     }
+}
+
+/// log((1 − ε)·e^{log_p} + ε·u₀) with u₀ = 1 per m²·rad; exactly `log_p` for ε = 0.
+fn robust_log_density(log_p: f64, eps: f64) -> f64 {
+    if eps == 0.0 {
+        return log_p;
+    }
+    let (a, b) = ((1.0 - eps).ln() + log_p, eps.ln());
+    let hi = a.max(b);
+    hi + ((a - hi).exp() + (b - hi).exp()).ln()
 }
 
 /// Coordinate hill climbing with step halving (GMapping's `optimize`, on any objective).
@@ -281,6 +297,23 @@ mod tests {
                 let sd = (sq[a] / n as f64).sqrt();
                 assert!((sd / (0.1 * fine[a]) - 1.0).abs() < 0.03, "axis {a}: {sd}");
             }
+        }
+    }
+
+    #[test]
+    fn robust_density_is_the_motion_density_near_the_guess_and_log_eps_far_away() {
+        assert_eq!(robust_log_density(-3.7, 0.0), -3.7);
+        let eps: f64 = 1e-3;
+        // Near the guess: log(1 − ε) + log p to within the floor's share.
+        let near = robust_log_density(2.0, eps);
+        assert!((near - ((1.0 - eps).ln() + 2.0)).abs() < eps * (-2.0f64).exp() * 1.01);
+        // Far away (p → 0): the floor ε·u₀.
+        assert!((robust_log_density(-500.0, eps) - eps.ln()).abs() < 1e-12);
+        assert_eq!(robust_log_density(f64::NEG_INFINITY, eps), eps.ln());
+        // A proper mixture: it never falls below either weighted component.
+        for lp in [-50.0, -7.0, -6.9, 0.0, 3.0] {
+            let v = robust_log_density(lp, eps);
+            assert!(v >= eps.ln() && v >= (1.0 - eps).ln() + lp);
         }
     }
 
