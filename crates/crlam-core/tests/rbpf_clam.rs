@@ -273,28 +273,21 @@ fn bad_inputs_are_errors() {
         [0.01, f64::NAN, 0.005],
         [-0.01, 0.01, 0.005],
     ] {
-        let proposal = match ClamProposal::likelihood_mode() {
-            ClamProposal::LikelihoodMode {
-                step,
-                iterations,
-                match_stride,
-                pose,
-                motion_outlier,
-                ..
-            } => ClamProposal::LikelihoodMode {
-                step,
-                iterations,
-                match_stride,
-                lattice,
-                pose,
-                motion_outlier,
-            },
-            other => other,
-        };
+        let mut proposal = ClamProposal::likelihood_mode();
+        if let ClamProposal::LikelihoodMode { lattice: l, .. } = &mut proposal {
+            *l = lattice;
+        }
         assert!(
             RbpfClam::new(config(proposal), [0.0; 3]).is_err(),
             "{lattice:?}"
         );
+    }
+    for eps in [1.0, -1e-3, f64::NAN] {
+        let mut proposal = ClamProposal::likelihood_mode();
+        if let ClamProposal::LikelihoodMode { motion_outlier, .. } = &mut proposal {
+            *motion_outlier = eps;
+        }
+        assert!(RbpfClam::new(config(proposal), [0.0; 3]).is_err(), "{eps}");
     }
     let mut f = RbpfClam::new(config(ClamProposal::Odometry), [1.0, 1.0, 0.0]).unwrap();
     let s = ScanInput {
@@ -481,24 +474,14 @@ fn motion_outlier_lets_the_climb_leave_a_slipped_odometry_guess() {
         *o = [o[0] + 0.4 * h.cos(), o[1] + 0.4 * h.sin(), o[2]];
     }
     let with = |run: &Run, motion_outlier: f64| {
-        let proposal = match ClamProposal::likelihood_mode() {
-            ClamProposal::LikelihoodMode {
-                step,
-                iterations,
-                match_stride,
-                lattice,
-                pose,
-                ..
-            } => ClamProposal::LikelihoodMode {
-                step,
-                iterations,
-                match_stride,
-                lattice,
-                pose,
-                motion_outlier,
-            },
-            other => other,
-        };
+        let mut proposal = ClamProposal::likelihood_mode();
+        if let ClamProposal::LikelihoodMode {
+            motion_outlier: eps,
+            ..
+        } = &mut proposal
+        {
+            *eps = motion_outlier;
+        }
         let est = run_filter(
             run,
             ClamConfig {
