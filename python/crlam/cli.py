@@ -58,8 +58,9 @@ def _nonnegative_float(text: str) -> float:
     return v
 
 
-def _add_lattice_step(parser: argparse.ArgumentParser) -> None:
-    """``--lattice-step DXY DTHETA``, shared by ``slam`` and the experiments."""
+def _add_likelihood_mode_options(parser: argparse.ArgumentParser) -> None:
+    """``--lattice-step DXY DTHETA`` and ``--motion-outlier EPS`` of the likelihood-mode proposal, shared by
+    ``slam`` and the experiments."""
     parser.add_argument(
         "--lattice-step", type=_positive_float, nargs=2, default=[0.05, 0.025], metavar=("DXY", "DTHETA"), help=_LATTICE_STEP_HELP
     )
@@ -431,7 +432,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
     p.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
-    _add_lattice_step(p)
+    _add_likelihood_mode_options(p)
     p.add_argument("--motion", choices=("gaussian", "thrun"), default="gaussian", help="odometry noise model (default: gaussian)")
     p.add_argument("--motion-params", type=float, nargs="+", help="3 sigmas (gaussian) or 4 alphas (thrun)")
     p.add_argument("--weight-stride", type=_positive_int, default=1, help="every n-th beam for the weights (default: 1)")
@@ -560,7 +561,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--proposal", choices=_PROPOSALS, default="odometry", help=_PROPOSAL_HELP)
         q.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
         q.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
-        _add_lattice_step(q)
+        _add_likelihood_mode_options(q)
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"
