@@ -284,3 +284,26 @@ def test_the_threads_setting_reaches_every_run(office_log: Path, tmp_path: Path)
         assert not errors
         trajectories.append((tmp_path / f"t{threads}" / "runs" / "clam" / "trajectory.tum").read_text())
     assert trajectories[0] == trajectories[1]
+
+
+def test_table1_reports_every_setting_that_differs_from_the_paper() -> None:
+    from crlam.experiments.table1 import protocol_deviations
+
+    assert protocol_deviations(SlamConfig(resolution=0.2, max_range=8.0)) == []
+    devs = protocol_deviations(SlamConfig(resolution=0.1, max_range=8.0, cause_kernel="chord"))
+    assert devs == ["cause_kernel = 'chord' (paper: 'midpoint')", "resolution = 0.1 (paper: 0.2)"]
+
+
+@pytest.mark.slow
+def test_table1_command_takes_the_grid_and_reports_it(tmp_path: Path) -> None:
+    from crlam.cli import main
+
+    argv = ["experiment", "table1", "--out", str(tmp_path), "--runs", "1", "--scans", "20", "--particles", "2"]
+    assert main([*argv, "--methods", "clam", "--resolution", "0.1", "--workers", "1", "--quiet"]) == 0
+    config = (tmp_path / "runs" / "clam_run00" / "config.toml").read_text()
+    assert "resolution = 0.1\n" in config
+    assert "resolution = 0.1 (paper: 0.2)" in (tmp_path / "table.md").read_text()
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["protocol"]["resolution"] == 0.1
+    # The folder holds 0.1 m runs: resuming it with the paper's grid is refused, not mixed.
+    assert main([*argv, "--methods", "clam", "--workers", "1", "--quiet"]) != 0

@@ -163,11 +163,26 @@ def test_belief_archive_round_trip(tmp_path) -> None:
         ({"beam_stride": 0}, "beam_stride"),
         ({"extent": (0, 0, -1, 1)}, "extent"),
         ({"scan_update": "fast"}, "scan_update"),
+        ({"origin": (0.0, float("inf"))}, "origin"),
+        ({"origin": (0.0, 0.1, 0.2)}, "origin"),
+        ({"origin": "ab"}, "origin"),
+        ({"extent": (0, 0, 1)}, "extent"),
     ],
 )
 def test_bad_config_values_name_the_field(kwargs, field) -> None:
     with pytest.raises(ConfigError, match=field):
         MappingConfig(**kwargs)
+
+
+def test_grid_geometry_given_as_lists_is_taken_as_tuples() -> None:
+    # Configs read from JSON or TOML carry lists; the native map needs tuples.
+    cfg = MappingConfig(resolution=0.2, origin=[0.1, 0.1], extent=[0, 0, 4, 4])  # type: ignore[arg-type]
+    assert cfg.origin == (0.1, 0.1) and cfg.extent == (0.0, 0.0, 4.0, 4.0)
+    m = ConfidenceRichMap(cfg)
+    m.update([1.05, 1.05, 0.0], [0.0], [1.0])
+    x0, y0 = m.expected_occupancy().extent[:2]
+    # Cell boundaries fall on origin + k·Δ: the shifted origin reached the native grid.
+    assert (x0 - 0.1) / 0.2 == pytest.approx(round((x0 - 0.1) / 0.2)) and x0 != pytest.approx(round(x0 / 0.2) * 0.2)
 
 
 def test_bad_scan_inputs_raise_crlam_errors_not_panics() -> None:

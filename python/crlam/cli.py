@@ -276,7 +276,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         base = SlamConfig(
             method=_base_method(args.methods),
             particles=args.particles,
-            resolution=0.2,
+            resolution=args.resolution,
             max_range=8.0,
             weight_stride=args.weight_stride,
             tempering=args.tempering,
@@ -452,11 +452,13 @@ def build_parser() -> argparse.ArgumentParser:
     add_eval_parser(sub)
     add_data_parser(sub)
 
+    from crlam.cli_diagnose import add_diagnose_parser
     from crlam.cli_explore import add_explore_parser
     from crlam.cli_info import add_info_parser
 
     add_info_parser(sub, _positive_float, _positive_int)
     add_explore_parser(sub, _positive_float, _positive_int)
+    add_diagnose_parser(sub, _positive_float, _positive_int)
 
     p = sub.add_parser(
         "experiment",
@@ -477,6 +479,12 @@ def build_parser() -> argparse.ArgumentParser:
     t1.add_argument("--scans", type=_positive_int, default=5500, help="scans of the simulated log (default: 5500)")
     t1.add_argument("--particles", type=_positive_int, default=100, help="particles (default: 100)")
     t1.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"], help="filters to run")
+    t1.add_argument(
+        "--resolution",
+        type=_positive_float,
+        default=0.2,
+        help="cell size in metres (default: 0.2, the paper's; any other value is reported as a deviation)",
+    )
     rl = exp.add_parser(
         "real-logs",
         help="Intel and ACES raw logs with their relations",

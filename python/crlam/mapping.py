@@ -169,6 +169,18 @@ class MappingConfig:
     origin: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
+        # Lists (from JSON/TOML or a user's literal) become the tuples the native map takes.
+        for name, size in (("origin", 2), ("extent", 4)):
+            value = getattr(self, name)
+            if value is None:
+                continue
+            try:
+                items = tuple(float(v) for v in value)
+            except (TypeError, ValueError):
+                raise ConfigError(f"MappingConfig.{name}: must be {size} numbers (got {value!r})") from None
+            if len(items) != size:
+                raise ConfigError(f"MappingConfig.{name}: must be {size} numbers (got {value!r})")
+            object.__setattr__(self, name, items)
         self.validate()
 
     def validate(self) -> None:
@@ -176,6 +188,9 @@ class MappingConfig:
 
         def bad(name: str, why: str) -> ConfigError:
             return ConfigError(f"MappingConfig.{name}: {why} (got {getattr(self, name)!r})")
+
+        if not all(math.isfinite(v) for v in self.origin):
+            raise bad("origin", "must be two finite numbers (x, y)")
 
         if not (math.isfinite(self.resolution) and self.resolution > 0):
             raise bad("resolution", "must be a finite number > 0")
