@@ -434,7 +434,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
     _add_likelihood_mode_options(p)
     p.add_argument("--motion", choices=("gaussian", "thrun"), default="gaussian", help="odometry noise model (default: gaussian)")
-    p.add_argument("--motion-params", type=float, nargs="+", help="3 sigmas (gaussian) or 4 alphas (thrun)")
+    p.add_argument(
+        "--motion-params",
+        type=float,
+        nargs="+",
+        help="3 sigmas (gaussian) or 4 alphas (thrun; RBPF-OGM's thrun default is GMapping's 0.04 0.01 0.01 0.04)",
+    )
     p.add_argument("--weight-stride", type=_positive_int, default=1, help="every n-th beam for the weights (default: 1)")
     p.add_argument("--map-stride", type=_positive_int, default=1, help="every n-th beam for the map update (default: 1)")
     p.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering tau (default: 1)")
@@ -517,8 +522,9 @@ def build_parser() -> argparse.ArgumentParser:
         nargs=4,
         default=None,
         metavar=("A1", "A2", "A3", "A4"),
-        help="alpha1..alpha4 of the odometry model (thrun; default: 0.1 each). alpha3 scales the variance of the "
-        "travelled distance: 0.002 is a 4.5 %% standard deviation",
+        help="alpha1..alpha4 of the odometry model (thrun), given to every method of the sweep (default: 0.1 each "
+        "for RBPF-CLAM, GMapping's 0.04 0.01 0.01 0.04 for RBPF-OGM). alpha3 scales the variance of the travelled "
+        "distance: 0.002 is a 4.5 %% standard deviation; alpha2 that of the heading per metre travelled",
     )
     ig = exp.add_parser(
         "iig",
