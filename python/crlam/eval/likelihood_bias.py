@@ -202,7 +202,8 @@ def likelihood_bias(
 
 def save_likelihood_bias(result: LikelihoodBias, out: Path, *, title: str = "") -> dict[str, Path]:
     """Write ``summary.json`` (settings and statistics), ``samples.csv`` (one row per evaluated
-    scan) and ``histograms.png`` (the three offsets); returns the paths."""
+    scan) and ``histograms.png`` (the three offsets: histograms, and against the scan index with
+    a running mean); returns the paths."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -234,21 +235,33 @@ def save_likelihood_bias(result: LikelihoodBias, out: Path, *, title: str = "") 
                     *(f"{result.offsets[a][i]:.6f}" for a in AXES),
                 ]
             )
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.4))
+    fig, axes = plt.subplots(2, 3, figsize=(12, 6.4))
     grid = result.grid.offsets()
-    for ax, axis in zip(axes, AXES):
+    # A consistent sign over a stretch of the path, not the overall mean, is what a filter drifts by.
+    window = max(1, min(50, len(result) // 5))
+    for col, axis in enumerate(AXES):
         scale, unit = (1.0, "m") if axis != "heading" else (180.0 / math.pi, "deg")
         g = grid[axis] * scale
         step = g[1] - g[0]
         edges = np.append(g - step / 2, g[-1] + step / 2)
         v = result.offsets[axis] * scale
+        ax = axes[0, col]
         ax.hist(v, bins=edges, color="tab:blue", alpha=0.8)
         if v.size:
             ax.axvline(float(np.mean(v)), color="tab:red", label=f"mean {np.mean(v):+.3g} {unit}")
         ax.axvline(0.0, color="k", lw=0.8, ls=":")
         ax.set_xlabel(f"{axis} offset of the argmax [{unit}]")
         ax.legend(loc="upper right", fontsize=8)
-    axes[0].set_ylabel("scans")
+        ax = axes[1, col]
+        ax.plot(result.scan_index, v, ".", ms=2, color="tab:blue", alpha=0.5)
+        if v.size >= window:
+            running = np.convolve(v, np.ones(window) / window, mode="valid")
+            ax.plot(result.scan_index[window - 1 :], running, color="tab:red", label=f"mean of {window} scans")
+            ax.legend(loc="upper right", fontsize=8)
+        ax.axhline(0.0, color="k", lw=0.8, ls=":")
+        ax.set_xlabel("scan index")
+        ax.set_ylabel(f"{axis} [{unit}]")
+    axes[0, 0].set_ylabel("scans")
     fig.suptitle(title or f"Scan likelihood argmax around the reference pose ({len(result)} scans)")
     fig.tight_layout()
     fig.savefig(paths["figure"], dpi=120)
