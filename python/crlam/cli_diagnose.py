@@ -23,7 +23,7 @@ def reference_pose_scans(
     the laser offset); scans without a reference pose within ``tolerance`` (s) are left out and
     counted. Returns ``(scans, n_without_reference)``."""
     from crlam.eval.trajectory import _StampIndex
-    from crlam.experiments.known_poses import KnownPoseScan
+    from crlam.experiments.known_poses import KnownPoseScan, mapping_ranges
     from crlam.io.carmen import read_scans
     from crlam.io.tum import read_tum
     from crlam.pose import compose
@@ -40,8 +40,7 @@ def reference_pose_scans(
             missing += 1
             continue
         pose = np.asarray(compose(ref.poses[i], rec.laser_offset), dtype=np.float64)
-        ranges = np.where(rec.ranges >= rec.max_range, np.inf, rec.ranges)
-        scans.append(KnownPoseScan(pose, rec.angles, ranges, rec.timestamp))
+        scans.append(KnownPoseScan(pose, rec.angles, mapping_ranges(rec), rec.timestamp))
     return scans, missing
 
 

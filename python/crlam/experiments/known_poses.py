@@ -34,6 +34,7 @@ __all__ = [
     "MappingRun",
     "sensor_pose",
     "known_pose_scans",
+    "mapping_ranges",
     "map_scans",
     "map_log",
     "write_map_folder",
@@ -71,6 +72,12 @@ class KnownPoseScan:
     timestamp: float
 
 
+def mapping_ranges(scan: LaserScan) -> NDArray[np.float64]:
+    """The scan's ranges ``(n,)`` with no-returns as ``inf``: readings at or beyond the sensor's
+    own maximum are no-returns whatever the map's z_max is."""
+    return np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
+
+
 def known_pose_scans(reader: Iterable[object], source: PoseSource) -> Iterator[KnownPoseScan]:
     """Laser scans of a CARMEN record stream as :class:`KnownPoseScan` (odometry is skipped).
 
@@ -82,9 +89,7 @@ def known_pose_scans(reader: Iterable[object], source: PoseSource) -> Iterator[K
         pose = sensor_pose(rec, source)
         if not np.all(np.isfinite(pose)):
             raise DataFormatError(f"scan pose {pose.tolist()} is not finite", line=rec.line, field=f"{source} pose")
-        # Readings at or beyond the sensor's own maximum are no-returns whatever z_max is.
-        ranges = np.where(rec.ranges >= rec.max_range, np.inf, rec.ranges)
-        yield KnownPoseScan(np.asarray(pose, dtype=np.float64), rec.angles, ranges, rec.timestamp)
+        yield KnownPoseScan(np.asarray(pose, dtype=np.float64), rec.angles, mapping_ranges(rec), rec.timestamp)
 
 
 @dataclass
