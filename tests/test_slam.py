@@ -19,7 +19,7 @@ from crlam.io.relations import read_relations, write_relations
 from crlam.io.tum import read_tum
 from crlam.pose import between, compose
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
-from crlam.slam import SlamConfig, SlamRun
+from crlam.slam import SlamConfig, SlamRun, particle_spread
 
 
 @pytest.fixture(scope="module")
@@ -166,6 +166,60 @@ def test_best_path_means_are_the_proposal_means_of_the_same_lineage(office: Path
     m = json.loads((out / "metrics.json").read_text())
     assert m["relations_best_path_means"]["n"] == m["relations_best_path"]["n"] > 0
     assert m["reference_best_path_means"]["rmse_position_m"] != m["reference_best_path"]["rmse_position_m"]
+
+
+def test_particle_spread_matches_hand_values() -> None:
+    # Two equally weighted particles 2 m apart, headings +-0.3 rad: RMS distance 1 m, R = cos 0.3.
+    poses = np.array([[1.0, 5.0, 0.3], [3.0, 5.0, -0.3]])
+    xy, th = particle_spread(poses, np.array([7.0, 7.0]))
+    assert xy == pytest.approx(1.0)
+    assert th == pytest.approx(np.sqrt(-2 * np.log(np.cos(0.3))))
+    # Weights 3:1 (log-weights unnormalised): the mean sits 0.5 m from the heavier particle.
+    xy, _ = particle_spread(poses, np.log([3.0, 1.0]) - 40.0)
+    assert xy == pytest.approx(np.sqrt(0.75 * 0.5**2 + 0.25 * 1.5**2))
+    # A headings set across ±π is one cluster, not a spread of 2π.
+    xy, th = particle_spread(np.array([[0.0, 0.0, np.pi - 0.01], [0.0, 0.0, -np.pi + 0.01]]), np.zeros(2))
+    assert xy == 0.0 and th == pytest.approx(0.01, rel=1e-3)
+
+
+def test_particle_set_records_and_max_weight_trajectory(office: Path, tmp_path: Path) -> None:
+    scans = list(read_scans(office / "log.clf"))[:60]
+    run = _feed(scans, SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3, init_sigma=(0.05, 0.05, 0.02)))
+    assert run.filter is not None
+    processed = np.flatnonzero(run.processed)
+    assert [r.scan_index for r in run.particle_sets] == processed.tolist()
+    assert [r.neff for r in run.particle_sets] == run.neff
+    np.testing.assert_array_equal(np.array([r.estimate for r in run.particle_sets]), run.trajectory()[1][processed])
+    # The initial spread shows; a resampling onto one parent collapses the set (N_eff = 1 here).
+    assert run.particle_sets[0].spread_xy > 0.05 and all(r.spread_xy >= 0 and r.spread_theta >= 0 for r in run.particle_sets)
+    assert any(r.neff < 1.01 and r.resampled and r.spread_xy < 1e-9 for r in run.particle_sets)
+    stamps, mw = run.max_weight_trajectory()
+    # The last record is the filter's current best particle.
+    np.testing.assert_array_equal(mw[processed[-1]], run.filter.particle_poses()[run.filter.best_index])
+    i = int(np.argmin(run.processed[1:])) + 1
+    j = int(np.flatnonzero(run.processed[:i])[-1])
+    np.testing.assert_allclose(mw[i], compose(mw[j], between(scans[j].odom, scans[i].odom)), atol=1e-12)
+    # One particle: the highest-weight particle is the estimate, and the set has no spread.
+    one = _feed(scans, SlamConfig(particles=1, linear_update=0.3, angular_update=0.3))
+    np.testing.assert_allclose(one.max_weight_trajectory()[1], one.trajectory()[1], atol=1e-9)
+    assert all(r.spread_xy == 0.0 for r in one.particle_sets)
+
+    out = tmp_path / "run"
+    run_slam_log(
+        office / "log.clf",
+        out,
+        SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3, init_sigma=(0.05, 0.05, 0.02)),
+        reference=office / "groundtruth.tum",
+        max_scans=60,
+        progress=False,
+    )
+    rows = np.genfromtxt(out / "steps.csv", delimiter=",", names=True)
+    np.testing.assert_array_equal(rows["scan_index"], processed)
+    np.testing.assert_allclose(rows["spread_xy_m"], [r.spread_xy for r in run.particle_sets], atol=1e-6)
+    np.testing.assert_allclose(read_tum(out / "trajectory_max_weight.tum").poses, mw, atol=1e-6)
+    m = json.loads((out / "metrics.json").read_text())
+    assert m["particle_set"]["spread_xy_mean_m"] == pytest.approx(np.mean(rows["spread_xy_m"]), rel=1e-5)
+    assert "rmse_position_m" in m["reference_max_weight"]
 
 
 def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

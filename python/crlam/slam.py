@@ -18,7 +18,7 @@ from crlam.errors import ConfigError, CrlamError
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
 from crlam.pose import between, compose
 
-__all__ = ["SlamConfig", "SlamStep", "SlamRun", "make_filter", "PAPER_DEFAULTS"]
+__all__ = ["SlamConfig", "SlamStep", "SlamRun", "ParticleSetRecord", "particle_spread", "make_filter", "PAPER_DEFAULTS"]
 
 Method = Literal["clam", "ogm"]
 
@@ -274,6 +274,61 @@ class SlamStep:
     resampled: bool
 
 
+@dataclass(frozen=True)
+class ParticleSetRecord:
+    """The particle set after one processed scan, summarised.
+
+    Attributes
+    ----------
+    scan_index : int
+        Index of the scan (file order, from 0).
+    neff : float
+        Effective sample size of the weights the estimate was taken from (before resampling).
+    resampled : bool
+        Whether the step resampled.
+    estimate : ndarray, shape (3,)
+        Weighted-mean pose (x m, y m, θ rad; circular mean heading).
+    max_weight : ndarray, shape (3,)
+        Pose of the highest-weight particle (after resampling: its first child).
+    spread_xy : float
+        Weighted RMS distance (m) of the particle positions from their weighted mean, over the
+        set the step left (uniform weights after a resampling).
+    spread_theta : float
+        Circular spread of the headings (rad): sqrt(-2 ln R) with R the weighted mean resultant
+        length, which is the standard deviation for a wrapped normal.
+    """
+
+    scan_index: int
+    neff: float
+    resampled: bool
+    estimate: NDArray[np.float64]
+    max_weight: NDArray[np.float64]
+    spread_xy: float
+    spread_theta: float
+
+
+def particle_spread(poses: NDArray[np.float64], log_weights: NDArray[np.float64]) -> tuple[float, float]:
+    """Weighted spread of a particle set: (RMS distance from the weighted mean position (m),
+    circular heading spread sqrt(-2 ln R) (rad)).
+
+    Parameters
+    ----------
+    poses : ndarray, shape (n, 3)
+        Particle poses (x m, y m, θ rad).
+    log_weights : ndarray, shape (n,)
+        Unnormalised log-weights.
+    """
+    lw = np.asarray(log_weights, dtype=np.float64)
+    w = np.exp(lw - np.max(lw))
+    w /= w.sum()
+    xy = poses[:, :2]
+    mu = w @ xy
+    spread_xy = float(np.sqrt(w @ np.sum((xy - mu) ** 2, axis=1)))
+    r = float(np.hypot(w @ np.cos(poses[:, 2]), w @ np.sin(poses[:, 2])))
+    spread_theta = float(np.sqrt(max(0.0, -2.0 * np.log(min(max(r, 1e-300), 1.0)))))
+    return spread_xy, spread_theta
+
+
 @dataclass
 class SlamRun:
     """Feeds scans to a filter and keeps one pose estimate per scan (file order)."""
@@ -285,6 +340,7 @@ class SlamRun:
     processed: list[bool] = field(default_factory=list)
     neff: list[float] = field(default_factory=list)
     odometry: list[NDArray[np.float64]] = field(default_factory=list)
+    particle_sets: list[ParticleSetRecord] = field(default_factory=list)
 
     def step(self, odom: ArrayLike, angles: ArrayLike, ranges: ArrayLike, laser_offset: ArrayLike, stamp: float) -> SlamStep:
         """Feeds one scan (odometry pose of the robot, beam bearings, ranges, laser offset)."""
@@ -304,6 +360,19 @@ class SlamRun:
         self.processed.append(p)
         if p:
             self.neff.append(n)
+            poses = np.asarray(self.filter.particle_poses(), dtype=np.float64)
+            spread_xy, spread_theta = particle_spread(poses, np.asarray(self.filter.log_weights()))
+            self.particle_sets.append(
+                ParticleSetRecord(
+                    scan_index=len(self.estimates) - 1,
+                    neff=float(n),
+                    resampled=bool(r),
+                    estimate=est,
+                    max_weight=poses[self.filter.best_index].copy(),
+                    spread_xy=spread_xy,
+                    spread_theta=spread_theta,
+                )
+            )
         return SlamStep(p, est, n, r)
 
     @property
@@ -339,6 +408,17 @@ class SlamRun:
         if means is None:
             return None
         return self._fill_path(np.asarray(means, dtype=np.float64), "best path means")
+
+    def max_weight_trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """(stamps (n,), poses (n, 3)) from the highest-weight particle at each processed scan.
+
+        The online choice of one particle, unlike :meth:`best_path_trajectory`, which follows
+        the final best particle's lineage back; in between processed scans, the fill rule of
+        :meth:`trajectory`.
+        """
+        if not self.particle_sets:
+            raise ConfigError("no scan has been processed yet")
+        return self._fill_path(np.array([r.max_weight for r in self.particle_sets]), "max-weight poses")
 
     def _fill_path(self, path: NDArray[np.float64], what: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """One pose per processed scan -> one per scan (the fill rule of :meth:`trajectory`)."""

@@ -6,14 +6,18 @@ scan of the log, in file order, stamped with the scan's ipc timestamp), ``metric
 its errors are reported as ``reference_best_path`` / ``relations_best_path``),
 ``trajectory_best_path_means.tum`` when the poses are drawn from a fitted proposal (the same
 lineage with each pose replaced by its proposal's mean; ``*_best_path_means`` errors),
-``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best particle's map), ``trajectory.png`` (the
-trajectory over the map) and, with a reference, ``errors.png`` (error against time), with a
-relations file ``relations_errors.png`` (every relation's error against the time of its first
-pose).
+``trajectory_max_weight.tum`` (the highest-weight particle at each processed scan, chosen online;
+``*_max_weight`` errors), ``steps.csv`` (per processed scan: N_eff, resampling, the particle set's
+position and heading spread, the weighted-mean and highest-weight poses; their summary is
+``particle_set`` in ``metrics.json``), ``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best
+particle's map), ``trajectory.png`` (the trajectory over the map) and, with a reference,
+``errors.png`` (error against time), with a relations file ``relations_errors.png`` (every
+relation's error against the time of its first pose).
 """
 
 from __future__ import annotations
 
+import csv
 import json
 import math
 import os
@@ -158,6 +162,14 @@ def run_slam_log(
             means_poses,
             header=f"crlam {config.method} proposal means along the final best particle's path over {Path(log_path).name}",
         )
+    _, max_weight_poses = run.max_weight_trajectory()
+    write_tum(
+        out / "trajectory_max_weight.tum",
+        stamps,
+        max_weight_poses,
+        header=f"crlam {config.method} highest-weight particle at each processed scan of {Path(log_path).name}",
+    )
+    write_particle_sets(out / "steps.csv", run)
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
     metrics: dict[str, Any] = {
@@ -176,6 +188,7 @@ def run_slam_log(
         "neff_mean": float(np.mean(run.neff)) if run.neff else float("nan"),
         "neff_min": float(np.min(run.neff)) if run.neff else float("nan"),
         "n_resamples": run.filter.n_resamples,
+        "particle_set": particle_set_summary(run),
         "fill_rule": FILL_RULE,
         "deviations_from_paper": config.deviations(),
     }
@@ -187,6 +200,7 @@ def run_slam_log(
         metrics["reference"] = {"path": str(reference), **errs.summary()}
         path_errs = reference_errors(stamps, path_poses, ref.timestamps, ref.poses)
         metrics["reference_best_path"] = path_errs.summary()
+        metrics["reference_max_weight"] = reference_errors(stamps, max_weight_poses, ref.timestamps, ref.poses).summary()
         if means_poses is not None:
             metrics["reference_best_path_means"] = reference_errors(stamps, means_poses, ref.timestamps, ref.poses).summary()
         ref_poses = (ref.timestamps, ref.poses, errs)
@@ -198,7 +212,9 @@ def run_slam_log(
         metrics["relations"] = {"path": str(relations), **rel_errors.summary()}
         rel_path = relations_error(stamps, path_poses, rels, on_missing=on_missing)
         metrics["relations_best_path"] = rel_path.summary()
-        rel_figure = {"weighted mean": rel_errors, "best particle's path": rel_path}
+        rel_max_weight = relations_error(stamps, max_weight_poses, rels, on_missing=on_missing)
+        metrics["relations_max_weight"] = rel_max_weight.summary()
+        rel_figure = {"weighted mean": rel_errors, "best particle's path": rel_path, "highest-weight particle": rel_max_weight}
         if means_poses is not None:
             rel_means = relations_error(stamps, means_poses, rels, on_missing=on_missing)
             metrics["relations_best_path_means"] = rel_means.summary()
@@ -256,6 +272,56 @@ def run_slam_log(
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
     tmp.replace(out / "metrics.json")
     return SlamResult(run, metrics, out)
+
+
+STEPS_COLUMNS = (
+    "scan_index",
+    "neff",
+    "resampled",
+    "spread_xy_m",
+    "spread_theta_deg",
+    "mean_x",
+    "mean_y",
+    "mean_theta",
+    "max_weight_x",
+    "max_weight_y",
+    "max_weight_theta",
+)
+
+
+def write_particle_sets(path: Path, run: SlamRun) -> None:
+    """``steps.csv``: one row per processed scan with the particle set's summary
+    (:class:`crlam.slam.ParticleSetRecord`; poses in m and rad)."""
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(STEPS_COLUMNS)
+        for r in run.particle_sets:
+            w.writerow(
+                [
+                    r.scan_index,
+                    f"{r.neff:.4f}",
+                    int(r.resampled),
+                    f"{r.spread_xy:.6f}",
+                    f"{math.degrees(r.spread_theta):.5f}",
+                    *(f"{v:.6f}" for v in r.estimate),
+                    *(f"{v:.6f}" for v in r.max_weight),
+                ]
+            )
+
+
+def particle_set_summary(run: SlamRun) -> dict[str, float]:
+    """Spread of the particle set over the processed scans: mean, median and 95th percentile of the
+    position spread (m) and the mean heading spread (deg)."""
+    if not run.particle_sets:
+        return {}
+    xy = np.array([r.spread_xy for r in run.particle_sets])
+    th = np.degrees([r.spread_theta for r in run.particle_sets])
+    return {
+        "spread_xy_mean_m": float(xy.mean()),
+        "spread_xy_median_m": float(np.median(xy)),
+        "spread_xy_p95_m": float(np.percentile(xy, 95)),
+        "spread_theta_mean_deg": float(np.mean(th)),
+    }
 
 
 def _jsonable(o: object) -> object:
