@@ -338,7 +338,6 @@ class SlamRun:
     estimates: list[NDArray[np.float64]] = field(default_factory=list)
     stamps: list[float] = field(default_factory=list)
     processed: list[bool] = field(default_factory=list)
-    neff: list[float] = field(default_factory=list)
     odometry: list[NDArray[np.float64]] = field(default_factory=list)
     particle_sets: list[ParticleSetRecord] = field(default_factory=list)
 
@@ -359,7 +358,6 @@ class SlamRun:
         self.stamps.append(stamp)
         self.processed.append(p)
         if p:
-            self.neff.append(n)
             poses = np.asarray(self.filter.particle_poses(), dtype=np.float64)
             spread_xy, spread_theta = particle_spread(poses, np.asarray(self.filter.log_weights()))
             self.particle_sets.append(
@@ -374,6 +372,11 @@ class SlamRun:
                 )
             )
         return SlamStep(p, est, n, r)
+
+    @property
+    def neff(self) -> list[float]:
+        """N_eff of every processed scan (before its resampling), in order."""
+        return [r.neff for r in self.particle_sets]
 
     @property
     def n_scans(self) -> int:
