@@ -269,6 +269,9 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("motion_outlier", 1.0),
         ("motion_outlier", -0.1),
         ("motion_outlier", float("nan")),
+        ("mode_bandwidth", (0.05,)),
+        ("mode_bandwidth", (0.0, 0.025)),
+        ("mode_bandwidth", (0.05, float("nan"))),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),
     ],

@@ -85,6 +85,19 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _add_estimate_options(parser: argparse.ArgumentParser) -> None:
+    """``--mode-bandwidth DXY DTHETA`` of the mode-seeking estimate recorded next to the weighted mean."""
+    parser.add_argument(
+        "--mode-bandwidth",
+        type=_positive_float,
+        nargs=2,
+        default=[0.05, 0.025],
+        metavar=("DXY", "DTHETA"),
+        help="kernel bandwidths (m, rad) of the mode-seeking estimate written to trajectory_mode.tum (the weighted mean of "
+        "the densest group of particles; it does not change the filter; default: 0.05 0.025)",
+    )
+
+
 def _add_map_options(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("map settings")
     g.add_argument("--resolution", type=_positive_float, default=0.2, help="cell size in metres (default: 0.2)")
@@ -193,6 +206,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         match_stride=args.match_stride,
         lattice_step=tuple(args.lattice_step),
         motion_outlier=args.motion_outlier,
+        mode_bandwidth=tuple(args.mode_bandwidth),
         motion=args.motion,
         motion_params=tuple(args.motion_params) if args.motion_params else None,
         weight_stride=args.weight_stride,
@@ -222,9 +236,13 @@ def cmd_slam(args: argparse.Namespace) -> int:
         "reference",
         "reference_best_path",
         "reference_best_path_means",
+        "reference_max_weight",
+        "reference_mode",
         "relations",
         "relations_best_path",
         "relations_best_path_means",
+        "relations_max_weight",
+        "relations_mode",
     ):
         if key in m:
             print(f"{key}: " + ", ".join(f"{k}={v:.4g}" for k, v in m[key].items() if isinstance(v, float)))
@@ -285,6 +303,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             match_stride=args.match_stride,
             lattice_step=tuple(args.lattice_step),
             motion_outlier=args.motion_outlier,
+            mode_bandwidth=tuple(args.mode_bandwidth),
             sigma_range=args.sigma_range,
             cause_kernel=args.cause_kernel,
         )
@@ -315,6 +334,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             match_stride=args.match_stride,
             lattice_step=tuple(args.lattice_step),
             motion_outlier=args.motion_outlier,
+            mode_bandwidth=tuple(args.mode_bandwidth),
             linear_update=args.linear_update,
             angular_update=args.angular_update,
             sigma_range=args.sigma_range,
@@ -433,6 +453,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
     p.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
     _add_likelihood_mode_options(p)
+    _add_estimate_options(p)
     p.add_argument("--motion", choices=("gaussian", "thrun"), default="gaussian", help="odometry noise model (default: gaussian)")
     p.add_argument(
         "--motion-params",
@@ -576,6 +597,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
         q.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
         _add_likelihood_mode_options(q)
+        _add_estimate_options(q)
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"

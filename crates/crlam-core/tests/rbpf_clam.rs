@@ -499,3 +499,38 @@ fn motion_outlier_lets_the_climb_leave_a_slipped_odometry_guess() {
     assert!(robust < no_slip + 0.03, "robust prior: {robust:.3} m");
     assert!(plain > no_slip + 0.15, "plain prior: {plain:.3} m");
 }
+
+#[test]
+fn weighed_set_is_the_set_behind_the_estimate() {
+    use crlam_core::rbpf::{mode_seeking_pose, weighted_mean_pose, ModeBandwidth};
+    let run = simulate(80);
+    let mut f = RbpfClam::new(config(ClamProposal::Odometry), run.truth[0]).unwrap();
+    let mut checked = 0;
+    let mut resampled_seen = 0;
+    let mut last_resamples = 0;
+    feed_processed(&run, &mut f, |f| {
+        let set = f.weighed_set();
+        assert_eq!(set.poses.len(), 30);
+        assert!((set.weights.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        let mean = weighted_mean_pose(&set.poses, &set.weights);
+        let est = f.estimate();
+        assert!((mean[0] - est[0]).abs() < 1e-12 && (mean[1] - est[1]).abs() < 1e-12);
+        assert!(wrap(mean[2] - est[2]).abs() < 1e-12);
+        let inf = ModeBandwidth {
+            xy: f64::INFINITY,
+            theta: f64::INFINITY,
+        };
+        let m = mode_seeking_pose(&set.poses, &set.weights, inf).unwrap();
+        assert!((m[0] - est[0]).abs() < 1e-12 && wrap(m[2] - est[2]).abs() < 1e-12);
+        // A resampling draws the new set from the weighed one.
+        if f.n_resamples() > last_resamples {
+            last_resamples = f.n_resamples();
+            resampled_seen += 1;
+            for p in f.particles() {
+                assert!(set.poses.contains(&p.pose));
+            }
+        }
+        checked += 1;
+    });
+    assert!(checked > 10 && resampled_seen > 0);
+}

@@ -5,8 +5,9 @@ use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
-    ClamConfig, ClamProposal, FilterStep, OgmFilterConfig, ParticleFilter, ProposalParams,
-    ProposalPose, RbpfClam, RbpfOgm, ScanInput, UpdateTrigger,
+    mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamProposal, FilterStep,
+    ModeBandwidth, OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam,
+    RbpfOgm, ScanInput, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -125,6 +126,28 @@ fn poses_array<'py>(py: Python<'py>, poses: Vec<[f64; 3]>) -> PyResult<Bound<'py
         .into_pyarray(py))
 }
 
+/// The mode of the weighted kernel density of a particle set that holds its densest particle
+/// (see `crlam_core::rbpf::mode_seeking_pose`): poses (n, 3), weights (n,) ≥ 0,
+/// bandwidth (m, rad).
+#[pyfunction]
+pub fn mode_seeking_pose(
+    py: Python<'_>,
+    poses: PyReadonlyArray2<'_, f64>,
+    weights: PyReadonlyArray1<'_, f64>,
+    bandwidth: (f64, f64),
+) -> PyResult<(f64, f64, f64)> {
+    let p = poses_n3(&poses)?;
+    let w = slice1(&weights, "weights")?;
+    let bw = ModeBandwidth {
+        xy: bandwidth.0,
+        theta: bandwidth.1,
+    };
+    let m = py
+        .allow_threads(|| core_mode_seeking_pose(&p, w, bw))
+        .py_err()?;
+    Ok((m[0], m[1], m[2]))
+}
+
 /// RBPF-CLAM: particles with poses, log-weights and their own copy-on-write CRMs.
 #[pyclass(module = "crlam._native")]
 pub struct ClamFilter {
@@ -205,6 +228,19 @@ macro_rules! filter_pymethods {
                 ParticleFilter::best_path_means(&self.inner)
                     .map(|p| poses_array(py, p))
                     .transpose()
+            }
+
+            /// Poses (n, 3) and normalised weights (n,) of the last processed scan before
+            /// resampling (uniform weights before the first).
+            fn weighed_set<'py>(
+                &self,
+                py: Python<'py>,
+            ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+                let set = ParticleFilter::weighed_set(&self.inner);
+                Ok((
+                    poses_array(py, set.poses.clone())?,
+                    Array1::from_vec(set.weights.clone()).into_pyarray(py),
+                ))
             }
 
             /// Particle log-weights (unnormalised), shape (n,).

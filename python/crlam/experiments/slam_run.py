@@ -7,8 +7,10 @@ its errors are reported as ``reference_best_path`` / ``relations_best_path``),
 ``trajectory_best_path_means.tum`` when the poses are drawn from a fitted proposal (the same
 lineage with each pose replaced by its proposal's mean; ``*_best_path_means`` errors),
 ``trajectory_max_weight.tum`` (the highest-weight particle at each processed scan, chosen online;
-``*_max_weight`` errors), ``steps.csv`` (per processed scan: N_eff, resampling, the particle set's
-position and heading spread, the weighted-mean and highest-weight poses; their summary is
+``*_max_weight`` errors), ``trajectory_mode.tum`` (the mode-seeking estimate of
+:func:`crlam.slam.mode_seeking_pose` at each processed scan; ``*_mode`` errors), ``steps.csv``
+(per processed scan: N_eff, resampling, the particle set's position and heading spread, the
+weighted-mean, highest-weight and mode-seeking poses; their summary is
 ``particle_set`` in ``metrics.json``), ``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best
 particle's map), ``trajectory.png`` (the trajectory over the map) and, with a reference,
 ``errors.png`` (error against time), with a relations file ``relations_errors.png`` (every
@@ -169,6 +171,13 @@ def run_slam_log(
         max_weight_poses,
         header=f"crlam {config.method} highest-weight particle at each processed scan of {Path(log_path).name}",
     )
+    _, mode_poses = run.mode_trajectory()
+    write_tum(
+        out / "trajectory_mode.tum",
+        stamps,
+        mode_poses,
+        header=f"crlam {config.method} mode-seeking estimate (bandwidth {config.mode_bandwidth}) over {Path(log_path).name}",
+    )
     write_particle_sets(out / "steps.csv", run)
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
@@ -201,6 +210,7 @@ def run_slam_log(
         path_errs = reference_errors(stamps, path_poses, ref.timestamps, ref.poses)
         metrics["reference_best_path"] = path_errs.summary()
         metrics["reference_max_weight"] = reference_errors(stamps, max_weight_poses, ref.timestamps, ref.poses).summary()
+        metrics["reference_mode"] = reference_errors(stamps, mode_poses, ref.timestamps, ref.poses).summary()
         if means_poses is not None:
             metrics["reference_best_path_means"] = reference_errors(stamps, means_poses, ref.timestamps, ref.poses).summary()
         ref_poses = (ref.timestamps, ref.poses, errs)
@@ -214,7 +224,14 @@ def run_slam_log(
         metrics["relations_best_path"] = rel_path.summary()
         rel_max_weight = relations_error(stamps, max_weight_poses, rels, on_missing=on_missing)
         metrics["relations_max_weight"] = rel_max_weight.summary()
-        rel_figure = {"weighted mean": rel_errors, "best particle's path": rel_path, "highest-weight particle": rel_max_weight}
+        rel_mode = relations_error(stamps, mode_poses, rels, on_missing=on_missing)
+        metrics["relations_mode"] = rel_mode.summary()
+        rel_figure = {
+            "weighted mean": rel_errors,
+            "mode-seeking": rel_mode,
+            "best particle's path": rel_path,
+            "highest-weight particle": rel_max_weight,
+        }
         if means_poses is not None:
             rel_means = relations_error(stamps, means_poses, rels, on_missing=on_missing)
             metrics["relations_best_path_means"] = rel_means.summary()
@@ -286,6 +303,9 @@ STEPS_COLUMNS = (
     "max_weight_x",
     "max_weight_y",
     "max_weight_theta",
+    "mode_x",
+    "mode_y",
+    "mode_theta",
 )
 
 
@@ -305,6 +325,7 @@ def write_particle_sets(path: Path, run: SlamRun) -> None:
                     f"{math.degrees(r.spread_theta):.5f}",
                     *(f"{v:.6f}" for v in r.estimate),
                     *(f"{v:.6f}" for v in r.max_weight),
+                    *(f"{v:.6f}" for v in r.mode),
                 ]
             )
 

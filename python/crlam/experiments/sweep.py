@@ -136,7 +136,7 @@ def _run_spec(spec_dict: dict[str, Any], root: str) -> dict[str, Any]:
 def _spec_dict(spec: RunSpec) -> dict[str, Any]:
     d = asdict(spec)
     d["config"] = spec.config.to_dict()
-    for k in ("motion_params", "init_sigma", "lattice_step"):
+    for k in ("motion_params", "init_sigma", "lattice_step", "mode_bandwidth"):
         if d["config"].get(k) is not None:
             d["config"][k] = tuple(d["config"][k])
     return d

@@ -21,6 +21,7 @@ use crate::pose::{between, compose, wrap, Pose};
 use crate::rbpf::common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ProposalPose, ScanInput, UpdateTrigger,
 };
+use crate::rbpf::estimate::WeighedSet;
 use crate::rbpf::lineage::{NodeId, PathTree, NO_NODE};
 use crate::rbpf::proposal::propose;
 use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
@@ -222,10 +223,20 @@ pub struct RbpfClam {
     started: bool,
     estimate: Pose,
     estimate_odom: Pose,
+    weighed: WeighedSet,
     best: usize,
     n_resamples: usize,
     n_processed: usize,
     paths: PathTree,
+}
+
+/// The particles' poses with uniform weights.
+fn uniform_set(particles: &[ClamParticle]) -> WeighedSet {
+    let n = particles.len();
+    WeighedSet {
+        poses: particles.iter().map(|p| p.pose).collect(),
+        weights: vec![1.0 / n as f64; n],
+    }
 }
 
 /// How the maps of a step are brought up to date once resampling has decided which to keep.
@@ -270,7 +281,7 @@ impl RbpfClam {
                     path: NO_NODE,
                 }
             })
-            .collect();
+            .collect::<Vec<_>>();
         // Only a drawn improved proposal has a mean worth a path of its own: the odometry
         // proposal's mean is dead reckoning, and `Match` keeps the mode itself.
         let paths = if matches!(
@@ -284,6 +295,7 @@ impl RbpfClam {
         } else {
             PathTree::default()
         };
+        let weighed = uniform_set(&particles);
         Ok(Self {
             cfg,
             particles,
@@ -293,6 +305,7 @@ impl RbpfClam {
             started: false,
             estimate: initial,
             estimate_odom: [0.0; 3],
+            weighed,
             best: 0,
             n_resamples: 0,
             n_processed: 0,
@@ -319,6 +332,11 @@ impl RbpfClam {
 
     pub fn estimate(&self) -> Pose {
         self.estimate
+    }
+
+    /// The set the last estimate was taken from (before resampling).
+    pub fn weighed_set(&self) -> &WeighedSet {
+        &self.weighed
     }
 
     pub fn n_resamples(&self) -> usize {
@@ -449,12 +467,11 @@ impl RbpfClam {
                 .iter_mut()
                 .map(|p| (&mut p.path, p.pose, p.pose)),
         );
-        let w = vec![1.0 / self.particles.len() as f64; self.particles.len()];
-        let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
+        self.weighed = uniform_set(&self.particles);
         self.estimate = if self.cfg.init_sigma == [0.0; 3] {
             self.initial
         } else {
-            weighted_mean_pose(&poses, &w)
+            weighted_mean_pose(&self.weighed.poses, &self.weighed.weights)
         };
         self.tracker.processed(scan.odom);
         self.estimate_odom = scan.odom;
@@ -493,6 +510,10 @@ impl RbpfClam {
         let neff = effective_sample_size(&w);
         let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
         self.estimate = weighted_mean_pose(&poses, &w);
+        self.weighed = WeighedSet {
+            poses,
+            weights: w.clone(),
+        };
         let best = w
             .iter()
             .enumerate()

@@ -217,6 +217,9 @@ pub trait ParticleFilter {
     /// The proposal means along the best particle's path, when the filter draws its poses from a
     /// fitted proposal (see [`crate::rbpf::PathTree`]).
     fn best_path_means(&self) -> Option<Vec<crate::pose::Pose>>;
+    /// Poses and normalised weights of the last processed scan before resampling, for point
+    /// estimates other than the weighted mean (e.g. [`crate::rbpf::mode_seeking_pose`]).
+    fn weighed_set(&self) -> &crate::rbpf::WeighedSet;
 }
 
 /// Implements [`ParticleFilter`] for a filter type with inherent methods of the same names plus
@@ -259,6 +262,9 @@ macro_rules! impl_particle_filter {
             }
             fn best_path_means(&self) -> Option<Vec<$crate::pose::Pose>> {
                 <$t>::best_path_means(self)
+            }
+            fn weighed_set(&self) -> &$crate::rbpf::WeighedSet {
+                <$t>::weighed_set(self)
             }
         }
     };

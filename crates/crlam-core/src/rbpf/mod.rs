@@ -7,6 +7,7 @@
 
 pub mod clam;
 pub mod common;
+pub mod estimate;
 pub mod lineage;
 pub mod match_surface;
 mod motion_prior;
@@ -19,6 +20,7 @@ pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,
     UpdateTrigger,
 };
+pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
 pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use match_surface::MatchSurface;
 pub use ogm::{OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};

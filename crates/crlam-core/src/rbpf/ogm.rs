@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use super::common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ProposalPose, ScanInput, UpdateTrigger,
 };
+use super::estimate::WeighedSet;
 use super::lineage::{NodeId, PathTree, NO_NODE};
 use super::motion_prior::MotionPrior;
 use super::scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
@@ -274,9 +275,20 @@ pub struct RbpfOgm {
     n_processed: usize,
     /// Estimate at the last processed scan.
     estimate: Pose,
+    /// Poses and normalised (resampling) weights of the last processed scan, before resampling.
+    weighed: WeighedSet,
     n_resamples: usize,
     last_match_failures: usize,
     paths: PathTree,
+}
+
+/// The particles' poses with uniform weights.
+fn uniform_set(particles: &[OgmParticle]) -> WeighedSet {
+    let n = particles.len();
+    WeighedSet {
+        poses: particles.iter().map(|p| p.pose).collect(),
+        weights: vec![1.0 / n as f64; n],
+    }
 }
 
 impl RbpfOgm {
@@ -302,8 +314,9 @@ impl RbpfOgm {
                     path: NO_NODE,
                 }
             })
-            .collect();
+            .collect::<Vec<_>>();
         let cfg_draws = cfg.proposal.pose == ProposalPose::Sample;
+        let weighed = uniform_set(&particles);
         Ok(Self {
             matcher: ScanMatcher::new(cfg.matcher)?,
             cfg,
@@ -313,6 +326,7 @@ impl RbpfOgm {
             step: 0,
             n_processed: 0,
             estimate: initial_pose,
+            weighed,
             n_resamples: 0,
             last_match_failures: 0,
             // Only drawn poses have a mean distinct from the pose.
@@ -428,6 +442,7 @@ impl RbpfOgm {
                 .collect::<Result<Vec<()>>>()?;
         }
         self.initialized = true;
+        self.weighed = uniform_set(&self.particles);
         self.estimate = self.mean_pose(&vec![
             1.0 / self.particles.len() as f64;
             self.particles.len()
@@ -470,6 +485,10 @@ impl RbpfOgm {
         }
         let mut w = self.resampling_weights();
         let neff = effective_sample_size(&w);
+        self.weighed = WeighedSet {
+            poses: self.particles.iter().map(|p| p.pose).collect(),
+            weights: w.clone(),
+        };
         let n = self.particles.len();
         let resampled = neff < self.cfg.resample_threshold * n as f64;
         if resampled {
@@ -498,6 +517,12 @@ impl RbpfOgm {
     /// Weighted mean pose (circular heading) at the last processed scan.
     pub fn estimate(&self) -> Pose {
         self.estimate
+    }
+
+    /// The particle set of the last processed scan before resampling (the estimate itself is
+    /// the mean of the set after it).
+    pub fn weighed_set(&self) -> &WeighedSet {
+        &self.weighed
     }
 
     /// Appends each particle's pose and proposal mean (`means[i]` for particle i) to the paths.
