@@ -85,8 +85,18 @@ def _positive_int(text: str) -> int:
     return v
 
 
+def _nonnegative_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
+    return v
+
+
 def _add_estimate_options(parser: argparse.ArgumentParser) -> None:
-    """``--mode-bandwidth DXY DTHETA`` of the mode-seeking estimate recorded next to the weighted mean."""
+    """``--mode-bandwidth DXY DTHETA`` and ``--smoothing-lag L``: the estimates recorded next to the weighted mean."""
     parser.add_argument(
         "--mode-bandwidth",
         type=_positive_float,
@@ -95,6 +105,14 @@ def _add_estimate_options(parser: argparse.ArgumentParser) -> None:
         metavar=("DXY", "DTHETA"),
         help="kernel bandwidths (m, rad) of the mode-seeking estimate written to trajectory_mode.tum (the weighted mean of "
         "the densest group of particles; it does not change the filter; default: 0.05 0.025)",
+    )
+    parser.add_argument(
+        "--smoothing-lag",
+        type=_nonnegative_int,
+        default=None,
+        metavar="L",
+        help="lineage smoother written to trajectory_smoothed.tum: weigh each processed scan's particle ancestors with "
+        "the weights L processed scans later (default: the final weights, full smoothing)",
     )
 
 
@@ -207,6 +225,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         lattice_step=tuple(args.lattice_step),
         motion_outlier=args.motion_outlier,
         mode_bandwidth=tuple(args.mode_bandwidth),
+        smoothing_lag=args.smoothing_lag,
         motion=args.motion,
         motion_params=tuple(args.motion_params) if args.motion_params else None,
         weight_stride=args.weight_stride,
@@ -238,11 +257,15 @@ def cmd_slam(args: argparse.Namespace) -> int:
         "reference_best_path_means",
         "reference_max_weight",
         "reference_mode",
+        "reference_smoothed",
+        "reference_smoothed_means",
         "relations",
         "relations_best_path",
         "relations_best_path_means",
         "relations_max_weight",
         "relations_mode",
+        "relations_smoothed",
+        "relations_smoothed_means",
     ):
         if key in m:
             print(f"{key}: " + ", ".join(f"{k}={v:.4g}" for k, v in m[key].items() if isinstance(v, float)))
@@ -304,6 +327,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             lattice_step=tuple(args.lattice_step),
             motion_outlier=args.motion_outlier,
             mode_bandwidth=tuple(args.mode_bandwidth),
+            smoothing_lag=args.smoothing_lag,
             sigma_range=args.sigma_range,
             cause_kernel=args.cause_kernel,
         )
@@ -335,6 +359,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             lattice_step=tuple(args.lattice_step),
             motion_outlier=args.motion_outlier,
             mode_bandwidth=tuple(args.mode_bandwidth),
+            smoothing_lag=args.smoothing_lag,
             linear_update=args.linear_update,
             angular_update=args.angular_update,
             sigma_range=args.sigma_range,

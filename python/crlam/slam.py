@@ -100,6 +100,12 @@ class SlamConfig:
         Kernel bandwidths (m, rad) of the mode-seeking estimate recorded next to the weighted
         mean (:func:`mode_seeking_pose`; default (0.05, 0.025), the default lattice spacing).
         It does not change the filter.
+    smoothing_lag : int or None
+        The lineage smoother written next to the weighted mean (:meth:`SlamRun.smoothed_trajectory`):
+        ``None`` (default) weighs every processed scan's ancestors with the final weights (full
+        smoothing, available at the end of the run); an integer L weighs them with the weights
+        L processed scans later (fixed lag, online with a delay of L scans). It does not change
+        the filter.
     """
 
     method: str = "clam"
@@ -128,6 +134,7 @@ class SlamConfig:
     sigma_range: float = 0.01
     cause_kernel: str = "midpoint"
     mode_bandwidth: tuple[float, float] = (0.05, 0.025)
+    smoothing_lag: int | None = None
 
     def __post_init__(self) -> None:
         self.validate()
@@ -157,6 +164,10 @@ class SlamConfig:
         bandwidth = self.mode_bandwidth
         if not (len(bandwidth) == 2 and all(isinstance(v, (int, float)) and v > 0 for v in bandwidth)):
             raise bad("mode_bandwidth", "needs 2 bandwidths > 0 (m, rad; inf allowed)")
+        if self.smoothing_lag is not None and not (
+            isinstance(self.smoothing_lag, int) and not isinstance(self.smoothing_lag, bool) and self.smoothing_lag >= 0
+        ):
+            raise bad("smoothing_lag", "must be None (full smoothing) or an integer >= 0")
         if not (isinstance(self.motion_outlier, (int, float)) and 0.0 <= self.motion_outlier < 1.0):
             raise bad("motion_outlier", "must be in [0, 1)")
         if not 0.0 <= self.resample_threshold <= 1.0:
@@ -400,6 +411,10 @@ class SlamRun:
     processed: list[bool] = field(default_factory=list)
     odometry: list[NDArray[np.float64]] = field(default_factory=list)
     particle_sets: list[ParticleSetRecord] = field(default_factory=list)
+    # Fixed-lag smoother output (config.smoothing_lag = L): the pose of processed scan k, taken
+    # at processed scan k + L; proposal means where the filter records them.
+    _lagged: list[NDArray[np.float64]] = field(default_factory=list, repr=False)
+    _lagged_means: list[NDArray[np.float64]] = field(default_factory=list, repr=False)
 
     def step(self, odom: ArrayLike, angles: ArrayLike, ranges: ArrayLike, laser_offset: ArrayLike, stamp: float) -> SlamStep:
         """Feeds one scan (odometry pose of the robot, beam bearings, ranges, laser offset)."""
@@ -420,6 +435,12 @@ class SlamRun:
         if p:
             poses = np.asarray(self.filter.particle_poses(), dtype=np.float64)
             spread_xy, spread_theta = particle_spread(poses, np.asarray(self.filter.log_weights()))
+            lag = self.config.smoothing_lag
+            if lag is not None:
+                for out, use_means in ((self._lagged, False), (self._lagged_means, True)):
+                    back = self.filter.ancestor_means(lag, use_means)
+                    if back is not None and len(back) > lag:
+                        out.append(np.array(back[lag]))
             weighed_poses, weighed_w = self.filter.weighed_set()
             mode = mode_seeking_pose(weighed_poses, weighed_w, self.config.mode_bandwidth)
             self.particle_sets.append(
@@ -492,6 +513,31 @@ class SlamRun:
         if not self.particle_sets:
             raise ConfigError("no scan has been processed yet")
         return self._fill_path(np.array([r.mode for r in self.particle_sets]), "mode poses")
+
+    def smoothed_trajectory(self, proposal_means: bool = False) -> tuple[NDArray[np.float64], NDArray[np.float64]] | None:
+        """(stamps (n,), poses (n, 3)) from the lineage smoother, one per scan in file order.
+
+        At processed scan k the pose is the weighted mean of the particles' ancestors at k, weighed
+        with the final weights (``smoothing_lag=None``: E[x_k | all scans] under the particle
+        approximation; lineages that died carry no weight, and where every lineage has coalesced
+        it is the surviving one) or with the weights L processed scans later (``smoothing_lag=L``;
+        the last L scans from the final set). Lag 0 is the weighted mean. In between processed
+        scans, the fill rule of :meth:`trajectory`. ``proposal_means`` averages the ancestors'
+        proposal means instead of their drawn poses; ``None`` then unless the filter records them
+        (see :meth:`best_path_means_trajectory`).
+        """
+        if self.filter is None:
+            raise ConfigError("no scan has been processed yet")
+        lag = self.config.smoothing_lag
+        full = self.filter.ancestor_means(None if lag is None else max(lag - 1, 0), proposal_means)
+        if full is None:
+            return None
+        tail = np.asarray(full, dtype=np.float64)[::-1]
+        if lag is not None:
+            done = np.array(self._lagged_means if proposal_means else self._lagged).reshape(-1, 3)
+            tail = tail[len(tail) - (int(sum(self.processed)) - len(done)) :] if lag > 0 else tail[:0]
+            tail = np.vstack([done, tail])
+        return self._fill_path(tail, "smoothed poses")
 
     def _fill_path(self, path: NDArray[np.float64], what: str) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """One pose per processed scan -> one per scan (the fill rule of :meth:`trajectory`)."""

@@ -522,6 +522,9 @@ fn weighed_set_is_the_set_behind_the_estimate() {
         };
         let m = mode_seeking_pose(&set.poses, &set.weights, inf).unwrap();
         assert!((m[0] - est[0]).abs() < 1e-12 && wrap(m[2] - est[2]).abs() < 1e-12);
+        // Lag 0 of the lineage smoother is the weighted mean too.
+        let lag0 = f.ancestor_means(0, false).unwrap();
+        assert!((lag0[0][0] - est[0]).abs() < 1e-12 && wrap(lag0[0][2] - est[2]).abs() < 1e-12);
         // A resampling draws the new set from the weighed one.
         if f.n_resamples() > last_resamples {
             last_resamples = f.n_resamples();
@@ -533,4 +536,13 @@ fn weighed_set_is_the_set_behind_the_estimate() {
         checked += 1;
     });
     assert!(checked > 10 && resampled_seen > 0);
+    // The full smoother reaches back to the first processed scan, where every particle sat at
+    // the initial pose; the odometry proposal records no proposal means.
+    let smoothed = f.ancestor_means(usize::MAX, false).unwrap();
+    assert_eq!(smoothed.len(), f.n_processed());
+    let first = smoothed.last().unwrap();
+    assert!(
+        (first[0] - run.truth[0][0]).abs() < 1e-12 && (first[1] - run.truth[0][1]).abs() < 1e-12
+    );
+    assert!(f.ancestor_means(3, true).is_none());
 }

@@ -243,6 +243,25 @@ macro_rules! filter_pymethods {
                 ))
             }
 
+            /// Smoothed means of the weighed set's lineages, shape (k, 3): row j is the weighted
+            /// mean of the particles' poses j processed scans back (row 0 the weighted mean), for
+            /// j up to `max_lag` (None: back to the first processed scan). `proposal_means` reads
+            /// the recorded proposal means; None when the filter does not record them.
+            #[pyo3(signature = (max_lag=None, proposal_means=false))]
+            fn ancestor_means<'py>(
+                &self,
+                py: Python<'py>,
+                max_lag: Option<usize>,
+                proposal_means: bool,
+            ) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+                let inner = &self.inner;
+                py.allow_threads(|| {
+                    ParticleFilter::ancestor_means(inner, max_lag.unwrap_or(usize::MAX), proposal_means)
+                })
+                .map(|m| poses_array(py, m))
+                .transpose()
+            }
+
             /// Particle log-weights (unnormalised), shape (n,).
             fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
                 Array1::from_vec(ParticleFilter::log_weights(&self.inner)).into_pyarray(py)

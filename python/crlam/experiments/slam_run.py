@@ -8,7 +8,10 @@ its errors are reported as ``reference_best_path`` / ``relations_best_path``),
 lineage with each pose replaced by its proposal's mean; ``*_best_path_means`` errors),
 ``trajectory_max_weight.tum`` (the highest-weight particle at each processed scan, chosen online;
 ``*_max_weight`` errors), ``trajectory_mode.tum`` (the mode-seeking estimate of
-:func:`crlam.slam.mode_seeking_pose` at each processed scan; ``*_mode`` errors), ``steps.csv``
+:func:`crlam.slam.mode_seeking_pose` at each processed scan; ``*_mode`` errors),
+``trajectory_smoothed.tum`` and, where the filter records proposal means,
+``trajectory_smoothed_means.tum`` (the lineage smoother of
+:meth:`crlam.slam.SlamRun.smoothed_trajectory`; ``*_smoothed`` / ``*_smoothed_means`` errors), ``steps.csv``
 (per processed scan: N_eff, resampling, the particle set's position and heading spread, the
 weighted-mean, highest-weight and mode-seeking poses; their summary is
 ``particle_set`` in ``metrics.json``), ``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best
@@ -178,6 +181,18 @@ def run_slam_log(
         mode_poses,
         header=f"crlam {config.method} mode-seeking estimate (bandwidth {config.mode_bandwidth}) over {Path(log_path).name}",
     )
+    smoothed = {}
+    for suffix, use_means, what in (("", False, "poses"), ("_means", True, "proposal means")):
+        traj = run.smoothed_trajectory(proposal_means=use_means)
+        if traj is not None:
+            smoothed[suffix] = traj[1]
+            lag = "full" if config.smoothing_lag is None else f"lag {config.smoothing_lag}"
+            write_tum(
+                out / f"trajectory_smoothed{suffix}.tum",
+                stamps,
+                traj[1],
+                header=f"crlam {config.method} lineage smoother ({lag}, {what}) over {Path(log_path).name}",
+            )
     write_particle_sets(out / "steps.csv", run)
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
@@ -211,6 +226,8 @@ def run_slam_log(
         metrics["reference_best_path"] = path_errs.summary()
         metrics["reference_max_weight"] = reference_errors(stamps, max_weight_poses, ref.timestamps, ref.poses).summary()
         metrics["reference_mode"] = reference_errors(stamps, mode_poses, ref.timestamps, ref.poses).summary()
+        for suffix, sm_poses in smoothed.items():
+            metrics[f"reference_smoothed{suffix}"] = reference_errors(stamps, sm_poses, ref.timestamps, ref.poses).summary()
         if means_poses is not None:
             metrics["reference_best_path_means"] = reference_errors(stamps, means_poses, ref.timestamps, ref.poses).summary()
         ref_poses = (ref.timestamps, ref.poses, errs)
@@ -226,6 +243,8 @@ def run_slam_log(
         metrics["relations_max_weight"] = rel_max_weight.summary()
         rel_mode = relations_error(stamps, mode_poses, rels, on_missing=on_missing)
         metrics["relations_mode"] = rel_mode.summary()
+        for suffix, sm_poses in smoothed.items():
+            metrics[f"relations_smoothed{suffix}"] = relations_error(stamps, sm_poses, rels, on_missing=on_missing).summary()
         rel_figure = {
             "weighted mean": rel_errors,
             "mode-seeking": rel_mode,

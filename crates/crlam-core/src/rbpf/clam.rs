@@ -236,6 +236,7 @@ fn uniform_set(particles: &[ClamParticle]) -> WeighedSet {
     WeighedSet {
         poses: particles.iter().map(|p| p.pose).collect(),
         weights: vec![1.0 / n as f64; n],
+        nodes: particles.iter().map(|p| p.path).collect(),
     }
 }
 
@@ -337,6 +338,14 @@ impl RbpfClam {
     /// The set the last estimate was taken from (before resampling).
     pub fn weighed_set(&self) -> &WeighedSet {
         &self.weighed
+    }
+
+    /// Smoothed means of the weighed set's lineages for lags 0..=max_lag processed scans
+    /// (see [`PathTree::ancestor_means`]; element 0 is the weighted mean).
+    pub fn ancestor_means(&self, max_lag: usize, proposal_means: bool) -> Option<Vec<Pose>> {
+        let w = &self.weighed;
+        self.paths
+            .ancestor_means(&w.nodes, &w.weights, max_lag, proposal_means)
     }
 
     pub fn n_resamples(&self) -> usize {
@@ -513,6 +522,7 @@ impl RbpfClam {
         self.weighed = WeighedSet {
             poses,
             weights: w.clone(),
+            nodes: self.particles.iter().map(|p| p.path).collect(),
         };
         let best = w
             .iter()

@@ -220,6 +220,14 @@ pub trait ParticleFilter {
     /// Poses and normalised weights of the last processed scan before resampling, for point
     /// estimates other than the weighted mean (e.g. [`crate::rbpf::mode_seeking_pose`]).
     fn weighed_set(&self) -> &crate::rbpf::WeighedSet;
+    /// Smoothed means of the weighed set's lineages for lags 0..=max_lag processed scans
+    /// (see [`crate::rbpf::PathTree::ancestor_means`]); `None` for `proposal_means` when the
+    /// filter does not record proposal means.
+    fn ancestor_means(
+        &self,
+        max_lag: usize,
+        proposal_means: bool,
+    ) -> Option<Vec<crate::pose::Pose>>;
 }
 
 /// Implements [`ParticleFilter`] for a filter type with inherent methods of the same names plus
@@ -265,6 +273,13 @@ macro_rules! impl_particle_filter {
             }
             fn weighed_set(&self) -> &$crate::rbpf::WeighedSet {
                 <$t>::weighed_set(self)
+            }
+            fn ancestor_means(
+                &self,
+                max_lag: usize,
+                proposal_means: bool,
+            ) -> Option<Vec<$crate::pose::Pose>> {
+                <$t>::ancestor_means(self, max_lag, proposal_means)
             }
         }
     };

@@ -17,6 +17,9 @@ pub struct WeighedSet {
     pub poses: Vec<Pose>,
     /// Normalised weights (sum 1), aligned with `poses`.
     pub weights: Vec<f64>,
+    /// Each particle's node in the filter's [`crate::rbpf::PathTree`] at this scan
+    /// ([`crate::rbpf::NO_NODE`] before the first processed scan).
+    pub nodes: Vec<crate::rbpf::NodeId>,
 }
 
 /// Kernel bandwidths of [`mode_seeking_pose`].

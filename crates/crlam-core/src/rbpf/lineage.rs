@@ -84,6 +84,63 @@ impl PathTree {
         self.means.as_ref().map(|m| self.walk(leaf, m))
     }
 
+    /// Weighted means of the ancestors of a weighted particle set, one per lag: element `j` is
+    /// the weighted mean (circular heading) of each leaf's pose `j` processed scans before its
+    /// own, for `j = 0..=max_lag` and as far back as the paths go. With the current weights
+    /// this is the particle approximation of the smoothed mean E[x_{t−j} | z_{1:t}]: lineages
+    /// that later died carry no weight. Leaves sharing an ancestor are merged, so a lag where
+    /// every path has coalesced costs O(1). `proposal_means` reads the recorded proposal means
+    /// instead of the poses (`None` when the tree does not record them).
+    ///
+    /// `weights` are ≥ 0 and aligned with `leaves`; [`NO_NODE`] leaves and zero weights are
+    /// skipped; the result is empty when no leaf has a path and weight.
+    pub fn ancestor_means(
+        &self,
+        leaves: &[NodeId],
+        weights: &[f64],
+        max_lag: usize,
+        proposal_means: bool,
+    ) -> Option<Vec<Pose>> {
+        let values = if proposal_means {
+            self.means.as_deref()?
+        } else {
+            &self.poses
+        };
+        let mut level: Vec<(NodeId, f64)> = leaves
+            .iter()
+            .zip(weights)
+            .filter(|&(&n, &w)| n != NO_NODE && w > 0.0)
+            .map(|(&n, &w)| (n, w))
+            .collect();
+        let mut out = Vec::new();
+        while !level.is_empty() && out.len() <= max_lag {
+            level.sort_unstable_by_key(|&(n, _)| n);
+            level.dedup_by(|b, a| {
+                let same = a.0 == b.0;
+                if same {
+                    a.1 += b.1;
+                }
+                same
+            });
+            let (mut sw, mut x, mut y, mut s, mut c) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for &(n, w) in &level {
+                let p = values[n as usize];
+                sw += w;
+                x += w * p[0];
+                y += w * p[1];
+                s += w * p[2].sin();
+                c += w * p[2].cos();
+            }
+            out.push([x / sw, y / sw, s.atan2(c)]);
+            level = level
+                .into_iter()
+                .map(|(n, w)| (self.parents[n as usize], w))
+                .filter(|&(n, _)| n != NO_NODE)
+                .collect();
+        }
+        Some(out)
+    }
+
     fn walk(&self, leaf: NodeId, values: &[Pose]) -> Vec<Pose> {
         let mut out = Vec::new();
         let mut node = leaf;
@@ -166,5 +223,43 @@ mod tests {
         // A root pushed without a mean is its own mean.
         let r = t.push(NO_NODE, [7.0, 1.0, 0.0]);
         assert_eq!(t.mean_path(r), Some(vec![[7.0, 1.0, 0.0]]));
+    }
+
+    #[test]
+    fn ancestor_means_weigh_each_lineage_back_in_time() {
+        let mut t = PathTree::recording_means();
+        let mut nodes = [NO_NODE; 3];
+        // Step 0: three particles at x = 0, 1, 2 (means + 0.5).
+        t.advance(
+            nodes
+                .iter_mut()
+                .enumerate()
+                .map(|(i, n)| (n, [i as f64, 0.0, 0.0], [i as f64 + 0.5, 0.0, 0.0])),
+        );
+        // Resampling keeps particle 2 twice and particle 0 once; step 1 moves each by +10.
+        nodes = [nodes[0], nodes[2], nodes[2]];
+        t.advance(
+            nodes
+                .iter_mut()
+                .enumerate()
+                .map(|(i, n)| (n, [10.0 + i as f64, 0.0, 0.0], [10.0 + i as f64, 0.0, 0.0])),
+        );
+        let w = [0.5, 0.25, 0.25];
+        let m = t.ancestor_means(&nodes, &w, 5, false).unwrap();
+        assert_eq!(m.len(), 2);
+        assert!((m[0][0] - (0.5 * 10.0 + 0.25 * 11.0 + 0.25 * 12.0)).abs() < 1e-12);
+        // One step back: particle 0's lineage (x = 0) with 0.5, particle 2's (x = 2) with 0.5;
+        // particle 1's lineage died at the resampling and carries nothing.
+        assert!((m[1][0] - 1.0).abs() < 1e-12);
+        let means = t.ancestor_means(&nodes, &w, 5, true).unwrap();
+        assert!((means[1][0] - 1.5).abs() < 1e-12);
+        assert_eq!(t.ancestor_means(&nodes, &w, 0, false).unwrap().len(), 1);
+        assert!(t
+            .ancestor_means(&[NO_NODE], &[1.0], 3, false)
+            .unwrap()
+            .is_empty());
+        assert!(PathTree::default()
+            .ancestor_means(&[], &[], 3, true)
+            .is_none());
     }
 }

@@ -288,6 +288,7 @@ fn uniform_set(particles: &[OgmParticle]) -> WeighedSet {
     WeighedSet {
         poses: particles.iter().map(|p| p.pose).collect(),
         weights: vec![1.0 / n as f64; n],
+        nodes: particles.iter().map(|p| p.path).collect(),
     }
 }
 
@@ -360,6 +361,7 @@ impl RbpfOgm {
             self.initialize(scan, &angles, &ranges)?;
             let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
             self.advance_paths(poses);
+            self.weighed = uniform_set(&self.particles);
             self.tracker.processed(scan.odom);
             self.n_processed += 1;
             return Ok(FilterStep {
@@ -442,7 +444,6 @@ impl RbpfOgm {
                 .collect::<Result<Vec<()>>>()?;
         }
         self.initialized = true;
-        self.weighed = uniform_set(&self.particles);
         self.estimate = self.mean_pose(&vec![
             1.0 / self.particles.len() as f64;
             self.particles.len()
@@ -488,6 +489,7 @@ impl RbpfOgm {
         self.weighed = WeighedSet {
             poses: self.particles.iter().map(|p| p.pose).collect(),
             weights: w.clone(),
+            nodes: self.particles.iter().map(|p| p.path).collect(),
         };
         let n = self.particles.len();
         let resampled = neff < self.cfg.resample_threshold * n as f64;
@@ -523,6 +525,14 @@ impl RbpfOgm {
     /// the mean of the set after it).
     pub fn weighed_set(&self) -> &WeighedSet {
         &self.weighed
+    }
+
+    /// Smoothed means of the weighed set's lineages for lags 0..=max_lag processed scans
+    /// (see [`PathTree::ancestor_means`]).
+    pub fn ancestor_means(&self, max_lag: usize, proposal_means: bool) -> Option<Vec<Pose>> {
+        let w = &self.weighed;
+        self.paths
+            .ancestor_means(&w.nodes, &w.weights, max_lag, proposal_means)
     }
 
     /// Appends each particle's pose and proposal mean (`means[i]` for particle i) to the paths.

@@ -1,4 +1,4 @@
-"""The mode-seeking estimate (crlam.slam.mode_seeking_pose) and its trajectory in SLAM runs."""
+"""Estimates beside the weighted mean: the mode-seeking pose and the lineage smoother."""
 
 from __future__ import annotations
 
@@ -156,3 +156,55 @@ def test_ogm_records_the_mode_too(office: Path) -> None:
     _, w = run.filter.weighed_set()
     assert w.sum() == pytest.approx(1.0)
     assert np.isfinite(run.mode_trajectory()[1]).all()
+
+
+def test_lineage_smoother_limits_and_lags(office: Path) -> None:
+    log = office / "log.clf"
+    cfg = {"particles": 8, "seed": 3, **TRIGGERS}
+    lag0 = _feed(log, SlamConfig(smoothing_lag=0, **cfg))
+    traj = lag0.smoothed_trajectory()
+    assert traj is not None
+    # Lag 0 weighs each scan's own particles with their own weights: the weighted mean.
+    np.testing.assert_allclose(traj[1], lag0.trajectory()[1], atol=1e-9)
+    full = _feed(log, SlamConfig(**cfg))
+    n_processed = int(sum(full.processed))
+    sm_full = full.smoothed_trajectory()
+    assert sm_full is not None
+    processed = np.flatnonzero(full.processed)
+    # The last processed scan is weighed with its own weights in every variant.
+    np.testing.assert_allclose(sm_full[1][processed[-1]], full.trajectory()[1][processed[-1]], atol=1e-9)
+    # Hindsight changes earlier scans (lineages that died drop out).
+    assert not np.allclose(sm_full[1][processed[:-1]], full.trajectory()[1][processed[:-1]], atol=1e-6)
+    # A lag longer than the run is full smoothing; a lag L agrees with it on the last L scans.
+    long = _feed(log, SlamConfig(smoothing_lag=n_processed + 5, **cfg)).smoothed_trajectory()
+    assert long is not None
+    np.testing.assert_allclose(long[1], sm_full[1], atol=1e-12)
+    lag3 = _feed(log, SlamConfig(smoothing_lag=3, **cfg)).smoothed_trajectory()
+    assert lag3 is not None
+    np.testing.assert_allclose(lag3[1][processed[-3:]], sm_full[1][processed[-3:]], atol=1e-12)
+    # One particle: every smoother is its path.
+    one = _feed(log, SlamConfig(particles=1, linear_update=0.3, angular_update=0.3))
+    sm_one = one.smoothed_trajectory()
+    assert sm_one is not None
+    np.testing.assert_allclose(sm_one[1], one.best_path_trajectory()[1], atol=1e-12)
+    # The odometry proposal draws from no fitted Gaussian: no proposal means to smooth.
+    assert full.smoothed_trajectory(proposal_means=True) is None
+
+
+def test_smoothed_trajectories_reach_the_run_folder(office: Path, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    cfg = SlamConfig(particles=6, seed=2, proposal="likelihood_mode", smoothing_lag=5, **TRIGGERS)
+    run = run_slam_log(office / "log.clf", out, cfg, reference=office / "groundtruth.tum", max_scans=50, progress=False).run
+    for name, use_means in (("trajectory_smoothed.tum", False), ("trajectory_smoothed_means.tum", True)):
+        traj = run.smoothed_trajectory(proposal_means=use_means)
+        assert traj is not None
+        np.testing.assert_allclose(read_tum(out / name).poses, traj[1], atol=1e-6)
+    m = json.loads((out / "metrics.json").read_text())
+    assert {"reference_smoothed", "reference_smoothed_means"} <= set(m)
+    assert "smoothing_lag = 5" in (out / "config.toml").read_text()
+
+
+@pytest.mark.parametrize("lag", [-1, 1.5, True])
+def test_bad_smoothing_lag_is_a_config_error(lag: object) -> None:
+    with pytest.raises(CrlamError, match="smoothing_lag"):
+        SlamConfig(smoothing_lag=lag)  # type: ignore[arg-type]
