@@ -102,6 +102,11 @@ def test_table1_protocol_small(tmp_path: Path) -> None:
     assert res["rows"]["clam"]["n_runs"] == 2
     table = (tmp_path / "table.md").read_text()
     assert "RBPF-CLAM" in table and "±" in table
+    # Every run records the other trajectories; the table lists each over both runs.
+    others = res["rows"]["clam"]["other_estimates"]
+    assert set(others) == {"reference_best_path", "reference_max_weight", "reference_mode", "reference_smoothed"}
+    assert all(o["n_runs"] == 2 for o in others.values())
+    assert "| RBPF-CLAM | lineage smoother | 2 |" in table
     for f in ("fig2_trajectories.png", "fig2_errors.png", "errors_all_runs.png", "table.csv", "results.json"):
         assert (tmp_path / f).stat().st_size > 0
     again = run_table1(tmp_path, runs=2, scans=40, particles=3, methods=("clam",), workers=1, progress=False)
