@@ -7,8 +7,8 @@ RUN_DIR is a ``crlam slam`` / ``crlam experiment real-logs`` run folder written 
 larger of the position spreads recorded at the last processed scan at or before its two stamps;
 the relations are split into quantile bins of that spread, and each bin reports the mean
 translational error of the weighted mean, the final best particle's path and the online
-highest-weight particle (and the mode-seeking estimate, ``trajectory_mode.tum``, where the run
-wrote it). If the weighted mean loses to one lineage only where the set is wide,
+highest-weight particle (and the mode-seeking estimate ``trajectory_mode.tum`` and the lineage
+smoother ``trajectory_smoothed[_means].tum``, where the run wrote them). If the weighted mean loses to one lineage only where the set is wide,
 its extra error comes from averaging poses of lineages whose maps disagree.
 
 A second table splits the same relations by the time of their first pose into windows of
@@ -36,6 +36,8 @@ TRAJECTORIES = {
     "best path means": "trajectory_best_path_means.tum",
     "max weight": "trajectory_max_weight.tum",
     "mode": "trajectory_mode.tum",
+    "smoothed": "trajectory_smoothed.tum",
+    "smoothed means": "trajectory_smoothed_means.tum",
 }
 
 
