@@ -158,6 +158,31 @@ def test_ogm_records_the_mode_too(office: Path) -> None:
     assert np.isfinite(run.mode_trajectory()[1]).all()
 
 
+def test_ogm_spread_uses_the_smoothed_weights_the_filter_uses(office: Path) -> None:
+    # RBPF-OGM stores log-likelihoods before GMapping's weight smoothing (divided by ogain · n);
+    # the spread must weigh the particles as the estimate does, or one particle takes all the
+    # weight and the set looks collapsed while the estimate averages a wide set.
+    config = SlamConfig(method="ogm", particles=6, seed=2, resolution=0.1, **TRIGGERS)
+    scans = list(read_scans(office / "log.clf"))[:40]
+    run = SlamRun(config)
+    checked = 0
+    for s in scans:
+        step = run.step(s.odom, s.angles, s.ranges, s.laser_offset, s.timestamp)
+        if not step.processed or step.resampled or len(run.particle_sets) < 2:
+            continue
+        assert run.filter is not None
+        poses, w = run.filter.weighed_set()
+        np.testing.assert_allclose(run.filter.weights(), w, atol=1e-12)
+        expected = np.sqrt(w @ np.sum((poses[:, :2] - w @ poses[:, :2]) ** 2, axis=1))
+        assert run.particle_sets[-1].spread_xy == pytest.approx(expected, rel=1e-9, abs=1e-12)
+        # The stored log-weights are sharper than the smoothed weights.
+        raw = np.exp(run.filter.log_weights() - np.max(run.filter.log_weights()))
+        assert np.max(raw / raw.sum()) >= np.max(w) - 1e-12
+        checked += 1
+    assert checked > 0
+    assert sum(float(x) for x in run.filter.weights()) == pytest.approx(1.0)  # type: ignore[union-attr]
+
+
 def test_lineage_smoother_limits_and_lags(office: Path) -> None:
     log = office / "log.clf"
     cfg = {"particles": 8, "seed": 3, **TRIGGERS}

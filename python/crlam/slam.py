@@ -434,7 +434,11 @@ class SlamRun:
         self.processed.append(p)
         if p:
             poses = np.asarray(self.filter.particle_poses(), dtype=np.float64)
-            spread_xy, spread_theta = particle_spread(poses, np.asarray(self.filter.log_weights()))
+            # The weights the filter itself uses: RBPF-OGM's stored log-weights are before
+            # GMapping's weight smoothing, which flattens them by ogain · n.
+            with np.errstate(divide="ignore"):
+                log_w = np.log(np.asarray(self.filter.weights(), dtype=np.float64))
+            spread_xy, spread_theta = particle_spread(poses, log_w)
             lag = self.config.smoothing_lag
             if lag is not None:
                 for out, use_means in ((self._lagged, False), (self._lagged_means, True)):

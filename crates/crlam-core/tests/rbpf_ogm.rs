@@ -551,3 +551,44 @@ fn throughput_every_scan() {
         );
     }
 }
+
+#[test]
+fn weights_are_the_smoothed_ones_behind_neff_and_the_estimate() {
+    let run = simulate(30, 0.2);
+    let mut cfg = config();
+    cfg.n_particles = 10;
+    cfg.trigger = UpdateTrigger::every_scan();
+    cfg.init_sigma = [0.05, 0.05, 0.02];
+    assert_eq!(cfg.weight_smoothing, 3.0);
+    let mut f = RbpfOgm::new(cfg, run.truth[0]).unwrap();
+    let mut unresampled = 0;
+    for (o, r) in run.odom.iter().zip(&run.ranges) {
+        let s = f
+            .process(&ScanInput {
+                odom: *o,
+                angles: &run.angles,
+                ranges: r,
+                laser_offset: LASER,
+            })
+            .unwrap();
+        let w = f.weights();
+        assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        if s.resampled {
+            assert!(w.iter().all(|x| (x - 0.1).abs() < 1e-12));
+            continue;
+        }
+        // Not resampled: the current set is the weighed set, and N_eff is taken from these
+        // weights, which are flatter than the stored log-likelihoods (divided by ogain · n).
+        assert_eq!(w, f.weighed_set().weights);
+        let neff = 1.0 / w.iter().map(|x| x * x).sum::<f64>();
+        assert!((neff - s.neff).abs() < 1e-9 * neff);
+        let lw = f.log_weights();
+        let m = lw.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let z: f64 = lw.iter().map(|l| ((l - m) / 30.0).exp()).sum();
+        for (x, l) in w.iter().zip(&lw) {
+            assert!((x - ((l - m) / 30.0).exp() / z).abs() < 1e-12);
+        }
+        unresampled += 1;
+    }
+    assert!(unresampled > 0);
+}

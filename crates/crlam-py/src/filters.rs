@@ -262,9 +262,15 @@ macro_rules! filter_pymethods {
                 .transpose()
             }
 
-            /// Particle log-weights (unnormalised), shape (n,).
+            /// Particle log-weights as the filter stores them (RBPF-OGM: before its weight
+            /// smoothing), shape (n,).
             fn log_weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
                 Array1::from_vec(ParticleFilter::log_weights(&self.inner)).into_pyarray(py)
+            }
+
+            /// Normalised weights behind N_eff, resampling and the estimate, shape (n,).
+            fn weights<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+                Array1::from_vec(ParticleFilter::weights(&self.inner)).into_pyarray(py)
             }
 
             #[getter]

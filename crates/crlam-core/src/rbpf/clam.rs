@@ -335,6 +335,12 @@ impl RbpfClam {
         self.estimate
     }
 
+    /// Normalised weights of the current particles (uniform right after resampling).
+    pub fn weights(&self) -> Vec<f64> {
+        let logw: Vec<f64> = self.particles.iter().map(|p| p.log_w).collect();
+        normalize_log_weights(&logw)
+    }
+
     /// The set the last estimate was taken from (before resampling).
     pub fn weighed_set(&self) -> &WeighedSet {
         &self.weighed

@@ -208,8 +208,11 @@ pub trait ParticleFilter {
     fn n_particles(&self) -> usize;
     /// Particle poses.
     fn poses(&self) -> Vec<crate::pose::Pose>;
-    /// Particle log-weights.
+    /// Particle log-weights as the filter stores them (RBPF-OGM: before its weight smoothing).
     fn log_weights(&self) -> Vec<f64>;
+    /// Normalised weights of the current particles, the ones behind N_eff, resampling and the
+    /// estimate (RBPF-OGM: after GMapping's weight smoothing; uniform right after resampling).
+    fn weights(&self) -> Vec<f64>;
     /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
     fn map_memory(&self) -> (usize, usize, usize);
     /// The best particle's pose at every processed scan (the first one included), in order.
@@ -261,6 +264,9 @@ macro_rules! impl_particle_filter {
             }
             fn log_weights(&self) -> Vec<f64> {
                 self.particles().iter().map(|p| p.log_w).collect()
+            }
+            fn weights(&self) -> Vec<f64> {
+                <$t>::weights(self)
             }
             fn map_memory(&self) -> (usize, usize, usize) {
                 <$t>::map_memory(self)

@@ -576,8 +576,16 @@ impl RbpfOgm {
         self.particles.iter().map(|p| p.pose).collect()
     }
 
+    /// Accumulated log-likelihoods since the last resampling, normalised (log Σ exp = 0), before
+    /// the weight smoothing.
     pub fn log_weights(&self) -> Vec<f64> {
         self.particles.iter().map(|p| p.log_w).collect()
+    }
+
+    /// Normalised weights after the weight smoothing: the ones behind N_eff, resampling and the
+    /// estimate (uniform right after resampling).
+    pub fn weights(&self) -> Vec<f64> {
+        self.resampling_weights()
     }
 
     /// The map of the highest-weight particle.
