@@ -258,6 +258,7 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("tempering", 0.0),
         ("proposal", "magic"),
         ("motion_params", (1.0,)),
+        ("motion", "ackermann"),
         ("cause_kernel", "box"),
         ("batch_kernel", "fast"),
         ("proposal_pose", "mean"),
@@ -299,6 +300,26 @@ def test_the_native_filters_check_the_proposal_pose() -> None:
     with pytest.raises(ValueError, match="proposal_pose"):
         _native.OgmFilter(pose, n_particles=2, proposal_pose="mean")
     assert _native.OgmFilter(pose, n_particles=2, proposal_pose="match").n_particles == 2
+    with pytest.raises(ValueError, match="gmapping"):
+        _native.OgmFilter(pose, n_particles=2, motion="gmapping", motion_params=[0.1, 0.2, 0.1])
+    with pytest.raises(ValueError, match="finite"):
+        _native.OgmFilter(pose, n_particles=2, motion="gmapping", motion_params=[0.1, -0.2, 0.1, 0.2])
+
+
+def test_gmapping_motion_model_runs_both_filters(office: Path, tmp_path: Path) -> None:
+    # GMapping's own noise model, through the CLI to the run folder, for either filter; a
+    # different model draws different particles, so the trajectories differ from Thrun's.
+    trajs = {}
+    for method, motion in (("ogm", "gmapping"), ("ogm", "thrun"), ("clam", "gmapping")):
+        out = tmp_path / f"{method}_{motion}"
+        argv = ["slam", str(office / "log.clf"), "--out", str(out), "--method", method, "--particles", "4"]
+        argv += ["--resolution", "0.1", "--max-scans", "40", "--motion", motion, "--quiet"]
+        assert main(argv) == 0
+        assert f'\nmotion = "{motion}"\n' in (out / "config.toml").read_text()
+        trajs[method, motion] = read_tum(out / "trajectory.tum").poses
+    assert not np.allclose(trajs["ogm", "gmapping"], trajs["ogm", "thrun"])
+    assert np.isfinite(trajs["clam", "gmapping"]).all()
+    assert SlamConfig(motion="gmapping", motion_params=(0.05, 0.1, 0.05, 0.1)).motion_params == (0.05, 0.1, 0.05, 0.1)
 
 
 @pytest.mark.realdata

@@ -349,7 +349,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         base = SlamConfig(
             method=_base_method(args.methods),
             resolution=args.resolution,
-            motion="thrun",
+            motion=args.motion,
             motion_params=tuple(args.motion_params) if args.motion_params else None,
             weight_stride=args.weight_stride,
             tempering=args.tempering,
@@ -479,12 +479,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
     _add_likelihood_mode_options(p)
     _add_estimate_options(p)
-    p.add_argument("--motion", choices=("gaussian", "thrun"), default="gaussian", help="odometry noise model (default: gaussian)")
+    p.add_argument(
+        "--motion",
+        choices=("gaussian", "thrun", "gmapping"),
+        default="gaussian",
+        help="odometry noise model (default: gaussian); gmapping is GMapping's own model",
+    )
     p.add_argument(
         "--motion-params",
         type=float,
         nargs="+",
-        help="3 sigmas (gaussian) or 4 alphas (thrun; RBPF-OGM's thrun default is GMapping's 0.04 0.01 0.01 0.04)",
+        help="3 sigmas (gaussian), 4 alphas (thrun; RBPF-OGM's thrun default is 0.04 0.01 0.01 0.04) or srr srt "
+        "str stt (gmapping; default 0.1 0.2 0.1 0.2)",
     )
     p.add_argument("--weight-stride", type=_positive_int, default=1, help="every n-th beam for the weights (default: 1)")
     p.add_argument("--map-stride", type=_positive_int, default=1, help="every n-th beam for the map update (default: 1)")
@@ -563,14 +569,21 @@ def build_parser() -> argparse.ArgumentParser:
         help="... or this rotation in rad (default: every scan; GMapping's default is 0.5)",
     )
     rl.add_argument(
+        "--motion",
+        choices=("thrun", "gmapping"),
+        default="thrun",
+        help="odometry noise model of every method of the sweep (default: thrun); gmapping is GMapping's own model",
+    )
+    rl.add_argument(
         "--motion-params",
         type=_nonnegative_float,
         nargs=4,
         default=None,
         metavar=("A1", "A2", "A3", "A4"),
-        help="alpha1..alpha4 of the odometry model (thrun), given to every method of the sweep (default: 0.1 each "
-        "for RBPF-CLAM, GMapping's 0.04 0.01 0.01 0.04 for RBPF-OGM). alpha3 scales the variance of the travelled "
-        "distance: 0.002 is a 4.5 %% standard deviation; alpha2 that of the heading per metre travelled",
+        help="the four parameters of the odometry model, given to every method of the sweep. thrun: alpha1..alpha4 "
+        "(default: 0.1 0.1 0.2 0.05 for RBPF-CLAM, 0.04 0.01 0.01 0.04 for RBPF-OGM); alpha3 scales the variance of "
+        "the travelled distance (0.002 is a 4.5 %% standard deviation), alpha2 that of the heading per metre "
+        "travelled. gmapping: srr srt str stt (default 0.1 0.2 0.1 0.2)",
     )
     ig = exp.add_parser(
         "iig",

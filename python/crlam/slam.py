@@ -84,8 +84,10 @@ class SlamConfig:
         so a tight motion model still lets a scan with a larger likelihood gain move the pose
         (a loop closure, a wheel slip).
     motion : str
-        ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step) or ``thrun``
-        (``motion_params`` = alpha1..alpha4).
+        ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step), ``thrun``
+        (``motion_params`` = alpha1..alpha4, variance coefficients) or ``gmapping`` (GMapping's own
+        model: ``motion_params`` = srr, srt, str, stt, standard deviations per m or rad that add
+        linearly; default 0.1 0.2 0.1 0.2).
     linear_update, angular_update : float
         Process a scan after this much travel (m) or rotation (rad) since the last processed one;
         0 and 0 process every scan (paper).
@@ -182,10 +184,10 @@ class SlamConfig:
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
         if self.batch_kernel not in ("windowed", "full_ray"):
             raise bad("batch_kernel", "must be 'windowed' or 'full_ray'")
-        if self.motion not in ("gaussian", "thrun"):
-            raise bad("motion", "must be 'gaussian' or 'thrun'")
+        if self.motion not in ("gaussian", "thrun", "gmapping"):
+            raise bad("motion", "must be 'gaussian', 'thrun' or 'gmapping'")
         if self.motion_params is not None and len(self.motion_params) != (3 if self.motion == "gaussian" else 4):
-            raise bad("motion_params", "needs 3 sigmas (gaussian) or 4 alphas (thrun)")
+            raise bad("motion_params", "needs 3 sigmas (gaussian), 4 alphas (thrun) or srr srt str stt (gmapping)")
         for name in ("linear_update", "angular_update", "sigma_range"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):

@@ -13,6 +13,17 @@ pub enum MotionModel {
     /// Thrun's four-parameter odometry model (rot1, trans, rot2 perturbed with variances
     /// α1·rot² + α2·trans² and α3·trans² + α4·(rot1² + rot2²)).
     Thrun { alpha: [f64; 4] },
+    /// GMapping's model (`MotionModel::drawFromMotion` of openslam_gmapping): independent
+    /// normals on the increment (dx, dy, dθ) in the frame of the previous pose, with standard
+    /// deviations σx = srr·|dx| + str·|dθ| + 0.3·srr·|dy|, σy = srr·|dy| + str·|dθ| + 0.3·srr·|dx|,
+    /// σθ = stt·|dθ| + srt·√(dx² + dy²). Coefficients are standard deviations (not variances)
+    /// and add linearly; `srt` is rotation per metre, `str` translation per radian.
+    Gmapping {
+        srr: f64,
+        srt: f64,
+        str_: f64,
+        stt: f64,
+    },
 }
 
 impl MotionModel {
@@ -23,12 +34,49 @@ impl MotionModel {
         }
     }
 
+    /// GMapping's defaults: srr 0.1, srt 0.2, str 0.1, stt 0.2.
+    pub fn gmapping() -> Self {
+        Self::Gmapping {
+            srr: 0.1,
+            srt: 0.2,
+            str_: 0.1,
+            stt: 0.2,
+        }
+    }
+
+    /// Standard deviations (x, y, θ) of [`MotionModel::Gmapping`]'s increment noise for `u`;
+    /// `None` for the other models.
+    pub fn gmapping_sigma(&self, u: Pose) -> Option<[f64; 3]> {
+        match *self {
+            Self::Gmapping {
+                srr,
+                srt,
+                str_,
+                stt,
+            } => {
+                let (ax, ay, at) = (u[0].abs(), u[1].abs(), wrap(u[2]).abs());
+                Some([
+                    srr * ax + str_ * at + 0.3 * srr * ay,
+                    srr * ay + str_ * at + 0.3 * srr * ax,
+                    stt * at + srt * u[0].hypot(u[1]),
+                ])
+            }
+            _ => None,
+        }
+    }
+
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
         let ok = |v: &f64| v.is_finite() && *v >= 0.0;
         match self {
             Self::Gaussian { sigma } if sigma.iter().all(ok) => Ok(()),
             Self::Thrun { alpha } if alpha.iter().all(ok) => Ok(()),
+            Self::Gmapping {
+                srr,
+                srt,
+                str_,
+                stt,
+            } if [*srr, *srt, *str_, *stt].iter().all(ok) => Ok(()),
             _ => Err(config_err(
                 "motion",
                 "noise parameters must be finite and >= 0",
@@ -60,6 +108,16 @@ impl MotionModel {
                 let r2 = rot2 - s_rot2 * rng.normal();
                 compose(pose, recompose(r1, t, r2))
             }
+            Self::Gmapping { .. } => {
+                // GMapping perturbs the whole increment between processed scans at once.
+                let sigma = self.gmapping_sigma(u).unwrap_or([0.0; 3]);
+                let e = [
+                    u[0] + sigma[0] * rng.normal(),
+                    u[1] + sigma[1] * rng.normal(),
+                    wrap(u[2] + sigma[2] * rng.normal()),
+                ];
+                compose(pose, e)
+            }
         }
     }
 
@@ -82,6 +140,11 @@ impl MotionModel {
                 log_normal(wrap(rot1 - h1), s1)
                     + log_normal(trans - ht, st)
                     + log_normal(wrap(rot2 - h2), s2)
+            }
+            Self::Gmapping { .. } => {
+                let sigma = self.gmapping_sigma(u).unwrap_or([0.0; 3]);
+                let r = [d[0] - u[0], d[1] - u[1], wrap(d[2] - u[2])];
+                (0..3).map(|i| log_normal(r[i], sigma[i])).sum()
             }
         }
     }
@@ -161,6 +224,47 @@ mod tests {
             m.log_density(p0, compose(p0, u), u, 1)
                 > m.log_density(p0, compose(p0, [0.5, 0.0, 0.1]), u, 1)
         );
+    }
+
+    #[test]
+    fn gmapping_noise_follows_its_formula() {
+        let m = MotionModel::gmapping();
+        // 1 m straight: σx 0.1, σy 0.03, σθ 0.2 rad (srt is rotation per metre).
+        let s = m.gmapping_sigma([1.0, 0.0, 0.0]).unwrap();
+        assert!((s[0] - 0.1).abs() < 1e-12 && (s[1] - 0.03).abs() < 1e-12);
+        assert!((s[2] - 0.2).abs() < 1e-12);
+        // 0.5 rad in place: σx = σy = str·0.5, σθ = stt·0.5.
+        let s = m.gmapping_sigma([0.0, 0.0, -0.5]).unwrap();
+        assert!((s[0] - 0.05).abs() < 1e-12 && (s[1] - 0.05).abs() < 1e-12);
+        assert!((s[2] - 0.1).abs() < 1e-12);
+        let mut rng = Rng::new(11);
+        let p0 = [1.0, -2.0, 2.0];
+        let u = [0.8, 0.1, 0.3];
+        let want = m.gmapping_sigma(u).unwrap();
+        let n = 40_000;
+        let mut acc2 = [0.0; 3];
+        for _ in 0..n {
+            let d = between(p0, m.sample(p0, u, 3, &mut rng));
+            let r = [d[0] - u[0], d[1] - u[1], wrap(d[2] - u[2])];
+            for i in 0..3 {
+                acc2[i] += r[i] * r[i];
+            }
+        }
+        for i in 0..3 {
+            assert!(((acc2[i] / n as f64).sqrt() - want[i]).abs() < 0.02 * want[i]);
+        }
+        // The density is the product of those normals, peaked at the odometry.
+        let at = m.log_density(p0, compose(p0, u), u, 1);
+        let expect: f64 = want.iter().map(|s| -s.ln() - 0.918_938_533_204_672_8).sum();
+        assert!((at - expect).abs() < 1e-9);
+        assert!(MotionModel::Gmapping {
+            srr: 0.1,
+            srt: f64::NAN,
+            str_: 0.1,
+            stt: 0.2
+        }
+        .validate()
+        .is_err());
     }
 
     #[test]

@@ -26,9 +26,11 @@ pub fn motion_model(name: &str, params: Option<Vec<f64>>) -> PyResult<MotionMode
         ("gaussian", Some(p)) if p.len() == 3 => MotionModel::Gaussian { sigma: [p[0], p[1], p[2]] },
         ("thrun", None) => MotionModel::Thrun { alpha: [0.1, 0.1, 0.2, 0.05] },
         ("thrun", Some(p)) if p.len() == 4 => MotionModel::Thrun { alpha: [p[0], p[1], p[2], p[3]] },
+        ("gmapping", None) => MotionModel::gmapping(),
+        ("gmapping", Some(p)) if p.len() == 4 => MotionModel::Gmapping { srr: p[0], srt: p[1], str_: p[2], stt: p[3] },
         (n, p) => {
             return Err(shape_err(format!(
-                "motion model {n:?} with parameters {p:?}: expected gaussian (3 sigmas) or thrun (4 alphas)"
+                "motion model {n:?} with parameters {p:?}: expected gaussian (3 sigmas), thrun (4 alphas) or gmapping (srr, srt, str, stt)"
             )))
         }
     };

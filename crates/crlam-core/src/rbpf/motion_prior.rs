@@ -5,7 +5,8 @@ use crate::pose::{compose, wrap, Pose};
 
 /// Gaussian approximation of p(x | x', u) evaluated by the improved proposal: independent
 /// normals on the residual from x' ⊕ u along and across the direction of travel and in heading.
-/// Exact (up to the floor) for [`MotionModel::Gaussian`]; for Thrun's model it linearises the
+/// Exact (up to the floor) for [`MotionModel::Gaussian`] and [`MotionModel::Gmapping`]; for
+/// Thrun's model it linearises the
 /// rot1/trans/rot2 noise and drops the across/heading correlation.
 pub(crate) struct MotionPrior {
     mean: Pose,
@@ -34,6 +35,8 @@ impl MotionPrior {
                 let s2 = (alpha[0] * r2 * r2 + alpha[1] * t * t).sqrt();
                 (prev[2] + r1, [st, t.abs() * s1, s1.hypot(s2)])
             }
+            // Exact: independent normals on the increment in the previous pose's frame.
+            MotionModel::Gmapping { .. } => (prev[2], model.gmapping_sigma(u).unwrap_or([0.0; 3])),
         };
         Self {
             mean: compose(prev, u),

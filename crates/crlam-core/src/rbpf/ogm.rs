@@ -50,10 +50,13 @@ const MAX_PARTICLES: usize = 100_000;
 pub struct OgmFilterConfig {
     /// [particles] 30.
     pub n_particles: usize,
-    /// Odometry model. Default: Thrun's model with GMapping's srr 0.1, srt 0.2, str 0.1,
-    /// stt 0.2 as α = (stt², str², srr², srt²) = (0.04, 0.01, 0.01, 0.04): GMapping's
-    /// coefficients scale standard deviations, Thrun's α scale variances, so the squares give the
-    /// same noise for pure translations and pure rotations.
+    /// Odometry model. Default: Thrun's model with α = (0.04, 0.01, 0.01, 0.04), the squares of
+    /// GMapping's srr 0.1, srt 0.2, str 0.1, stt 0.2 (its coefficients scale standard deviations,
+    /// Thrun's α variances), which gives GMapping's noise for pure rotations and for the distance
+    /// of pure translations. The cross terms are not GMapping's: α2 = 0.01 gives the heading
+    /// σ = 0.1 rad per metre where GMapping's code has srt = 0.2, and α4 = 0.04 the distance
+    /// σ = 0.2 m per radian where it has str = 0.1. [`MotionModel::gmapping`] is GMapping's own
+    /// model; this default is kept because the published baseline results were made with it.
     pub motion: MotionModel,
     /// [linearUpdate, angularUpdate] Default: every scan. GMapping uses 1.0 m / 0.5 rad.
     pub trigger: UpdateTrigger,
@@ -114,7 +117,8 @@ impl Default for OgmFilterConfig {
 }
 
 impl OgmFilterConfig {
-    /// GMapping's default odometry noise (srr 0.1, srt 0.2, str 0.1, stt 0.2) as Thrun's α.
+    /// The baseline's default odometry noise: Thrun's α = (0.04, 0.01, 0.01, 0.04) (see
+    /// [`OgmFilterConfig::motion`] for how it differs from GMapping's own model).
     pub fn gmapping_motion() -> MotionModel {
         MotionModel::Thrun {
             alpha: [0.04, 0.01, 0.01, 0.04],
