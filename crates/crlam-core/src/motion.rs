@@ -44,27 +44,6 @@ impl MotionModel {
         }
     }
 
-    /// Standard deviations (x, y, θ) of [`MotionModel::Gmapping`]'s increment noise for `u`;
-    /// `None` for the other models.
-    pub fn gmapping_sigma(&self, u: Pose) -> Option<[f64; 3]> {
-        match *self {
-            Self::Gmapping {
-                srr,
-                srt,
-                str_,
-                stt,
-            } => {
-                let (ax, ay, at) = (u[0].abs(), u[1].abs(), wrap(u[2]).abs());
-                Some([
-                    srr * ax + str_ * at + 0.3 * srr * ay,
-                    srr * ay + str_ * at + 0.3 * srr * ax,
-                    stt * at + srt * u[0].hypot(u[1]),
-                ])
-            }
-            _ => None,
-        }
-    }
-
     /// Checks the parameters.
     pub fn validate(&self) -> Result<()> {
         let ok = |v: &f64| v.is_finite() && *v >= 0.0;
@@ -90,12 +69,7 @@ impl MotionModel {
         match *self {
             Self::Gaussian { sigma } => {
                 let k = (n_steps.max(1) as f64).sqrt();
-                let e = [
-                    u[0] + k * sigma[0] * rng.normal(),
-                    u[1] + k * sigma[1] * rng.normal(),
-                    u[2] + k * sigma[2] * rng.normal(),
-                ];
-                compose(pose, e)
+                perturb_increment(pose, u, sigma.map(|s| k * s), rng)
             }
             Self::Thrun { alpha } => {
                 let (rot1, trans, rot2) = decompose(u);
@@ -108,16 +82,13 @@ impl MotionModel {
                 let r2 = rot2 - s_rot2 * rng.normal();
                 compose(pose, recompose(r1, t, r2))
             }
-            Self::Gmapping { .. } => {
-                // GMapping perturbs the whole increment between processed scans at once.
-                let sigma = self.gmapping_sigma(u).unwrap_or([0.0; 3]);
-                let e = [
-                    u[0] + sigma[0] * rng.normal(),
-                    u[1] + sigma[1] * rng.normal(),
-                    wrap(u[2] + sigma[2] * rng.normal()),
-                ];
-                compose(pose, e)
-            }
+            // GMapping perturbs the whole increment between processed scans at once.
+            Self::Gmapping {
+                srr,
+                srt,
+                str_,
+                stt,
+            } => perturb_increment(pose, u, gmapping_sigma([srr, srt, str_, stt], u), rng),
         }
     }
 
@@ -127,9 +98,8 @@ impl MotionModel {
         let d = between(prev, next);
         match *self {
             Self::Gaussian { sigma } => {
-                let k = n_steps.max(1) as f64;
-                let r = [d[0] - u[0], d[1] - u[1], wrap(d[2] - u[2])];
-                (0..3).map(|i| log_normal(r[i], sigma[i] * k.sqrt())).sum()
+                let k = (n_steps.max(1) as f64).sqrt();
+                increment_log_density(d, u, sigma.map(|s| k * s))
             }
             Self::Thrun { alpha } => {
                 let (rot1, trans, rot2) = decompose(u);
@@ -141,13 +111,43 @@ impl MotionModel {
                     + log_normal(trans - ht, st)
                     + log_normal(wrap(rot2 - h2), s2)
             }
-            Self::Gmapping { .. } => {
-                let sigma = self.gmapping_sigma(u).unwrap_or([0.0; 3]);
-                let r = [d[0] - u[0], d[1] - u[1], wrap(d[2] - u[2])];
-                (0..3).map(|i| log_normal(r[i], sigma[i])).sum()
-            }
+            Self::Gmapping {
+                srr,
+                srt,
+                str_,
+                stt,
+            } => increment_log_density(d, u, gmapping_sigma([srr, srt, str_, stt], u)),
         }
     }
+}
+
+/// Standard deviations (x, y, θ) of [`MotionModel::Gmapping`]'s noise on the increment `u`,
+/// from (srr, srt, str, stt).
+pub(crate) fn gmapping_sigma(c: [f64; 4], u: Pose) -> [f64; 3] {
+    let [srr, srt, str_, stt] = c;
+    let (ax, ay, at) = (u[0].abs(), u[1].abs(), wrap(u[2]).abs());
+    [
+        srr * ax + str_ * at + 0.3 * srr * ay,
+        srr * ay + str_ * at + 0.3 * srr * ax,
+        stt * at + srt * u[0].hypot(u[1]),
+    ]
+}
+
+/// `pose` ⊕ (u + ε) with independent normal ε of standard deviations `sigma`.
+fn perturb_increment(pose: Pose, u: Pose, sigma: [f64; 3], rng: &mut Rng) -> Pose {
+    let e = [
+        u[0] + sigma[0] * rng.normal(),
+        u[1] + sigma[1] * rng.normal(),
+        u[2] + sigma[2] * rng.normal(),
+    ];
+    // compose wraps the heading.
+    compose(pose, e)
+}
+
+/// log density of the increment `d` under independent normals around `u`.
+fn increment_log_density(d: Pose, u: Pose, sigma: [f64; 3]) -> f64 {
+    let r = [d[0] - u[0], d[1] - u[1], wrap(d[2] - u[2])];
+    (0..3).map(|i| log_normal(r[i], sigma[i])).sum()
 }
 
 fn log_normal(x: f64, sigma: f64) -> f64 {
@@ -229,18 +229,19 @@ mod tests {
     #[test]
     fn gmapping_noise_follows_its_formula() {
         let m = MotionModel::gmapping();
+        let c = [0.1, 0.2, 0.1, 0.2];
         // 1 m straight: σx 0.1, σy 0.03, σθ 0.2 rad (srt is rotation per metre).
-        let s = m.gmapping_sigma([1.0, 0.0, 0.0]).unwrap();
+        let s = gmapping_sigma(c, [1.0, 0.0, 0.0]);
         assert!((s[0] - 0.1).abs() < 1e-12 && (s[1] - 0.03).abs() < 1e-12);
         assert!((s[2] - 0.2).abs() < 1e-12);
         // 0.5 rad in place: σx = σy = str·0.5, σθ = stt·0.5.
-        let s = m.gmapping_sigma([0.0, 0.0, -0.5]).unwrap();
+        let s = gmapping_sigma(c, [0.0, 0.0, -0.5]);
         assert!((s[0] - 0.05).abs() < 1e-12 && (s[1] - 0.05).abs() < 1e-12);
         assert!((s[2] - 0.1).abs() < 1e-12);
         let mut rng = Rng::new(11);
         let p0 = [1.0, -2.0, 2.0];
         let u = [0.8, 0.1, 0.3];
-        let want = m.gmapping_sigma(u).unwrap();
+        let want = gmapping_sigma(c, u);
         let n = 40_000;
         let mut acc2 = [0.0; 3];
         for _ in 0..n {

@@ -441,7 +441,7 @@ filter_pymethods!(OgmFilter {
     ) -> PyResult<Self> {
         let defaults = OgmFilterConfig::default();
         let motion = match (motion, &motion_params) {
-            ("thrun", None) => OgmFilterConfig::gmapping_motion(),
+            ("thrun", None) => OgmFilterConfig::default_motion(),
             _ => motion_model(motion, motion_params)?,
         };
         let cfg = OgmFilterConfig {

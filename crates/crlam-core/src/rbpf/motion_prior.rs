@@ -36,7 +36,15 @@ impl MotionPrior {
                 (prev[2] + r1, [st, t.abs() * s1, s1.hypot(s2)])
             }
             // Exact: independent normals on the increment in the previous pose's frame.
-            MotionModel::Gmapping { .. } => (prev[2], model.gmapping_sigma(u).unwrap_or([0.0; 3])),
+            MotionModel::Gmapping {
+                srr,
+                srt,
+                str_,
+                stt,
+            } => (
+                prev[2],
+                crate::motion::gmapping_sigma([srr, srt, str_, stt], u),
+            ),
         };
         Self {
             mean: compose(prev, u),
@@ -67,7 +75,7 @@ mod tests {
 
     #[test]
     fn motion_prior_peaks_at_the_prediction_and_is_proper_without_motion() {
-        let m = crate::rbpf::OgmFilterConfig::gmapping_motion();
+        let m = crate::rbpf::OgmFilterConfig::default_motion();
         let prev = [1.0, 2.0, 0.3];
         let u = [0.5, 0.0, 0.1];
         let p = MotionPrior::new(&m, prev, u, 1, [0.01; 3]);

@@ -96,7 +96,7 @@ impl Default for OgmFilterConfig {
     fn default() -> Self {
         Self {
             n_particles: 30,
-            motion: Self::gmapping_motion(),
+            motion: Self::default_motion(),
             trigger: UpdateTrigger::every_scan(),
             resample_threshold: 0.5,
             weight_smoothing: 3.0,
@@ -119,7 +119,7 @@ impl Default for OgmFilterConfig {
 impl OgmFilterConfig {
     /// The baseline's default odometry noise: Thrun's α = (0.04, 0.01, 0.01, 0.04) (see
     /// [`OgmFilterConfig::motion`] for how it differs from GMapping's own model).
-    pub fn gmapping_motion() -> MotionModel {
+    pub fn default_motion() -> MotionModel {
         MotionModel::Thrun {
             alpha: [0.04, 0.01, 0.01, 0.04],
         }
