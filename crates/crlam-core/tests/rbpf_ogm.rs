@@ -121,21 +121,21 @@ fn config() -> OgmFilterConfig {
     }
 }
 
+/// Feeds scan `k` of the run to the filter.
+fn process_scan(f: &mut RbpfOgm, run: &Run, k: usize) -> FilterStep {
+    f.process(&ScanInput {
+        odom: run.odom[k],
+        angles: &run.angles,
+        ranges: &run.ranges[k],
+        laser_offset: LASER,
+    })
+    .unwrap()
+}
+
 fn run_filter(run: &Run, cfg: OgmFilterConfig) -> (RbpfOgm, Vec<FilterStep>) {
     let mut f = RbpfOgm::new(cfg, run.truth[0]).unwrap();
-    let steps = run
-        .odom
-        .iter()
-        .zip(&run.ranges)
-        .map(|(o, r)| {
-            f.process(&ScanInput {
-                odom: *o,
-                angles: &run.angles,
-                ranges: r,
-                laser_offset: LASER,
-            })
-            .unwrap()
-        })
+    let steps = (0..run.odom.len())
+        .map(|k| process_scan(&mut f, run, k))
         .collect();
     (f, steps)
 }
@@ -338,15 +338,8 @@ fn neff_is_in_range_and_resampling_keeps_n_particles() {
     cfg.resample_threshold = 1.0; // resample whenever the weights are not uniform
     let mut f = RbpfOgm::new(cfg, run.truth[0]).unwrap();
     let mut resampled = 0;
-    for (k, (o, r)) in run.odom.iter().zip(&run.ranges).enumerate() {
-        let s = f
-            .process(&ScanInput {
-                odom: *o,
-                angles: &run.angles,
-                ranges: r,
-                laser_offset: LASER,
-            })
-            .unwrap();
+    for k in 0..run.odom.len() {
+        let s = process_scan(&mut f, &run, k);
         assert!(s.neff >= 1.0 - 1e-9 && s.neff <= 12.0 + 1e-9, "{}", s.neff);
         assert_eq!(f.particles().len(), 12);
         if k == 0 {
@@ -562,15 +555,8 @@ fn weights_are_the_smoothed_ones_behind_neff_and_the_estimate() {
     assert_eq!(cfg.weight_smoothing, 3.0);
     let mut f = RbpfOgm::new(cfg, run.truth[0]).unwrap();
     let mut unresampled = 0;
-    for (o, r) in run.odom.iter().zip(&run.ranges) {
-        let s = f
-            .process(&ScanInput {
-                odom: *o,
-                angles: &run.angles,
-                ranges: r,
-                laser_offset: LASER,
-            })
-            .unwrap();
+    for k in 0..run.odom.len() {
+        let s = process_scan(&mut f, &run, k);
         let w = f.weights();
         assert!((w.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         if s.resampled {
