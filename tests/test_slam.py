@@ -273,6 +273,8 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("mode_bandwidth", (0.05,)),
         ("mode_bandwidth", (0.0, 0.025)),
         ("mode_bandwidth", (0.05, float("nan"))),
+        ("ogm_map", "counts"),
+        ("ogm_motion_draws", "sometimes"),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),
     ],
@@ -304,6 +306,43 @@ def test_the_native_filters_check_the_proposal_pose() -> None:
         _native.OgmFilter(pose, n_particles=2, motion="gmapping", motion_params=[0.1, 0.2, 0.1])
     with pytest.raises(ValueError, match="finite"):
         _native.OgmFilter(pose, n_particles=2, motion="gmapping", motion_params=[0.1, -0.2, 0.1, 0.2])
+    with pytest.raises(ValueError, match="map_model"):
+        _native.OgmFilter(pose, n_particles=2, map_model="counts")
+    with pytest.raises(ValueError, match="motion_draws"):
+        _native.OgmFilter(pose, n_particles=2, motion_draws="sometimes")
+
+
+def test_hit_rate_cells_reach_the_ogm_run(office: Path, tmp_path: Path) -> None:
+    # GMapping's counting cells through the CLI: recorded in the config, and they change the
+    # baseline's matches (so its trajectory), not RBPF-CLAM's.
+    trajs = {}
+    for method, cells in (("ogm", "hit_rate"), ("ogm", "log_odds"), ("clam", "hit_rate"), ("clam", "log_odds")):
+        out = tmp_path / f"{method}_{cells}"
+        argv = ["slam", str(office / "log.clf"), "--out", str(out), "--method", method, "--particles", "4"]
+        argv += ["--resolution", "0.1", "--max-scans", "40", "--motion", "thrun", "--ogm-map", cells, "--quiet"]
+        assert main(argv) == 0
+        assert f'\nogm_map = "{cells}"\n' in (out / "config.toml").read_text()
+        trajs[method, cells] = read_tum(out / "trajectory.tum").poses
+    assert not np.allclose(trajs["ogm", "hit_rate"], trajs["ogm", "log_odds"])
+    np.testing.assert_array_equal(trajs["clam", "hit_rate"], trajs["clam", "log_odds"])
+
+
+def test_per_scan_motion_draws_reach_the_ogm_run(office: Path, tmp_path: Path) -> None:
+    # GMapping's draw at every scan: with a trigger that skips scans, the particles differ from
+    # per-update draws; recorded in the config.
+    trajs = {}
+    for draws in ("per_scan", "per_update"):
+        out = tmp_path / draws
+        argv = ["slam", str(office / "log.clf"), "--out", str(out), "--method", "ogm", "--particles", "4"]
+        argv += ["--resolution", "0.1", "--max-scans", "40", "--motion", "gmapping"]
+        argv += ["--linear-update", "0.3", "--angular-update", "0.3", "--ogm-motion-draws", draws, "--quiet"]
+        assert main(argv) == 0
+        assert f'\nogm_motion_draws = "{draws}"\n' in (out / "config.toml").read_text()
+        metrics = json.loads((out / "metrics.json").read_text())
+        assert 1 < metrics["n_processed"] < metrics["n_scans"]
+        trajs[draws] = read_tum(out / "trajectory.tum").poses
+    assert np.isfinite(trajs["per_scan"]).all()
+    assert not np.allclose(trajs["per_scan"], trajs["per_update"])
 
 
 def test_gmapping_motion_model_runs_both_filters(office: Path, tmp_path: Path) -> None:

@@ -266,6 +266,8 @@ class OgmFilter:
         resample_threshold: float = 0.5,
         init_sigma: tuple[float, float, float] = ...,
         proposal_pose: str = "sample",
+        map_model: str = "log_odds",
+        motion_draws: str = "per_update",
         seed: int = 0,
     ) -> OgmFilter: ...
     def process(

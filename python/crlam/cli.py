@@ -31,6 +31,16 @@ _BATCH_KERNEL_HELP = (
     "how a batch scan computes each beam: windowed (default; likelihoods near the reading, the cells before it "
     "as pass counts) or full_ray (every cell: the reference); they agree to rounding"
 )
+_OGM_MAPS = ("log_odds", "hit_rate")
+_OGM_MAP_HELP = (
+    "RBPF-OGM cells: log_odds (default; a match needs its companion cell seen free) or hit_rate (GMapping's "
+    "counting cells, occupied above a 0.1 hit rate; a companion passes unless occupied)"
+)
+_MOTION_DRAWS = ("per_update", "per_scan")
+_MOTION_DRAWS_HELP = (
+    "when RBPF-OGM draws its odometry noise: per processed scan (per_update, default) or at every scan of the log "
+    "on its own increment, as GMapping does (per_scan)"
+)
 _CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
 _PROPOSALS = ("odometry", "likelihood_mode")
 _PROPOSAL_HELP = "RBPF-CLAM: odometry (paper) or the CRM improved proposal (default: odometry)"
@@ -236,6 +246,8 @@ def cmd_slam(args: argparse.Namespace) -> int:
         sigma_range=args.sigma_range,
         cause_kernel=args.cause_kernel,
         batch_kernel=args.batch_kernel,
+        ogm_map=args.ogm_map,
+        ogm_motion_draws=args.ogm_motion_draws,
     )
     res = run_slam_log(
         args.log,
@@ -349,6 +361,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         base = SlamConfig(
             method=_base_method(args.methods),
             resolution=args.resolution,
+            ogm_map=args.ogm_map,
+            ogm_motion_draws=args.ogm_motion_draws,
             motion=args.motion,
             motion_params=tuple(args.motion_params) if args.motion_params else None,
             weight_stride=args.weight_stride,
@@ -498,6 +512,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
     p.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
     p.add_argument("--batch-kernel", choices=_BATCH_KERNELS, default="windowed", help=_BATCH_KERNEL_HELP)
+    p.add_argument("--ogm-map", choices=_OGM_MAPS, default="log_odds", help=_OGM_MAP_HELP)
+    p.add_argument("--ogm-motion-draws", choices=_MOTION_DRAWS, default="per_update", help=_MOTION_DRAWS_HELP)
     p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
     p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
     p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
@@ -568,6 +584,8 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.0,
         help="... or this rotation in rad (default: every scan; GMapping's default is 0.5)",
     )
+    rl.add_argument("--ogm-map", choices=_OGM_MAPS, default="log_odds", help=_OGM_MAP_HELP)
+    rl.add_argument("--ogm-motion-draws", choices=_MOTION_DRAWS, default="per_update", help=_MOTION_DRAWS_HELP)
     rl.add_argument(
         "--motion",
         choices=("thrun", "gmapping"),

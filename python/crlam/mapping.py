@@ -535,6 +535,7 @@ class LogOddsOccupancyMap:
         """Occupancy probability ``base^l / (1 + base^l)`` over a region."""
         rect = self.region(bounds)
         lo = self.native.log_odds(rect)
-        p = 1.0 / (1.0 + np.power(self.config.base, -lo))
+        # The logistic as tanh: no overflow for the large values of counting (hit-rate) cells.
+        p = 0.5 * (1.0 + np.tanh(0.5 * math.log(self.config.base) * lo))
         res, (ox, oy) = self.config.resolution, self.config.origin
         return MapLayer(p, (ox + rect[0] * res, oy + rect[1] * res), res, "occupancy probability")

@@ -102,6 +102,17 @@ class SlamConfig:
         Kernel bandwidths (m, rad) of the mode-seeking estimate recorded next to the weighted
         mean (:func:`mode_seeking_pose`; default (0.05, 0.025), the default lattice spacing).
         It does not change the filter.
+    ogm_map : str
+        RBPF-OGM's cells: ``log_odds`` (default; +1 / −0.5 in base 2, clamped at ±100, and a
+        match needs its companion cell seen free) or ``hit_rate`` (GMapping's counting cells:
+        occupied when hits / visits > 0.1, and a match's companion cell passes unless occupied,
+        unknown included). Ignored by RBPF-CLAM.
+    ogm_motion_draws : str
+        When RBPF-OGM draws its odometry noise: ``per_update`` (default; once per processed scan,
+        on the increment since the previous one, as RBPF-CLAM always does) or ``per_scan`` (at
+        every scan of the log, on its own increment, as GMapping's ``processScan`` does;
+        step-proportional noise then adds up in variance, about 1/sqrt(k) of one draw over k
+        steps). Ignored by RBPF-CLAM.
     smoothing_lag : int or None
         The lineage smoother written next to the weighted mean (:meth:`SlamRun.smoothed_trajectory`):
         ``None`` (default) weighs every processed scan's ancestors with the final weights (full
@@ -137,6 +148,8 @@ class SlamConfig:
     cause_kernel: str = "midpoint"
     mode_bandwidth: tuple[float, float] = (0.05, 0.025)
     smoothing_lag: int | None = None
+    ogm_map: str = "log_odds"
+    ogm_motion_draws: str = "per_update"
 
     def __post_init__(self) -> None:
         self.validate()
@@ -180,6 +193,10 @@ class SlamConfig:
             raise bad("proposal_pose", "must be 'sample' or 'match'")
         if self.method == "clam" and self.proposal == "odometry" and self.proposal_pose != "sample":
             raise bad("proposal_pose", "'match' needs an improved proposal: proposal='likelihood_mode' (RBPF-CLAM)")
+        if self.ogm_map not in ("log_odds", "hit_rate"):
+            raise bad("ogm_map", "must be 'log_odds' or 'hit_rate'")
+        if self.ogm_motion_draws not in ("per_update", "per_scan"):
+            raise bad("ogm_motion_draws", "must be 'per_update' or 'per_scan'")
         if self.cause_kernel not in ("midpoint", "chord"):
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
         if self.batch_kernel not in ("windowed", "full_ray"):
@@ -258,6 +275,8 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
                 resample_threshold=config.resample_threshold,
                 init_sigma=config.init_sigma,
                 proposal_pose=config.proposal_pose,
+                map_model=config.ogm_map,
+                motion_draws=config.ogm_motion_draws,
                 seed=config.seed,
             )
         except ValueError as e:

@@ -37,6 +37,33 @@ impl LogOddsParams {
         }
     }
 
+    /// GMapping's counting map (its `PointAccumulator`) as log-odds: a cell is occupied when
+    /// its hit rate n / (n + f) (n hits, f pass-throughs) exceeds `fullness_threshold` t
+    /// (GMapping's fullnessThreshold, 0.1). With l_occ = 1/t − 1 and l_free = −1 the value is
+    /// n·(1 − t)/t − f, positive exactly when n / (n + f) > t; the wide clamps (±10⁶, with unit
+    /// steps exact in f32) never bind in practice, so nothing is forgotten, as in GMapping.
+    /// Base 2 only shapes [`LogOddsGrid::probability`], which is then a sharp display value
+    /// rather than the hit rate.
+    pub fn hit_rate(z_max: f64, fullness_threshold: f64) -> Result<Self> {
+        if !(fullness_threshold > 0.0 && fullness_threshold < 1.0) {
+            return Err(config_err(
+                "fullness_threshold",
+                format!("must be in (0, 1), got {fullness_threshold}"),
+            ));
+        }
+        let p = Self {
+            l_occ: 1.0 / fullness_threshold - 1.0,
+            l_free: -1.0,
+            l_min: -1e6,
+            l_max: 1e6,
+            base: 2.0,
+            z_max,
+            clear_no_return: true,
+        };
+        p.validate()?;
+        Ok(p)
+    }
+
     pub fn validate(&self) -> Result<()> {
         if !(self.l_occ.is_finite() && self.l_occ > 0.0) {
             return Err(config_err("l_occ", "must be finite and > 0"));
@@ -197,6 +224,32 @@ mod tests {
         assert!(m.log_odds(9, 0) < 0.0);
         assert!(m.probability(10, 0) > 0.5);
         assert_eq!(m.log_odds(11, 0), 0.0);
+    }
+
+    #[test]
+    fn hit_rate_cells_are_occupied_above_the_fullness_threshold() {
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let p = LogOddsParams::hit_rate(8.0, 0.1).unwrap();
+        assert_eq!((p.l_occ, p.l_free), (9.0, -1.0));
+        // Cell 5 along +x: hit by `hits` short beams, passed by `passes` long ones. It is
+        // occupied exactly when hits / (hits + passes) > 0.1.
+        for (hits, passes) in [(1, 8), (1, 9), (1, 10), (2, 17), (2, 18), (3, 40)] {
+            let mut m = LogOddsGrid::new(g, p, 32, None).unwrap();
+            for _ in 0..hits {
+                m.update_scan([0.05, 0.05, 0.0], &[0.0], &[0.55]).unwrap();
+            }
+            for _ in 0..passes {
+                m.update_scan([0.05, 0.05, 0.0], &[0.0], &[2.0]).unwrap();
+            }
+            let rate = hits as f64 / (hits + passes) as f64;
+            assert_eq!(
+                m.log_odds(5, 0) > 0.0,
+                rate > 0.1,
+                "{hits} hits, {passes} passes"
+            );
+        }
+        assert!(LogOddsParams::hit_rate(8.0, 0.0).is_err());
+        assert!(LogOddsParams::hit_rate(8.0, 1.0).is_err());
     }
 
     #[test]

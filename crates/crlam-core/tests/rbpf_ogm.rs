@@ -10,8 +10,8 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::{LogOddsGrid, LogOddsParams};
 use crlam_core::pose::{between, compose, wrap, Pose};
 use crlam_core::rbpf::{
-    FilterStep, MatchSurface, OgmFilterConfig, PreparedScan, ProposalPose, RbpfOgm, ScanInput,
-    ScanMatcher, UpdateTrigger,
+    FilterStep, FreeTest, MatchSurface, MatcherParams, MotionDraws, OgmFilterConfig, PreparedScan,
+    ProposalPose, RbpfOgm, ScanInput, ScanMatcher, UpdateTrigger,
 };
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
@@ -231,6 +231,42 @@ fn beats_raw_odometry_on_a_loop() {
 }
 
 #[test]
+fn hit_rate_cells_also_beat_raw_odometry() {
+    // GMapping's counting cells and not-occupied match test (`with_hit_rate_map`), with either
+    // motion draw schedule (GMapping's is per scan).
+    let run = simulate(240, 1.15);
+    for draws in [MotionDraws::PerUpdate, MotionDraws::PerScan] {
+        let mut cfg = config().with_hit_rate_map(0.1).unwrap();
+        cfg.motion_draws = draws;
+        assert_eq!(cfg.matcher.free_test, FreeTest::NotOccupied);
+        assert_eq!((cfg.log_odds.l_occ, cfg.log_odds.l_free), (9.0, -1.0));
+        let (f, steps) = run_filter(&run, cfg);
+        let odo = odometry_in_world(&run);
+        let mean_error = |poses: &mut dyn Iterator<Item = Pose>| {
+            poses
+                .zip(&run.truth)
+                .map(|(p, t)| position_error(p, *t))
+                .sum::<f64>()
+                / run.truth.len() as f64
+        };
+        let e_filter = mean_error(&mut steps.iter().map(|s| s.estimate));
+        let e_odom = mean_error(&mut odo.iter().copied());
+        eprintln!(
+            "ogm hit-rate cells, {draws:?}: mean err {e_filter:.3} m vs odometry {e_odom:.3} m"
+        );
+        assert!(e_odom > 0.2 && e_filter < 0.5 * e_odom && e_filter < 0.1);
+        // Every processed scan's cells count: the best map holds a wall cell hit far more often
+        // than the ±100 clamp of the default cells would allow.
+        let g = f.best_map().grid();
+        let max = (0..200)
+            .flat_map(|iy| (0..200).map(move |ix| (ix, iy)))
+            .map(|(ix, iy)| g.get(ix, iy)[0])
+            .fold(f32::MIN, f32::max);
+        assert!(max > 100.0, "largest cell value {max}");
+    }
+}
+
+#[test]
 fn unprocessed_scans_carry_the_estimate_by_odometry() {
     let run = simulate(30, 0.1);
     let (_, steps) = run_filter(&run, config());
@@ -299,33 +335,110 @@ fn proposal_pose_match_keeps_the_match_with_the_same_weights() {
 #[test]
 fn result_does_not_depend_on_the_thread_count() {
     let run = simulate(40, 0.2);
-    let mut cfg = config();
-    cfg.trigger = UpdateTrigger::every_scan();
-    cfg.weight_smoothing = 0.0; // textbook weights: resampling happens, and is compared too
-    let go = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        pool.install(|| run_filter(&run, cfg.clone()))
-    };
-    let (f1, s1) = go(1);
-    let (f2, s2) = go(2);
-    for (a, b) in s1.iter().zip(&s2) {
-        for i in 0..3 {
-            assert_eq!(a.estimate[i].to_bits(), b.estimate[i].to_bits());
+    // Per-update draws on every scan, and per-scan draws with a trigger that leaves scans
+    // between the processed ones (their draws use their own streams).
+    for (draws, trigger) in [
+        (MotionDraws::PerUpdate, UpdateTrigger::every_scan()),
+        (
+            MotionDraws::PerScan,
+            UpdateTrigger {
+                linear: 0.1,
+                angular: 0.1,
+            },
+        ),
+    ] {
+        let mut cfg = config();
+        cfg.trigger = trigger;
+        cfg.motion_draws = draws;
+        cfg.weight_smoothing = 0.0; // textbook weights: resampling happens, and is compared too
+        let go = |threads: usize| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| run_filter(&run, cfg.clone()))
+        };
+        let (f1, s1) = go(1);
+        let (f2, s2) = go(2);
+        for (a, b) in s1.iter().zip(&s2) {
+            for i in 0..3 {
+                assert_eq!(a.estimate[i].to_bits(), b.estimate[i].to_bits());
+            }
+            assert_eq!(a.resampled, b.resampled);
         }
-        assert_eq!(a.resampled, b.resampled);
+        let bits = |f: &RbpfOgm| {
+            f.log_weights()
+                .iter()
+                .chain(f.poses().iter().flatten())
+                .map(|v| v.to_bits())
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(bits(&f1), bits(&f2));
+        assert!(f1.n_resamples() > 0, "{draws:?}");
+        assert!(s1.iter().any(|s| !s.processed) || draws == MotionDraws::PerUpdate);
     }
-    let bits = |f: &RbpfOgm| {
-        f.log_weights()
-            .iter()
-            .chain(f.poses().iter().flatten())
-            .map(|v| v.to_bits())
-            .collect::<Vec<_>>()
+}
+
+#[test]
+fn per_scan_draws_add_step_variances() {
+    // No matchable beam (every reading a no-return), so every particle keeps its motion sample
+    // and the spread at the processed scan is the motion model's alone. Ten steps of 0.1 m
+    // straight ahead, processed after 1 m: GMapping's model gives σx = srr·1 m = 0.1 m for one
+    // draw on the whole increment, and √10 · srr·0.1 m ≈ 0.032 m for ten per-scan draws.
+    let spread_x = |draws: MotionDraws| {
+        let cfg = OgmFilterConfig {
+            n_particles: 2000,
+            motion: MotionModel::gmapping(),
+            motion_draws: draws,
+            log_odds: LogOddsParams::new(2.0),
+            max_range: 2.0,
+            trigger: UpdateTrigger {
+                linear: 0.99,
+                angular: 10.0,
+            },
+            seed: 3,
+            ..Default::default()
+        };
+        let mut f = RbpfOgm::new(cfg, [0.0; 3]).unwrap();
+        let angles = [-0.5, 0.0, 0.5];
+        let ranges = [f64::INFINITY; 3];
+        let mut processed = vec![];
+        for k in 0..=10 {
+            let step = f
+                .process(&ScanInput {
+                    odom: [0.1 * k as f64, 0.0, 0.0],
+                    angles: &angles,
+                    ranges: &ranges,
+                    laser_offset: [0.0; 3],
+                })
+                .unwrap();
+            processed.push(step.processed);
+        }
+        // The first scan and the tenth step only.
+        assert_eq!(processed.iter().filter(|p| **p).count(), 2, "{processed:?}");
+        assert!(processed[0] && processed[10]);
+        let xs: Vec<f64> = f.poses().iter().map(|p| p[0]).collect();
+        let n = xs.len() as f64;
+        let mean = xs.iter().sum::<f64>() / n;
+        let sd = (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+        // Unbiased: the odometry's 1 m, within 4 standard errors.
+        assert!(
+            (mean - 1.0).abs() < 4.0 * sd / n.sqrt(),
+            "mean {mean}, sd {sd}"
+        );
+        sd
     };
-    assert_eq!(bits(&f1), bits(&f2));
-    assert!(f1.n_resamples() > 0);
+    let per_update = spread_x(MotionDraws::PerUpdate);
+    let per_scan = spread_x(MotionDraws::PerScan);
+    // 2000 samples estimate a standard deviation to about 1.6 %.
+    assert!(
+        (per_update / 0.1 - 1.0).abs() < 0.06,
+        "per update {per_update}"
+    );
+    assert!(
+        (per_scan / (0.1 / 10f64.sqrt()) - 1.0).abs() < 0.06,
+        "per scan {per_scan}"
+    );
 }
 
 #[test]
@@ -357,9 +470,14 @@ fn neff_is_in_range_and_resampling_keeps_n_particles() {
 }
 
 /// A map built from exact scans at known poses along the loop.
-fn reference_map(truth: &[Pose], angles: &[f64], ranges: &[Vec<f64>]) -> LogOddsGrid {
+fn reference_map(
+    truth: &[Pose],
+    angles: &[f64],
+    ranges: &[Vec<f64>],
+    params: LogOddsParams,
+) -> LogOddsGrid {
     let g = GridGeometry::new([0.0, 0.0], RES).unwrap();
-    let mut m = LogOddsGrid::new(g, LogOddsParams::new(Z_MAX - 0.5), 32, None).unwrap();
+    let mut m = LogOddsGrid::new(g, params, 32, None).unwrap();
     for (p, r) in truth.iter().zip(ranges) {
         m.update_scan(compose(*p, LASER), angles, r).unwrap();
     }
@@ -372,12 +490,34 @@ fn scan_matcher_recovers_a_known_offset() {
     let angles = angles();
     let truth = truth_on_ellipse(40, 1.0);
     let ranges = cast(&truth, &angles, &occ);
-    let map = reference_map(&truth, &angles, &ranges);
-    let matcher = ScanMatcher::new(Default::default()).unwrap();
-    let tiles = MatchSurface::tiles(&map);
+    // The crm-spec log-odds cells with the observed-free test, and GMapping's counting cells with
+    // its not-occupied test.
+    let hit_rate = LogOddsParams::hit_rate(Z_MAX - 0.5, 0.1).unwrap();
+    for (params, free_test) in [
+        (LogOddsParams::new(Z_MAX - 0.5), FreeTest::Observed),
+        (hit_rate, FreeTest::NotOccupied),
+    ] {
+        recovers_known_offsets(&truth, &angles, &ranges, params, free_test);
+    }
+}
+
+fn recovers_known_offsets(
+    truth: &[Pose],
+    angles: &[f64],
+    ranges: &[Vec<f64>],
+    params: LogOddsParams,
+    free_test: FreeTest,
+) {
+    let map = reference_map(truth, angles, ranges, params);
+    let matcher = ScanMatcher::new(MatcherParams {
+        free_test,
+        ..Default::default()
+    })
+    .unwrap();
+    let tiles = MatchSurface::tiles(&map, free_test);
     for k in [3usize, 17, 29] {
         let p = truth[k];
-        let scan = PreparedScan::new(&angles, &ranges[k], LASER, Z_MAX - 0.5, 1).unwrap();
+        let scan = PreparedScan::new(angles, &ranges[k], LASER, Z_MAX - 0.5, 1).unwrap();
         let at_truth = matcher.evaluate(&tiles, &scan, p).unwrap();
         assert!(at_truth.matched > scan.len() * 3 / 4);
         for off in [[0.1, 0.0, 0.05], [0.0, -0.1, -0.05], [-0.07, 0.07, 0.05]] {
@@ -408,8 +548,8 @@ fn match_surface_patch_changes_no_result() {
     let angles = angles();
     let truth = truth_on_ellipse(40, 1.0);
     let ranges = cast(&truth, &angles, &occ);
-    let map = reference_map(&truth, &angles, &ranges);
-    let tiles = MatchSurface::tiles(&map);
+    let map = reference_map(&truth, &angles, &ranges, LogOddsParams::new(Z_MAX - 0.5));
+    let tiles = MatchSurface::tiles(&map, FreeTest::Observed);
     let mut patched = 0;
     for stride in [1usize, 3] {
         let matcher = ScanMatcher::new(Default::default()).unwrap();
@@ -418,7 +558,8 @@ fn match_surface_patch_changes_no_result() {
             let scan = PreparedScan::new(&angles, &ranges[k], LASER, Z_MAX - 0.5, stride).unwrap();
             for off in [[0.1, 0.0, 0.05], [-0.6, 0.9, -0.2], [1.5, -1.2, 0.4]] {
                 let start = [p[0] + off[0], p[1] + off[1], wrap(p[2] + off[2])];
-                let near = MatchSurface::around_within(&map, &scan, p, 1, 10_000);
+                let near =
+                    MatchSurface::around_within(&map, &scan, p, 1, FreeTest::Observed, 10_000);
                 patched += usize::from(near.has_patch());
                 let a = matcher.optimize(&tiles, &scan, start).unwrap();
                 let b = matcher.optimize(&near, &scan, start).unwrap();

@@ -6,8 +6,8 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
     mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamProposal, FilterStep,
-    ModeBandwidth, OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam,
-    RbpfOgm, ScanInput, UpdateTrigger,
+    ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose,
+    RbpfClam, RbpfOgm, ScanInput, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -424,7 +424,7 @@ filter_pymethods!(OgmFilter {
     #[new]
     #[pyo3(signature = (initial_pose, *, n_particles=30, resolution=0.05, usable_range=30.0, motion="thrun", motion_params=None,
         linear_update=0.0, angular_update=0.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0), proposal_pose="sample",
-        seed=0))]
+        map_model="log_odds", motion_draws="per_update", seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         n_particles: usize,
@@ -437,6 +437,8 @@ filter_pymethods!(OgmFilter {
         resample_threshold: f64,
         init_sigma: (f64, f64, f64),
         proposal_pose: &str,
+        map_model: &str,
+        motion_draws: &str,
         seed: u64,
     ) -> PyResult<Self> {
         let defaults = OgmFilterConfig::default();
@@ -447,6 +449,7 @@ filter_pymethods!(OgmFilter {
         let cfg = OgmFilterConfig {
             n_particles,
             motion,
+            motion_draws: MotionDraws::parse(motion_draws).py_err()?,
             trigger: UpdateTrigger {
                 linear: linear_update,
                 angular: angular_update,
@@ -466,6 +469,18 @@ filter_pymethods!(OgmFilter {
             },
             seed,
             ..defaults
+        };
+        let cfg = match map_model {
+            "log_odds" => cfg,
+            // GMapping's fullnessThreshold.
+            "hit_rate" => cfg.with_hit_rate_map(0.1).py_err()?,
+            other => {
+                return Err(crlam_core::error::config_err(
+                    "map_model",
+                    format!("unknown value {other:?}; expected log_odds or hit_rate"),
+                ))
+                .py_err()
+            }
         };
         Ok(Self {
             inner: RbpfOgm::new(cfg, pose3(&initial_pose)?).py_err()?,

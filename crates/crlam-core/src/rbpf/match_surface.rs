@@ -1,5 +1,6 @@
 //! What the scan matcher reads of a particle's grid: for each cell only whether it is occupied
-//! (log-odds > 0) or free (log-odds < 0).
+//! (log-odds > 0) or free. "Free" follows the matcher's [`FreeTest`]: log-odds < 0 (observed
+//! free), or anything not occupied, unknown cells included (GMapping's test).
 //!
 //! A match evaluation reads two cells per beam at least, and a particle's hill climbing and
 //! proposal lattice evaluate some hundred poses, so the reads dominate the matcher. Through the
@@ -8,14 +9,15 @@
 //! and reads outside that rectangle (a climb that wandered off) go to the tiles. Both paths give
 //! the same class, so the matcher's results do not depend on whether, or where, a patch exists.
 
-use super::scanmatch::PreparedScan;
+use super::scanmatch::{FreeTest, PreparedScan};
 use crate::grid::{GridGeometry, TiledGrid};
 use crate::ogm::LogOddsGrid;
 use crate::pose::Pose;
 
 /// Class bit of an occupied cell (log-odds > 0).
 pub(crate) const OCCUPIED: u8 = 1;
-/// Class bit of a free cell (log-odds < 0). A cell at exactly 0 (unknown) or NaN is neither.
+/// Class bit of a free cell: log-odds < 0 under [`FreeTest::Observed`], where a cell at exactly 0
+/// (unknown) or NaN is neither class; anything not occupied under [`FreeTest::NotOccupied`].
 pub(crate) const FREE: u8 = 2;
 
 /// Margin (m) around the scan's endpoints at the starting pose that the patch also covers: the
@@ -27,8 +29,13 @@ const PATCH_MARGIN: f64 = 1.0;
 const PATCH_CELLS_PER_BEAM: usize = 16;
 
 #[inline]
-fn class_of(v: f32) -> u8 {
-    u8::from(v > 0.0) | (u8::from(v < 0.0) << 1)
+fn class_of(v: f32, free_test: FreeTest) -> u8 {
+    let occupied = v > 0.0;
+    let free = match free_test {
+        FreeTest::Observed => v < 0.0,
+        FreeTest::NotOccupied => !occupied,
+    };
+    u8::from(occupied) | (u8::from(free) << 1)
 }
 
 /// A particle's grid as the scan matcher reads it, with an optional dense patch of cell classes.
@@ -40,11 +47,12 @@ pub struct MatchSurface<'a> {
     nx: usize,
     ny: usize,
     classes: Vec<u8>,
+    free_test: FreeTest,
 }
 
 impl<'a> MatchSurface<'a> {
     /// The grid alone: every read goes to the tiles.
-    pub fn tiles(map: &'a LogOddsGrid) -> Self {
+    pub fn tiles(map: &'a LogOddsGrid, free_test: FreeTest) -> Self {
         Self {
             grid: map.grid(),
             ix0: 0,
@@ -52,6 +60,7 @@ impl<'a> MatchSurface<'a> {
             nx: 0,
             ny: 0,
             classes: Vec::new(),
+            free_test,
         }
     }
 
@@ -62,8 +71,16 @@ impl<'a> MatchSurface<'a> {
         scan: &PreparedScan,
         pose: Pose,
         kernel_size: usize,
+        free_test: FreeTest,
     ) -> Self {
-        Self::around_within(map, scan, pose, kernel_size, PATCH_CELLS_PER_BEAM)
+        Self::around_within(
+            map,
+            scan,
+            pose,
+            kernel_size,
+            free_test,
+            PATCH_CELLS_PER_BEAM,
+        )
     }
 
     /// [`Self::around`] with the patch built when it has at most `cells_per_beam` cells per
@@ -73,9 +90,10 @@ impl<'a> MatchSurface<'a> {
         scan: &PreparedScan,
         pose: Pose,
         kernel_size: usize,
+        free_test: FreeTest,
         cells_per_beam: usize,
     ) -> Self {
-        let mut surface = Self::tiles(map);
+        let mut surface = Self::tiles(map, free_test);
         if scan.is_empty() || !pose.iter().all(|v| v.is_finite()) {
             return surface;
         }
@@ -118,9 +136,9 @@ impl<'a> MatchSurface<'a> {
             while ix < end {
                 let (vals, cells, stored) = grid.row_run(ix, iy, (end - ix) as usize);
                 if stored {
-                    classes.extend(vals.iter().step_by(stride).map(|&v| class_of(v)));
+                    classes.extend(vals.iter().step_by(stride).map(|&v| class_of(v, free_test)));
                 } else {
-                    classes.extend(std::iter::repeat_n(class_of(vals[0]), cells));
+                    classes.extend(std::iter::repeat_n(class_of(vals[0], free_test), cells));
                 }
                 ix += cells as i64;
             }
@@ -150,7 +168,7 @@ impl<'a> MatchSurface<'a> {
         if (dx as u64) < self.nx as u64 && (dy as u64) < self.ny as u64 {
             return self.classes[dy as usize * self.nx + dx as usize];
         }
-        class_of(self.grid.get(ix, iy)[0])
+        class_of(self.grid.get(ix, iy)[0], self.free_test)
     }
 }
 
@@ -167,18 +185,33 @@ mod tests {
         let ranges: Vec<f64> = (0..90).map(|i| 2.0 + (i % 7) as f64 * 0.3).collect();
         map.update_scan([1.0, -2.0, 0.3], &angles, &ranges).unwrap();
         let scan = PreparedScan::new(&angles, &ranges, [0.0; 3], 7.5, 1).unwrap();
-        let patched = MatchSurface::around_within(&map, &scan, [1.0, -2.0, 0.3], 1, 1000);
-        assert!(patched.has_patch());
-        let plain = MatchSurface::tiles(&map);
-        let mut seen = [0usize; 4];
-        for iy in -40..30 {
-            for ix in -30..50 {
-                let c = patched.class(ix, iy);
-                assert_eq!(c, plain.class(ix, iy), "cell ({ix}, {iy})");
-                seen[c as usize] += 1;
+        for test in [FreeTest::Observed, FreeTest::NotOccupied] {
+            let patched = MatchSurface::around_within(&map, &scan, [1.0, -2.0, 0.3], 1, test, 1000);
+            assert!(patched.has_patch());
+            let plain = MatchSurface::tiles(&map, test);
+            let mut seen = [0usize; 4];
+            for iy in -40..30 {
+                for ix in -30..50 {
+                    let c = patched.class(ix, iy);
+                    assert_eq!(c, plain.class(ix, iy), "cell ({ix}, {iy})");
+                    seen[c as usize] += 1;
+                    // Only the class of unknown cells depends on the test.
+                    let unknown = map.log_odds(ix, iy) == 0.0;
+                    let expected = match (test, unknown) {
+                        (_, false) if map.log_odds(ix, iy) > 0.0 => OCCUPIED,
+                        (_, false) => FREE,
+                        (FreeTest::Observed, true) => 0,
+                        (FreeTest::NotOccupied, true) => FREE,
+                    };
+                    assert_eq!(c, expected, "cell ({ix}, {iy}) under {test:?}");
+                }
+            }
+            // The scan left occupied, free and unknown cells, and no cell is both.
+            assert!(seen[1] > 0 && seen[2] > 0 && seen[3] == 0);
+            match test {
+                FreeTest::Observed => assert!(seen[0] > 0),
+                FreeTest::NotOccupied => assert_eq!(seen[0], 0),
             }
         }
-        // The scan left occupied, free and unknown cells, and no cell is both.
-        assert!(seen[0] > 0 && seen[1] > 0 && seen[2] > 0 && seen[3] == 0);
     }
 }

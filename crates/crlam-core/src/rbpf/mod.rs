@@ -23,5 +23,5 @@ pub use common::{
 pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
 pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use match_surface::MatchSurface;
-pub use ogm::{OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
-pub use scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
+pub use ogm::{MotionDraws, OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
+pub use scanmatch::{FreeTest, MatcherParams, PreparedScan, ProposalParams, ScanMatcher};

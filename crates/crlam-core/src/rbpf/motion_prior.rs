@@ -57,6 +57,28 @@ impl MotionPrior {
         }
     }
 
+    /// Independent normals with standard deviations `sigma` (along, across, heading; each
+    /// combined with `floor` in quadrature) on the residual from `mean`, the along axis at
+    /// heading `phi`.
+    pub(crate) fn from_sigma(mean: Pose, phi: f64, sigma: [f64; 3], floor: [f64; 3]) -> Self {
+        Self {
+            mean,
+            frame: phi.sin_cos(),
+            sigma: [
+                sigma[0].hypot(floor[0]),
+                sigma[1].hypot(floor[1]),
+                sigma[2].hypot(floor[2]),
+            ],
+        }
+    }
+
+    /// The variances (along, across, heading) of one odometry step `u` under `model`, as
+    /// [`MotionPrior::new`] approximates it for one step: what per-scan draws accumulate.
+    pub(crate) fn step_variance(model: &MotionModel, u: Pose) -> [f64; 3] {
+        let p = Self::new(model, [0.0; 3], u, 1, [0.0; 3]);
+        p.sigma.map(|s| s * s)
+    }
+
     pub(crate) fn log_density(&self, x: Pose) -> f64 {
         let (s, c) = self.frame;
         let (dx, dy) = (x[0] - self.mean[0], x[1] - self.mean[1]);

@@ -29,12 +29,12 @@ use super::common::{
 use super::estimate::WeighedSet;
 use super::lineage::{NodeId, PathTree, NO_NODE};
 use super::motion_prior::MotionPrior;
-use super::scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
+use super::scanmatch::{FreeTest, MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
 use crate::error::{config_err, Result};
 use crate::grid::{check_pose, GridGeometry};
 use crate::motion::MotionModel;
 use crate::ogm::{LogOddsGrid, LogOddsParams};
-use crate::pose::{compose, wrap, Pose};
+use crate::pose::{between, compose, wrap, Pose};
 use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
 use crate::rng::Rng;
 
@@ -44,6 +44,35 @@ const INIT_STEP: u64 = 0;
 const RESAMPLE_INDEX: u64 = u64::MAX;
 /// Largest particle count accepted (memory guard).
 const MAX_PARTICLES: usize = 100_000;
+/// Mixed into the seed of the per-scan motion draws ([`MotionDraws::PerScan`]), whose streams
+/// are indexed by raw scan rather than by processed scan.
+const PER_SCAN_DOMAIN: u64 = 0x6D6F_7469_6F6E_5F73;
+
+/// When the motion model perturbs the particles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MotionDraws {
+    /// Once per processed scan, on the odometry increment since the previous processed scan.
+    PerUpdate,
+    /// At every incoming scan, on that scan's own odometry increment, processed or not: GMapping's
+    /// `processScan` calls `drawFromMotion` for every reading. Noise that grows with the step
+    /// (GMapping's and Thrun's models) then adds up in variance over k small steps instead of
+    /// scaling with their sum, about 1/√k of one draw on the whole increment. The improved
+    /// proposal's motion prior is the Gaussian with the per-step variances summed.
+    PerScan,
+}
+
+impl MotionDraws {
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "per_update" => Ok(Self::PerUpdate),
+            "per_scan" => Ok(Self::PerScan),
+            other => Err(config_err(
+                "motion_draws",
+                format!("unknown value {other:?}; expected per_update or per_scan"),
+            )),
+        }
+    }
+}
 
 /// Configuration of [`RbpfOgm`]. GMapping's parameter names are given in brackets.
 #[derive(Clone, Debug, PartialEq)]
@@ -58,6 +87,8 @@ pub struct OgmFilterConfig {
     /// σ = 0.2 m per radian where it has str = 0.1. [`MotionModel::gmapping`] is GMapping's own
     /// model; this default is kept because the published baseline results were made with it.
     pub motion: MotionModel,
+    /// When the motion model draws: per processed scan (default) or per incoming scan (GMapping).
+    pub motion_draws: MotionDraws,
     /// [linearUpdate, angularUpdate] Default: every scan. GMapping uses 1.0 m / 0.5 rad.
     pub trigger: UpdateTrigger,
     /// [resampleThreshold] Resample when N_eff < threshold · n. 0.5.
@@ -97,6 +128,7 @@ impl Default for OgmFilterConfig {
         Self {
             n_particles: 30,
             motion: Self::default_motion(),
+            motion_draws: MotionDraws::PerUpdate,
             trigger: UpdateTrigger::every_scan(),
             resample_threshold: 0.5,
             weight_smoothing: 3.0,
@@ -123,6 +155,15 @@ impl OgmFilterConfig {
         MotionModel::Thrun {
             alpha: [0.04, 0.01, 0.01, 0.04],
         }
+    }
+
+    /// GMapping's map and match test: counting cells, occupied when their hit rate exceeds
+    /// `fullness_threshold` ([`LogOddsParams::hit_rate`], at this config's usable range), and a
+    /// match's companion cell free unless occupied ([`FreeTest::NotOccupied`]).
+    pub fn with_hit_rate_map(mut self, fullness_threshold: f64) -> Result<Self> {
+        self.log_odds = LogOddsParams::hit_rate(self.log_odds.z_max, fullness_threshold)?;
+        self.matcher.free_test = FreeTest::NotOccupied;
+        Ok(self)
     }
 
     /// Checks every field; the error names the offending one.
@@ -179,7 +220,11 @@ impl OgmFilterConfig {
 /// One particle: pose, log-weight (normalised: the weights exp(ℓ) sum to 1) and map.
 #[derive(Clone, Debug)]
 pub struct OgmParticle {
+    /// The pose at the last processed scan; with [`MotionDraws::PerScan`], moved by the motion
+    /// draws of the scans since.
     pub pose: Pose,
+    /// The pose at the last processed scan (the motion prior's origin).
+    pub anchor: Pose,
     pub log_w: f64,
     pub map: LogOddsGrid,
     /// The particle's pose at the last processed scan in the filter's [`PathTree`].
@@ -207,6 +252,9 @@ struct StepContext<'a> {
     map_ranges: &'a [f64],
     laser_offset: Pose,
     step: u64,
+    /// Per-step variances (along, across, heading) summed since the last processed scan, when
+    /// the particles have already been moved by per-scan draws; `None` with per-update draws.
+    drawn_variance: Option<[f64; 3]>,
 }
 
 /// What one particle's step did.
@@ -221,19 +269,30 @@ struct ParticleStep {
 /// Steps 1–4 of the module doc for one particle.
 fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Result<ParticleStep> {
     let mut rng = Rng::stream(ctx.cfg.seed, ctx.step, index as u64);
-    let prev = p.pose;
-    let start = ctx.cfg.motion.sample(prev, ctx.u, ctx.n_steps, &mut rng);
+    let prev = p.anchor;
+    let start = match ctx.drawn_variance {
+        None => ctx.cfg.motion.sample(prev, ctx.u, ctx.n_steps, &mut rng),
+        Some(_) => p.pose,
+    };
     let surface = ctx.matcher.surface(&p.map, ctx.prepared, start);
     let (matched, score) = ctx.matcher.optimize(&surface, ctx.prepared, start)?;
     let accepted = score > ctx.cfg.proposal.min_score;
     let (pose, mean, delta_log_w) = if accepted {
-        let prior = MotionPrior::new(
-            &ctx.cfg.motion,
-            prev,
-            ctx.u,
-            ctx.n_steps,
-            ctx.cfg.motion_floor,
-        );
+        let prior = match ctx.drawn_variance {
+            None => MotionPrior::new(
+                &ctx.cfg.motion,
+                prev,
+                ctx.u,
+                ctx.n_steps,
+                ctx.cfg.motion_floor,
+            ),
+            Some(var) => MotionPrior::from_sigma(
+                compose(prev, ctx.u),
+                prev[2],
+                var.map(f64::sqrt),
+                ctx.cfg.motion_floor,
+            ),
+        };
         let draw = ctx.matcher.improved_proposal(
             &surface,
             ctx.prepared,
@@ -252,6 +311,7 @@ fn advance_particle(ctx: &StepContext, index: usize, p: &mut OgmParticle) -> Res
         (start, start, fit.log_likelihood)
     };
     p.pose = pose;
+    p.anchor = pose;
     p.log_w += delta_log_w;
     p.map.update_scan(
         compose(pose, ctx.laser_offset),
@@ -284,6 +344,12 @@ pub struct RbpfOgm {
     n_resamples: usize,
     last_match_failures: usize,
     paths: PathTree,
+    /// [`MotionDraws::PerScan`]: the odometry of the previous scan, the scans seen after the
+    /// first (the step of the per-scan streams), and the per-step variances summed since the
+    /// last processed scan.
+    previous_odom: Option<Pose>,
+    raw_step: u64,
+    drawn_variance: [f64; 3],
 }
 
 /// The particles' poses with uniform weights.
@@ -314,6 +380,7 @@ impl RbpfOgm {
                 ];
                 OgmParticle {
                     pose,
+                    anchor: pose,
                     log_w: -(n as f64).ln(),
                     map: map.clone(),
                     path: NO_NODE,
@@ -334,6 +401,9 @@ impl RbpfOgm {
             weighed,
             n_resamples: 0,
             last_match_failures: 0,
+            previous_odom: None,
+            raw_step: 0,
+            drawn_variance: [0.0; 3],
             // Only drawn poses have a mean distinct from the pose.
             paths: if cfg_draws {
                 PathTree::recording_means()
@@ -361,6 +431,10 @@ impl RbpfOgm {
         )?;
         let (angles, ranges) = self.mapping_beams(scan);
         let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
+        if self.initialized && self.cfg.motion_draws == MotionDraws::PerScan {
+            self.draw_scan_motion(scan.odom);
+        }
+        self.previous_odom = Some(scan.odom);
         if !self.initialized {
             self.initialize(scan, &angles, &ranges)?;
             let poses: Vec<Pose> = self.particles.iter().map(|p| p.pose).collect();
@@ -394,6 +468,8 @@ impl RbpfOgm {
             map_ranges: &ranges,
             laser_offset: scan.laser_offset,
             step: self.step,
+            drawn_variance: (self.cfg.motion_draws == MotionDraws::PerScan)
+                .then_some(self.drawn_variance),
         };
         let steps: Vec<ParticleStep> = self
             .particles
@@ -402,6 +478,7 @@ impl RbpfOgm {
             .map(|(i, p)| advance_particle(&ctx, i, p))
             .collect::<Result<_>>()?;
         self.last_match_failures = steps.iter().filter(|s| !s.accepted).count();
+        self.drawn_variance = [0.0; 3];
         self.tracker.processed(scan.odom);
         self.n_processed += 1;
         self.advance_paths(steps.into_iter().map(|s| s.mean).collect());
@@ -412,6 +489,29 @@ impl RbpfOgm {
             neff,
             resampled,
         })
+    }
+
+    /// [`MotionDraws::PerScan`]: moves every particle by a motion-model draw on the odometry
+    /// step from the previous scan to this one, and adds the step's variances to the prior's.
+    fn draw_scan_motion(&mut self, odom: Pose) {
+        let Some(previous) = self.previous_odom else {
+            return;
+        };
+        let d = between(previous, odom);
+        self.raw_step += 1;
+        let (seed, step, motion) = (
+            self.cfg.seed ^ PER_SCAN_DOMAIN,
+            self.raw_step,
+            self.cfg.motion,
+        );
+        for (i, p) in self.particles.iter_mut().enumerate() {
+            let mut rng = Rng::stream(seed, step, i as u64);
+            p.pose = motion.sample(p.pose, d, 1, &mut rng);
+        }
+        let v = MotionPrior::step_variance(&self.cfg.motion, d);
+        for k in 0..3 {
+            self.drawn_variance[k] += v[k];
+        }
     }
 
     /// The beams used for mapping: finite readings below `max_range` (GMapping skips the rest;

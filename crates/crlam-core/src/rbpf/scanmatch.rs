@@ -2,10 +2,12 @@
 //! proposal built on it (Grisetti, Stachniss, Burgard 2007, section IV).
 //!
 //! A beam "matches" when, within a (2k+1)² window of cells around its endpoint, there is an
-//! occupied cell (log-odds > 0, i.e. p > 0.5) whose companion cell, shifted by the same window
-//! offset from the endpoint's "free point" (the point √2·Δ back along the beam), is free
-//! (log-odds < 0). That check rejects the far side of thin walls: a wall seen from the wrong side
-//! has unknown, not free, cells in front of it. The distance d is taken from the endpoint to the
+//! occupied cell (log-odds > 0) whose companion cell, shifted by the same window offset from the
+//! endpoint's "free point" (the point √2·Δ back along the beam), is free. What "free" means is
+//! [`FreeTest`]: with [`FreeTest::Observed`] (the default) the companion must have been seen
+//! free (log-odds < 0), which also rejects the far side of a thin wall seen only from the other
+//! side; with [`FreeTest::NotOccupied`] (GMapping's `fcell < fullnessThreshold`, where an unknown
+//! cell reads −1) it only must not be occupied. The distance d is taken from the endpoint to the
 //! centre of the closest such cell (GMapping uses the mean of the hits in the cell, which a
 //! log-odds grid does not store; cell centres cap the precision at about Δ/2).
 //!
@@ -53,6 +55,28 @@ fn cell_of(g: &GridGeometry, inv_res: f64, p: [f64; 2]) -> (i64, i64) {
     )
 }
 
+/// When a companion cell counts as free (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FreeTest {
+    /// Seen free: log-odds < 0. Unknown cells are not free.
+    Observed,
+    /// Not occupied: log-odds <= 0, unknown cells included (GMapping).
+    NotOccupied,
+}
+
+impl FreeTest {
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "observed" => Ok(Self::Observed),
+            "not_occupied" => Ok(Self::NotOccupied),
+            _ => Err(config_err(
+                "matcher.free_test",
+                format!("must be 'observed' or 'not_occupied', got {s:?}"),
+            )),
+        }
+    }
+}
+
 /// Parameters of the scan matcher (GMapping names in brackets).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MatcherParams {
@@ -72,6 +96,8 @@ pub struct MatcherParams {
     pub iterations: usize,
     /// [lskip + 1] Use every `beam_stride`-th beam for score and likelihood. 1.
     pub beam_stride: usize,
+    /// When the companion cell of a match counts as free. [`FreeTest::Observed`].
+    pub free_test: FreeTest,
 }
 
 impl Default for MatcherParams {
@@ -85,6 +111,7 @@ impl Default for MatcherParams {
             astep: 0.05,
             iterations: 5,
             beam_stride: 1,
+            free_test: FreeTest::Observed,
         }
     }
 }
@@ -368,7 +395,13 @@ impl ScanMatcher {
         scan: &PreparedScan,
         pose: Pose,
     ) -> MatchSurface<'a> {
-        MatchSurface::around(map, scan, pose, self.params.kernel_size)
+        MatchSurface::around(
+            map,
+            scan,
+            pose,
+            self.params.kernel_size,
+            self.params.free_test,
+        )
     }
 
     /// Score and log-likelihood of `scan` with the robot at `pose` on `surface`.
