@@ -316,7 +316,8 @@ def test_hit_rate_cells_reach_the_ogm_run(office: Path, tmp_path: Path) -> None:
     # GMapping's counting cells through the CLI: recorded in the config, and they change the
     # baseline's matches (so its trajectory), not RBPF-CLAM's.
     trajs = {}
-    for method, cells in (("ogm", "hit_rate"), ("ogm", "log_odds"), ("clam", "hit_rate"), ("clam", "log_odds")):
+    runs = (("ogm", "hit_rate"), ("ogm", "gmapping"), ("ogm", "log_odds"), ("clam", "hit_rate"), ("clam", "log_odds"))
+    for method, cells in runs:
         out = tmp_path / f"{method}_{cells}"
         argv = ["slam", str(office / "log.clf"), "--out", str(out), "--method", method, "--particles", "4"]
         argv += ["--resolution", "0.1", "--max-scans", "40", "--motion", "thrun", "--ogm-map", cells, "--quiet"]
@@ -324,6 +325,8 @@ def test_hit_rate_cells_reach_the_ogm_run(office: Path, tmp_path: Path) -> None:
         assert f'\nogm_map = "{cells}"\n' in (out / "config.toml").read_text()
         trajs[method, cells] = read_tum(out / "trajectory.tum").poses
     assert not np.allclose(trajs["ogm", "hit_rate"], trajs["ogm", "log_odds"])
+    # The hit means move the matches (distances to the hits, not to cell centres).
+    assert not np.allclose(trajs["ogm", "gmapping"], trajs["ogm", "hit_rate"])
     np.testing.assert_array_equal(trajs["clam", "hit_rate"], trajs["clam", "log_odds"])
 
 

@@ -31,10 +31,11 @@ _BATCH_KERNEL_HELP = (
     "how a batch scan computes each beam: windowed (default; likelihoods near the reading, the cells before it "
     "as pass counts) or full_ray (every cell: the reference); they agree to rounding"
 )
-_OGM_MAPS = ("log_odds", "hit_rate")
+_OGM_MAPS = ("log_odds", "hit_rate", "gmapping")
 _OGM_MAP_HELP = (
-    "RBPF-OGM cells: log_odds (default; a match needs its companion cell seen free) or hit_rate (GMapping's "
-    "counting cells, occupied above a 0.1 hit rate; a companion passes unless occupied)"
+    "RBPF-OGM cells: log_odds (default; a match needs its companion cell seen free), hit_rate (GMapping's "
+    "counting cells, occupied above a 0.1 hit rate; a companion passes unless occupied) or gmapping (hit_rate "
+    "cells that also keep the mean of their hits, to which matches are measured, as GMapping's)"
 )
 _MOTION_DRAWS = ("per_update", "per_scan")
 _MOTION_DRAWS_HELP = (

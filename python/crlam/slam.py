@@ -104,9 +104,11 @@ class SlamConfig:
         It does not change the filter.
     ogm_map : str
         RBPF-OGM's cells: ``log_odds`` (default; +1 / −0.5 in base 2, clamped at ±100, and a
-        match needs its companion cell seen free) or ``hit_rate`` (GMapping's counting cells:
+        match needs its companion cell seen free), ``hit_rate`` (GMapping's counting cells:
         occupied when hits / visits > 0.1, and a match's companion cell passes unless occupied,
-        unknown included). Ignored by RBPF-CLAM.
+        unknown included) or ``gmapping`` (``hit_rate`` cells that also keep the mean of their
+        hits, to which the matcher measures distances instead of the cell centre: GMapping's
+        cell in full; four values per cell). Ignored by RBPF-CLAM.
     ogm_motion_draws : str
         When RBPF-OGM draws its odometry noise: ``per_update`` (default; once per processed scan,
         on the increment since the previous one, as RBPF-CLAM always does) or ``per_scan`` (at
@@ -193,8 +195,8 @@ class SlamConfig:
             raise bad("proposal_pose", "must be 'sample' or 'match'")
         if self.method == "clam" and self.proposal == "odometry" and self.proposal_pose != "sample":
             raise bad("proposal_pose", "'match' needs an improved proposal: proposal='likelihood_mode' (RBPF-CLAM)")
-        if self.ogm_map not in ("log_odds", "hit_rate"):
-            raise bad("ogm_map", "must be 'log_odds' or 'hit_rate'")
+        if self.ogm_map not in ("log_odds", "hit_rate", "gmapping"):
+            raise bad("ogm_map", "must be 'log_odds', 'hit_rate' or 'gmapping'")
         if self.ogm_motion_draws not in ("per_update", "per_scan"):
             raise bad("ogm_motion_draws", "must be 'per_update' or 'per_scan'")
         if self.cause_kernel not in ("midpoint", "chord"):

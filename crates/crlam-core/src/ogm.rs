@@ -21,6 +21,10 @@ pub struct LogOddsParams {
     pub z_max: f64,
     /// Clear free space along no-return beams up to z_max.
     pub clear_no_return: bool,
+    /// Also keep, per cell, the number of hits and the sum of their offsets from the cell centre
+    /// (GMapping's `PointAccumulator`), so that the scan matcher measures a beam's distance to
+    /// the mean of the hits rather than to the cell centre. Four values per cell instead of one.
+    pub hit_means: bool,
 }
 
 impl LogOddsParams {
@@ -34,6 +38,7 @@ impl LogOddsParams {
             base: 2.0,
             z_max,
             clear_no_return: true,
+            hit_means: false,
         }
     }
 
@@ -59,6 +64,7 @@ impl LogOddsParams {
             base: 2.0,
             z_max,
             clear_no_return: true,
+            hit_means: false,
         };
         p.validate()?;
         Ok(p)
@@ -103,8 +109,9 @@ impl LogOddsGrid {
         extent: Option<CellRect>,
     ) -> Result<Self> {
         params.validate()?;
+        let fill: &[f32] = if params.hit_means { &[0.0; 4] } else { &[0.0] };
         Ok(Self {
-            grid: TiledGrid::new(geometry, tile_size, &[0.0f32], extent)?,
+            grid: TiledGrid::new(geometry, tile_size, fill, extent)?,
             params,
         })
     }
@@ -124,6 +131,17 @@ impl LogOddsGrid {
     /// Log-odds of a cell.
     pub fn log_odds(&self, ix: i64, iy: i64) -> f64 {
         self.grid.get(ix, iy)[0] as f64
+    }
+
+    /// Offset (m) of the mean of the hits in a cell from its centre; zero without hits or when
+    /// the grid keeps no hit means.
+    #[inline]
+    pub fn hit_mean_offset(&self, ix: i64, iy: i64) -> [f64; 2] {
+        let v = self.grid.get(ix, iy);
+        if v.len() < 4 || v[1] <= 0.0 {
+            return [0.0; 2];
+        }
+        [(v[2] / v[1]) as f64, (v[3] / v[1]) as f64]
     }
 
     /// Occupancy probability of a cell.
@@ -183,6 +201,17 @@ impl LogOddsGrid {
             );
             let hit_inside = !no_return && end + 1e-9 >= z;
             let n = cells.len();
+            if hit_inside && self.params.hit_means {
+                if let Some(&(ix, iy)) = cells.last() {
+                    let c = g.cell_center(ix, iy);
+                    let (s, co) = (pose[2] + a).sin_cos();
+                    let offset = [pose[0] + z * co - c[0], pose[1] + z * s - c[1]];
+                    let v = self.grid.get_mut(ix, iy)?;
+                    v[1] += 1.0;
+                    v[2] += offset[0] as f32;
+                    v[3] += offset[1] as f32;
+                }
+            }
             for (i, &(ix, iy)) in cells.iter().enumerate() {
                 let occ = hit_inside && i + 1 == n;
                 self.add(
@@ -200,14 +229,39 @@ impl LogOddsGrid {
         Ok((used, dropped))
     }
 
-    /// Log-odds over `rect`, row-major [iy][ix].
+    /// Log-odds over `rect`, row-major [iy][ix] (the hit means, if kept, are not exported).
     pub fn export(&self, rect: CellRect) -> Vec<f32> {
-        self.grid.export(rect)
+        let stride = self.grid.stride();
+        let all = self.grid.export(rect);
+        if stride == 1 {
+            return all;
+        }
+        all.chunks_exact(stride).map(|c| c[0]).collect()
     }
 
-    /// Replaces the log-odds over `rect`.
+    /// Replaces the log-odds over `rect` (hit means, if kept, are left as they are).
     pub fn import(&mut self, rect: CellRect, values: &[f32]) -> Result<()> {
-        self.grid.import(rect, values)
+        let stride = self.grid.stride();
+        if stride == 1 {
+            return self.grid.import(rect, values);
+        }
+        if values.len() != rect.n_cells() {
+            return Err(CrlamError::Shape(format!(
+                "expected {} values for {} cells, got {}",
+                rect.n_cells(),
+                rect.n_cells(),
+                values.len()
+            )));
+        }
+        self.grid.reserve(rect)?;
+        let mut k = 0;
+        for iy in rect.iy0..rect.iy0 + rect.ny {
+            for ix in rect.ix0..rect.ix0 + rect.nx {
+                self.grid.get_mut(ix, iy)?[0] = values[k];
+                k += 1;
+            }
+        }
+        Ok(())
     }
 }
 
@@ -250,6 +304,40 @@ mod tests {
         }
         assert!(LogOddsParams::hit_rate(8.0, 0.0).is_err());
         assert!(LogOddsParams::hit_rate(8.0, 1.0).is_err());
+    }
+
+    #[test]
+    fn hit_means_are_the_mean_offset_of_the_endpoints() {
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let mut p = LogOddsParams::hit_rate(8.0, 0.1).unwrap();
+        p.hit_means = true;
+        let mut m = LogOddsGrid::new(g, p, 32, None).unwrap();
+        // Two hits in cell (5, 0) (centre 0.55, 0.05): at x = 0.52 and x = 0.58 + 0.01 up.
+        m.update_scan([0.0, 0.05, 0.0], &[0.0], &[0.52]).unwrap();
+        m.update_scan([0.0, 0.06, 0.0], &[0.0], &[0.58]).unwrap();
+        let o = m.hit_mean_offset(5, 0);
+        assert!(
+            (o[0] - 0.0).abs() < 1e-6 && (o[1] - 0.005).abs() < 1e-6,
+            "{o:?}"
+        );
+        assert_eq!(m.hit_mean_offset(4, 0), [0.0, 0.0]);
+        // Export and import see the log-odds alone; import leaves the means.
+        let r = CellRect {
+            ix0: 3,
+            iy0: 0,
+            nx: 3,
+            ny: 1,
+        };
+        let lo = m.export(r);
+        assert_eq!(lo, vec![-2.0, -2.0, 18.0]);
+        m.import(r, &[1.0, 2.0, 3.0]).unwrap();
+        assert_eq!(m.export(r), vec![1.0, 2.0, 3.0]);
+        assert_eq!(m.hit_mean_offset(5, 0), o);
+        assert!(m.import(r, &[1.0]).is_err());
+        // Without the option a grid keeps one value per cell and reports no offsets.
+        let plain = LogOddsGrid::new(g, LogOddsParams::new(8.0), 32, None).unwrap();
+        assert_eq!(plain.grid().stride(), 1);
+        assert_eq!(m.grid().stride(), 4);
     }
 
     #[test]

@@ -11,7 +11,7 @@ use crlam_core::ogm::{LogOddsGrid, LogOddsParams};
 use crlam_core::pose::{between, compose, wrap, Pose};
 use crlam_core::rbpf::{
     FilterStep, FreeTest, MatchSurface, MatcherParams, MotionDraws, OgmFilterConfig, PreparedScan,
-    ProposalPose, RbpfOgm, ScanInput, ScanMatcher, UpdateTrigger,
+    ProposalPose, RbpfOgm, ScanFit, ScanInput, ScanMatcher, UpdateTrigger,
 };
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
@@ -235,8 +235,17 @@ fn hit_rate_cells_also_beat_raw_odometry() {
     // GMapping's counting cells and not-occupied match test (`with_hit_rate_map`), with either
     // motion draw schedule (GMapping's is per scan).
     let run = simulate(240, 1.15);
-    for draws in [MotionDraws::PerUpdate, MotionDraws::PerScan] {
-        let mut cfg = config().with_hit_rate_map(0.1).unwrap();
+    for (draws, means) in [
+        (MotionDraws::PerUpdate, false),
+        (MotionDraws::PerScan, false),
+        (MotionDraws::PerScan, true),
+    ] {
+        let mut cfg = if means {
+            config().with_gmapping_map(0.1).unwrap()
+        } else {
+            config().with_hit_rate_map(0.1).unwrap()
+        };
+        assert_eq!(cfg.log_odds.hit_means, means);
         cfg.motion_draws = draws;
         assert_eq!(cfg.matcher.free_test, FreeTest::NotOccupied);
         assert_eq!((cfg.log_odds.l_occ, cfg.log_odds.l_free), (9.0, -1.0));
@@ -252,7 +261,7 @@ fn hit_rate_cells_also_beat_raw_odometry() {
         let e_filter = mean_error(&mut steps.iter().map(|s| s.estimate));
         let e_odom = mean_error(&mut odo.iter().copied());
         eprintln!(
-            "ogm hit-rate cells, {draws:?}: mean err {e_filter:.3} m vs odometry {e_odom:.3} m"
+            "ogm hit-rate cells (hit means {means}), {draws:?}: mean err {e_filter:.3} m vs odometry {e_odom:.3} m"
         );
         assert!(e_odom > 0.2 && e_filter < 0.5 * e_odom && e_filter < 0.1);
         // Every processed scan's cells count: the best map holds a wall cell hit far more often
@@ -493,12 +502,27 @@ fn scan_matcher_recovers_a_known_offset() {
     // The crm-spec log-odds cells with the observed-free test, and GMapping's counting cells with
     // its not-occupied test.
     let hit_rate = LogOddsParams::hit_rate(Z_MAX - 0.5, 0.1).unwrap();
+    let gmapping = LogOddsParams {
+        hit_means: true,
+        ..hit_rate
+    };
+    let mut at_truth = vec![];
     for (params, free_test) in [
         (LogOddsParams::new(Z_MAX - 0.5), FreeTest::Observed),
         (hit_rate, FreeTest::NotOccupied),
+        (gmapping, FreeTest::NotOccupied),
     ] {
-        recovers_known_offsets(&truth, &angles, &ranges, params, free_test);
+        at_truth.push(recovers_known_offsets(
+            &truth, &angles, &ranges, params, free_test,
+        ));
     }
+    // Same cells, same matches; with the hit means the distances at the truth are those to where
+    // the walls were hit, not to cell centres, so the likelihood there is higher.
+    assert_eq!(at_truth[1].matched, at_truth[2].matched);
+    assert!(
+        at_truth[2].log_likelihood > at_truth[1].log_likelihood,
+        "{at_truth:?}"
+    );
 }
 
 fn recovers_known_offsets(
@@ -507,7 +531,7 @@ fn recovers_known_offsets(
     ranges: &[Vec<f64>],
     params: LogOddsParams,
     free_test: FreeTest,
-) {
+) -> ScanFit {
     let map = reference_map(truth, angles, ranges, params);
     let matcher = ScanMatcher::new(MatcherParams {
         free_test,
@@ -515,10 +539,12 @@ fn recovers_known_offsets(
     })
     .unwrap();
     let tiles = MatchSurface::tiles(&map, free_test);
+    let mut first = None;
     for k in [3usize, 17, 29] {
         let p = truth[k];
         let scan = PreparedScan::new(angles, &ranges[k], LASER, Z_MAX - 0.5, 1).unwrap();
         let at_truth = matcher.evaluate(&tiles, &scan, p).unwrap();
+        first.get_or_insert(at_truth);
         assert!(at_truth.matched > scan.len() * 3 / 4);
         for off in [[0.1, 0.0, 0.05], [0.0, -0.1, -0.05], [-0.07, 0.07, 0.05]] {
             let start = [p[0] + off[0], p[1] + off[1], wrap(p[2] + off[2])];
@@ -537,6 +563,7 @@ fn recovers_known_offsets(
             assert!(at_truth.log_likelihood > l_start);
         }
     }
+    first.unwrap()
 }
 
 /// The dense patch of cell classes is only a faster way to read the grid: matches, scores and

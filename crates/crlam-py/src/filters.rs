@@ -474,10 +474,11 @@ filter_pymethods!(OgmFilter {
             "log_odds" => cfg,
             // GMapping's fullnessThreshold.
             "hit_rate" => cfg.with_hit_rate_map(0.1).py_err()?,
+            "gmapping" => cfg.with_gmapping_map(0.1).py_err()?,
             other => {
                 return Err(crlam_core::error::config_err(
                     "map_model",
-                    format!("unknown value {other:?}; expected log_odds or hit_rate"),
+                    format!("unknown value {other:?}; expected log_odds, hit_rate or gmapping"),
                 ))
                 .py_err()
             }

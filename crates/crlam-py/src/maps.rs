@@ -529,6 +529,7 @@ impl LogOddsMap {
             base,
             z_max,
             clear_no_return,
+            hit_means: false,
         };
         Ok(Self {
             inner: LogOddsGrid::new(g, p, tile_size, rect_from(extent)?).py_err()?,

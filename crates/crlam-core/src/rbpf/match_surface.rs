@@ -161,6 +161,25 @@ impl<'a> MatchSurface<'a> {
         !self.classes.is_empty()
     }
 
+    /// Whether the grid keeps the mean of the hits of each cell ([`LogOddsParams::hit_means`]).
+    ///
+    /// [`LogOddsParams::hit_means`]: crate::ogm::LogOddsParams::hit_means
+    #[inline]
+    pub fn has_hit_means(&self) -> bool {
+        self.grid.stride() >= 4
+    }
+
+    /// Offset (m) of the mean of the hits of cell (ix, iy) from its centre (zero without hits).
+    /// Read from the tiles: only cells that passed the class test are asked.
+    #[inline]
+    pub(crate) fn hit_mean_offset(&self, ix: i64, iy: i64) -> [f64; 2] {
+        let v = self.grid.get(ix, iy);
+        if v.len() < 4 || v[1] <= 0.0 {
+            return [0.0; 2];
+        }
+        [(v[2] / v[1]) as f64, (v[3] / v[1]) as f64]
+    }
+
     /// The class bits of cell (ix, iy): [`OCCUPIED`], [`FREE`] or neither.
     #[inline]
     pub(crate) fn class(&self, ix: i64, iy: i64) -> u8 {

@@ -24,4 +24,4 @@ pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
 pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use match_surface::MatchSurface;
 pub use ogm::{MotionDraws, OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
-pub use scanmatch::{FreeTest, MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
+pub use scanmatch::{FreeTest, MatcherParams, PreparedScan, ProposalParams, ScanFit, ScanMatcher};

@@ -166,6 +166,15 @@ impl OgmFilterConfig {
         Ok(self)
     }
 
+    /// [`Self::with_hit_rate_map`] with GMapping's hit means as well: the matcher measures each
+    /// beam's distance to the mean of the hits of the matched cell ([`LogOddsParams::hit_means`]),
+    /// which is GMapping's cell (`PointAccumulator`) in full. Four values per cell.
+    pub fn with_gmapping_map(self, fullness_threshold: f64) -> Result<Self> {
+        let mut cfg = self.with_hit_rate_map(fullness_threshold)?;
+        cfg.log_odds.hit_means = true;
+        Ok(cfg)
+    }
+
     /// Checks every field; the error names the offending one.
     pub fn validate(&self) -> Result<()> {
         if !(1..=MAX_PARTICLES).contains(&self.n_particles) {

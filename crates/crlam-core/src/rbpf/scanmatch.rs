@@ -8,8 +8,9 @@
 //! free (log-odds < 0), which also rejects the far side of a thin wall seen only from the other
 //! side; with [`FreeTest::NotOccupied`] (GMapping's `fcell < fullnessThreshold`, where an unknown
 //! cell reads −1) it only must not be occupied. The distance d is taken from the endpoint to the
-//! centre of the closest such cell (GMapping uses the mean of the hits in the cell, which a
-//! log-odds grid does not store; cell centres cap the precision at about Δ/2).
+//! centre of the closest such cell, or, when the grid keeps them
+//! ([`crate::ogm::LogOddsParams::hit_means`]), to the mean of the hits of the cell, as GMapping
+//! does (cell centres cap the precision at about Δ/2).
 //!
 //! Per matched beam (GMapping's forms; both "sigmas" enter as variances, in m²):
 //! - score      `exp(−d² / score_sigma)`,
@@ -346,12 +347,28 @@ impl ScanMatcher {
         let c0 = g.cell_center(ix, iy);
         let (ox, oy) = (e[0] - c0[0], e[1] - c0[1]);
         let res = g.resolution;
+        let k = self.params.kernel_size as i64;
+        if surface.has_hit_means() {
+            // GMapping: the distance to the mean of the hits of each qualifying cell, the
+            // smallest over the window (a neighbour's mean may lie closer than the own cell's).
+            let mut best = f64::INFINITY;
+            for dy in -k..=k {
+                for dx in -k..=k {
+                    if qualifies(dx, dy) {
+                        let m = surface.hit_mean_offset(ix + dx, iy + dy);
+                        let d2 = (ox - dx as f64 * res - m[0]).powi(2)
+                            + (oy - dy as f64 * res - m[1]).powi(2);
+                        best = best.min(d2);
+                    }
+                }
+            }
+            return best.is_finite().then_some(best);
+        }
         let dist2 =
             |dx: i64, dy: i64| (ox - dx as f64 * res).powi(2) + (oy - dy as f64 * res).powi(2);
         // The endpoint's own cell centre is the closest of the window (|offset| ≤ Δ/2 on each
         // axis, every other centre is ≥ Δ/2 away on some axis), so when that cell qualifies the
         // rest of the window cannot do better. This is the common case near the match.
-        let k = self.params.kernel_size as i64;
         if qualifies(0, 0) {
             return Some(dist2(0, 0));
         }
