@@ -51,6 +51,8 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
     BenchSpec("rbpf_clam_scans_per_s_1079x100_full_ray", size=10, quick_size=2),
     BenchSpec("rbpf_clam_scans_per_s_180x30", size=100, quick_size=5),
     BenchSpec("rbpf_ogm_scans_per_s_180x30", size=100, quick_size=5),
+    # The baseline with GMapping's cells in full (--ogm-map gmapping) and per-scan motion draws.
+    BenchSpec("rbpf_ogm_gmapping_scans_per_s_180x30", size=100, quick_size=5),
     # The baseline in the Table I setting, the same workload as rbpf_clam_scans_per_s_1079x100.
     BenchSpec("rbpf_ogm_scans_per_s_1079x100", size=10, quick_size=2),
     # Issue 4: information functions, 10 beams over 360 deg, 5 m, 0.2 m grid, one thread.

@@ -1,6 +1,8 @@
 //! Timing of the particle filters outside `crlam bench`, for profiling and A/B comparisons
-//! (`cargo run --release -p crlam-core --example filter_timing -- clam|clam180|ogm|ogm1079 [scans]`).
-use crlam_core::bench::{rbpf_clam_scans, rbpf_ogm_scans, rbpf_ogm_scans_table1};
+//! (`cargo run --release -p crlam-core --example filter_timing -- clam|clam180|ogm|ogm_gmapping|ogm1079 [scans]`).
+use crlam_core::bench::{
+    rbpf_clam_scans, rbpf_ogm_gmapping_scans, rbpf_ogm_scans, rbpf_ogm_scans_table1,
+};
 
 fn main() {
     let which = std::env::args().nth(1).unwrap_or_else(|| "clam".into());
@@ -12,6 +14,7 @@ fn main() {
         "clam" => rbpf_clam_scans(n, 100, 1079),
         "clam180" => rbpf_clam_scans(n, 30, 180),
         "ogm" => rbpf_ogm_scans(n, 30),
+        "ogm_gmapping" => rbpf_ogm_gmapping_scans(n, 30),
         "ogm1079" => rbpf_ogm_scans_table1(n),
         other => panic!("unknown workload {other}"),
     }

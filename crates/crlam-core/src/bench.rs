@@ -293,6 +293,30 @@ pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure>
     ))
 }
 
+/// [`rbpf_ogm_scans`] with GMapping's cells in full (hit rate, not-occupied test, hit means:
+/// [`crate::rbpf::OgmFilterConfig::with_gmapping_map`]), its odometry model drawn per scan.
+pub fn rbpf_ogm_gmapping_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
+    use crate::motion::MotionModel;
+    use crate::rbpf::{MotionDraws, OgmFilterConfig, RbpfOgm};
+    let w = filter_workload(n_scans + 1, 180, 180.0, 8.0)?;
+    let cfg = OgmFilterConfig {
+        n_particles,
+        motion: MotionModel::gmapping(),
+        motion_draws: MotionDraws::PerScan,
+        ..OgmFilterConfig::default()
+    }
+    .with_gmapping_map(0.1)?;
+    let mut f = RbpfOgm::new(cfg, w.odom[0])?;
+    let secs = time_filter(&w, n_scans, |s| f.process(s))?;
+    let unit = "processed scan (as rbpf_ogm_scans_per_s_180x30, with GMapping's cells: hit rate and hit means)";
+    Ok(filter_figure(
+        "rbpf_ogm_gmapping_scans_per_s_180x30",
+        unit,
+        n_scans,
+        secs,
+    ))
+}
+
 /// RBPF-OGM in the Table I setting: 100 particles, 1079 beams over 270°, 8 m, 0.2 m grid, one
 /// thread (the same workload as [`rbpf_clam_scans`] with 1079 beams).
 pub fn rbpf_ogm_scans_table1(n_scans: usize) -> Result<BenchFigure> {

@@ -570,6 +570,88 @@ fn recovers_known_offsets(
 /// likelihoods are the same to the bit with and without it, also when the climb starts far
 /// enough off that some reads fall outside the patch.
 #[test]
+fn hit_mean_matching_equals_a_brute_force_window_search() {
+    // The matcher's window search over GMapping's cells (visit order, lower-bound skips, one
+    // read per occupied cell) against the plain definition: every cell of the 3x3 window that is
+    // occupied, with its companion around the free point not occupied, at the distance from the
+    // endpoint to the mean of its hits; the smallest wins.
+    let occ = world();
+    let angles = angles();
+    let truth = truth_on_ellipse(40, 1.0);
+    let ranges = cast(&truth, &angles, &occ);
+    let params = LogOddsParams {
+        hit_means: true,
+        ..LogOddsParams::hit_rate(Z_MAX - 0.5, 0.1).unwrap()
+    };
+    let map = reference_map(&truth, &angles, &ranges, params);
+    let mp = MatcherParams {
+        free_test: FreeTest::NotOccupied,
+        ..Default::default()
+    };
+    let matcher = ScanMatcher::new(mp).unwrap();
+    let surface = MatchSurface::tiles(&map, FreeTest::NotOccupied);
+    let g = *map.grid().geometry();
+    let back = std::f64::consts::SQRT_2 * g.resolution;
+    let mut rng = Rng::stream(11, 0, 0);
+    let mut compared = 0;
+    for k in [5usize, 20, 33] {
+        let scan = PreparedScan::new(&angles, &ranges[k], LASER, Z_MAX - 0.5, 1).unwrap();
+        for _ in 0..15 {
+            let t = truth[k];
+            let p = [
+                t[0] + 0.08 * rng.normal(),
+                t[1] + 0.08 * rng.normal(),
+                wrap(t[2] + 0.04 * rng.normal()),
+            ];
+            let fit = matcher.evaluate(&surface, &scan, p).unwrap();
+            let (s, c) = p[2].sin_cos();
+            let (mut loglik, mut score, mut matched) = (0.0, 0.0, 0);
+            for end in scan.endpoints() {
+                let ray = [end[0] - LASER[0], end[1] - LASER[1]];
+                let len = ray[0].hypot(ray[1]);
+                let dir = [ray[0] / len, ray[1] / len];
+                let e = [
+                    p[0] + c * end[0] - s * end[1],
+                    p[1] + s * end[0] + c * end[1],
+                ];
+                let f = [
+                    e[0] - back * (c * dir[0] - s * dir[1]),
+                    e[1] - back * (s * dir[0] + c * dir[1]),
+                ];
+                let (ix, iy) = g.cell_of(e[0], e[1]);
+                let (fx, fy) = g.cell_of(f[0], f[1]);
+                let mut best = f64::INFINITY;
+                for dy in -1..=1 {
+                    for dx in -1..=1 {
+                        let occupied = map.log_odds(ix + dx, iy + dy) > 0.0;
+                        let free = map.log_odds(fx + dx, fy + dy) <= 0.0;
+                        if occupied && free {
+                            let centre = g.cell_center(ix + dx, iy + dy);
+                            let m = map.hit_mean_offset(ix + dx, iy + dy);
+                            let d2 = (e[0] - centre[0] - m[0]).powi(2)
+                                + (e[1] - centre[1] - m[1]).powi(2);
+                            best = best.min(d2);
+                        }
+                    }
+                }
+                if best.is_finite() {
+                    matched += 1;
+                    loglik -= best / mp.likelihood_sigma;
+                    score += (-best / mp.score_sigma).exp();
+                } else {
+                    loglik += mp.null_likelihood / mp.likelihood_sigma;
+                }
+            }
+            assert_eq!(fit.matched, matched);
+            assert!((fit.log_likelihood - loglik).abs() < 1e-9 * loglik.abs().max(1.0));
+            assert!((fit.score - score).abs() < 1e-9 * score.max(1.0));
+            compared += usize::from(matched > 0);
+        }
+    }
+    assert!(compared > 30, "only {compared} poses matched anything");
+}
+
+#[test]
 fn match_surface_patch_changes_no_result() {
     let occ = world();
     let angles = angles();

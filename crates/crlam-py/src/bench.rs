@@ -48,6 +48,9 @@ pub fn run_benchmark<'py>(
             )),
             "rbpf_clam_scans_per_s_180x30" => Some(bench::rbpf_clam_scans(size, 30, 180)),
             "rbpf_ogm_scans_per_s_180x30" => Some(bench::rbpf_ogm_scans(size, 30)),
+            "rbpf_ogm_gmapping_scans_per_s_180x30" => {
+                Some(bench::rbpf_ogm_gmapping_scans(size, 30))
+            }
             "rbpf_ogm_scans_per_s_1079x100" => Some(bench::rbpf_ogm_scans_table1(size)),
             _ => None,
         })

@@ -169,15 +169,19 @@ impl<'a> MatchSurface<'a> {
         self.grid.stride() >= 4
     }
 
-    /// Offset (m) of the mean of the hits of cell (ix, iy) from its centre (zero without hits).
-    /// Read from the tiles: only cells that passed the class test are asked.
+    /// For an occupied cell (ix, iy), the offset (m) of the mean of its hits from its centre
+    /// (zero without hits); `None` if the cell is not occupied. One read of the tiles gives both
+    /// (grids with hit means get no patch benefit here: the patch holds classes only).
     #[inline]
-    pub(crate) fn hit_mean_offset(&self, ix: i64, iy: i64) -> [f64; 2] {
+    pub(crate) fn occupied_hit_mean(&self, ix: i64, iy: i64) -> Option<[f64; 2]> {
         let v = self.grid.get(ix, iy);
-        if v.len() < 4 || v[1] <= 0.0 {
-            return [0.0; 2];
+        if class_of(v[0], self.free_test) & OCCUPIED == 0 {
+            return None;
         }
-        [(v[2] / v[1]) as f64, (v[3] / v[1]) as f64]
+        if v.len() < 4 || v[1] <= 0.0 {
+            return Some([0.0; 2]);
+        }
+        Some([(v[2] / v[1]) as f64, (v[3] / v[1]) as f64])
     }
 
     /// The class bits of cell (ix, iy): [`OCCUPIED`], [`FREE`] or neither.

@@ -348,30 +348,6 @@ impl ScanMatcher {
         let (ox, oy) = (e[0] - c0[0], e[1] - c0[1]);
         let res = g.resolution;
         let k = self.params.kernel_size as i64;
-        if surface.has_hit_means() {
-            // GMapping: the distance to the mean of the hits of each qualifying cell, the
-            // smallest over the window (a neighbour's mean may lie closer than the own cell's).
-            let mut best = f64::INFINITY;
-            for dy in -k..=k {
-                for dx in -k..=k {
-                    if qualifies(dx, dy) {
-                        let m = surface.hit_mean_offset(ix + dx, iy + dy);
-                        let d2 = (ox - dx as f64 * res - m[0]).powi(2)
-                            + (oy - dy as f64 * res - m[1]).powi(2);
-                        best = best.min(d2);
-                    }
-                }
-            }
-            return best.is_finite().then_some(best);
-        }
-        let dist2 =
-            |dx: i64, dy: i64| (ox - dx as f64 * res).powi(2) + (oy - dy as f64 * res).powi(2);
-        // The endpoint's own cell centre is the closest of the window (|offset| ≤ Δ/2 on each
-        // axis, every other centre is ≥ Δ/2 away on some axis), so when that cell qualifies the
-        // rest of the window cannot do better. This is the common case near the match.
-        if qualifies(0, 0) {
-            return Some(dist2(0, 0));
-        }
         // Visit offsets nearest-side first on each axis (0, s, −s, 2s, −2s, ... with s the side
         // of the cell centre the endpoint lies on): a close candidate found early lets the
         // distance test skip the map reads of farther cells.
@@ -386,6 +362,42 @@ impl ScanMatcher {
                 -s * j / 2
             }
         };
+        if surface.has_hit_means() {
+            // GMapping: the distance to the mean of the hits of each qualifying cell, the
+            // smallest over the window (a neighbour's mean may lie closer than the own cell's).
+            // Every mean lies in its cell, so the distance to the cell's square bounds it from
+            // below and cells that cannot beat the best so far are not read.
+            let half = 0.5 * res;
+            let gap = |o: f64, d: i64| ((o - d as f64 * res).abs() - half).max(0.0);
+            let mut best = f64::INFINITY;
+            for jy in 0..=2 * k {
+                let dy = nth(sy, jy);
+                for jx in 0..=2 * k {
+                    let dx = nth(sx, jx);
+                    if gap(ox, dx).powi(2) + gap(oy, dy).powi(2) >= best {
+                        continue;
+                    }
+                    let Some(m) = surface.occupied_hit_mean(ix + dx, iy + dy) else {
+                        continue;
+                    };
+                    if surface.class(fx + dx, fy + dy) & FREE == 0 {
+                        continue;
+                    }
+                    let d2 = (ox - dx as f64 * res - m[0]).powi(2)
+                        + (oy - dy as f64 * res - m[1]).powi(2);
+                    best = best.min(d2);
+                }
+            }
+            return best.is_finite().then_some(best);
+        }
+        let dist2 =
+            |dx: i64, dy: i64| (ox - dx as f64 * res).powi(2) + (oy - dy as f64 * res).powi(2);
+        // The endpoint's own cell centre is the closest of the window (|offset| ≤ Δ/2 on each
+        // axis, every other centre is ≥ Δ/2 away on some axis), so when that cell qualifies the
+        // rest of the window cannot do better. This is the common case near the match.
+        if qualifies(0, 0) {
+            return Some(dist2(0, 0));
+        }
         let mut best = f64::INFINITY;
         for jy in 0..=2 * k {
             let dy = nth(sy, jy);
