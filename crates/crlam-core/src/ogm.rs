@@ -94,6 +94,17 @@ impl LogOddsParams {
     }
 }
 
+/// The offset (m) of the mean of the hits from the cell centre, from a cell's stored values
+/// (`[log-odds]`, or `[log-odds, hits, Σ dx, Σ dy]` with [`LogOddsParams::hit_means`]); zero
+/// without hits or means.
+#[inline]
+pub(crate) fn hit_mean_of(cell: &[f32]) -> [f64; 2] {
+    if cell.len() < 4 || cell[1] <= 0.0 {
+        return [0.0; 2];
+    }
+    [(cell[2] / cell[1]) as f64, (cell[3] / cell[1]) as f64]
+}
+
 /// A log-odds occupancy grid; cloning shares tiles copy-on-write.
 #[derive(Clone, Debug)]
 pub struct LogOddsGrid {
@@ -137,11 +148,7 @@ impl LogOddsGrid {
     /// the grid keeps no hit means.
     #[inline]
     pub fn hit_mean_offset(&self, ix: i64, iy: i64) -> [f64; 2] {
-        let v = self.grid.get(ix, iy);
-        if v.len() < 4 || v[1] <= 0.0 {
-            return [0.0; 2];
-        }
-        [(v[2] / v[1]) as f64, (v[3] / v[1]) as f64]
+        hit_mean_of(self.grid.get(ix, iy))
     }
 
     /// Occupancy probability of a cell.

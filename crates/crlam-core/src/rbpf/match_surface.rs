@@ -11,7 +11,7 @@
 
 use super::scanmatch::{FreeTest, PreparedScan};
 use crate::grid::{GridGeometry, TiledGrid};
-use crate::ogm::LogOddsGrid;
+use crate::ogm::{hit_mean_of, LogOddsGrid};
 use crate::pose::Pose;
 
 /// Class bit of an occupied cell (log-odds > 0).
@@ -175,13 +175,7 @@ impl<'a> MatchSurface<'a> {
     #[inline]
     pub(crate) fn occupied_hit_mean(&self, ix: i64, iy: i64) -> Option<[f64; 2]> {
         let v = self.grid.get(ix, iy);
-        if class_of(v[0], self.free_test) & OCCUPIED == 0 {
-            return None;
-        }
-        if v.len() < 4 || v[1] <= 0.0 {
-            return Some([0.0; 2]);
-        }
-        Some([(v[2] / v[1]) as f64, (v[3] / v[1]) as f64])
+        (class_of(v[0], self.free_test) & OCCUPIED != 0).then(|| hit_mean_of(v))
     }
 
     /// The class bits of cell (ix, iy): [`OCCUPIED`], [`FREE`] or neither.
