@@ -6,6 +6,8 @@
 //! with its own random stream, so results do not depend on the thread count):
 //!
 //! 1. draw x̃ from the motion model from the particle pose (the scan matcher's starting point);
+//!    with [`MotionDraws::PerScan`] the particle was already moved by a draw at every scan since
+//!    the last processed one, as GMapping does, and x̃ is that pose;
 //! 2. hill-climb the scan score on the particle's map from x̃ ([`ScanMatcher::optimize`]);
 //! 3. if the score exceeds `min_score`: evaluate likelihood × motion prior on a lattice around the
 //!    match, fit a Gaussian, draw the new pose from it (or, with `ProposalPose::Match`, keep the
