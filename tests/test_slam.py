@@ -275,6 +275,8 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("mode_bandwidth", (0.05, float("nan"))),
         ("ogm_map", "counts"),
         ("ogm_motion_draws", "sometimes"),
+        ("ogm_weight_smoothing", -1.0),
+        ("ogm_weight_smoothing", float("inf")),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),
     ],
@@ -310,6 +312,8 @@ def test_the_native_filters_check_the_proposal_pose() -> None:
         _native.OgmFilter(pose, n_particles=2, map_model="counts")
     with pytest.raises(ValueError, match="motion_draws"):
         _native.OgmFilter(pose, n_particles=2, motion_draws="sometimes")
+    with pytest.raises(ValueError, match="weight_smoothing"):
+        _native.OgmFilter(pose, n_particles=2, weight_smoothing=float("nan"))
 
 
 def test_hit_rate_cells_reach_the_ogm_run(office: Path, tmp_path: Path) -> None:
@@ -346,6 +350,23 @@ def test_per_scan_motion_draws_reach_the_ogm_run(office: Path, tmp_path: Path) -
         trajs[draws] = read_tum(out / "trajectory.tum").poses
     assert np.isfinite(trajs["per_scan"]).all()
     assert not np.allclose(trajs["per_scan"], trajs["per_update"])
+
+
+def test_weight_smoothing_sets_how_often_the_ogm_run_resamples(office: Path, tmp_path: Path) -> None:
+    # GMapping's ogain flattens the weights: the stronger the smoothing, the fewer resamplings;
+    # plain weights (0) resample the most. Recorded in the config; ignored by RBPF-CLAM.
+    resamples = {}
+    for ogain in ("0", "3", "1000"):
+        out = tmp_path / f"ogain_{ogain}"
+        argv = ["slam", str(office / "log.clf"), "--out", str(out), "--method", "ogm", "--particles", "8"]
+        argv += ["--resolution", "0.1", "--max-scans", "60", "--ogm-weight-smoothing", ogain, "--quiet"]
+        assert main(argv) == 0
+        assert f"\nogm_weight_smoothing = {float(ogain)}\n" in (out / "config.toml").read_text()
+        resamples[ogain] = json.loads((out / "metrics.json").read_text())["n_resamples"]
+    assert resamples["0"] > resamples["3"] >= resamples["1000"]
+    assert resamples["1000"] == 0
+    with pytest.raises(SystemExit):
+        main(["slam", str(office / "log.clf"), "--out", str(tmp_path / "bad"), "--ogm-weight-smoothing", "-1"])
 
 
 def test_gmapping_motion_model_runs_both_filters(office: Path, tmp_path: Path) -> None:

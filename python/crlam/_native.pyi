@@ -268,6 +268,7 @@ class OgmFilter:
         proposal_pose: str = "sample",
         map_model: str = "log_odds",
         motion_draws: str = "per_update",
+        weight_smoothing: float = 3.0,
         seed: int = 0,
     ) -> OgmFilter: ...
     def process(

@@ -42,6 +42,10 @@ _MOTION_DRAWS_HELP = (
     "when RBPF-OGM draws its odometry noise: per processed scan (per_update, default) or at every scan of the log "
     "on its own increment, as GMapping does (per_scan)"
 )
+_WEIGHT_SMOOTHING_HELP = (
+    "RBPF-OGM weight smoothing, GMapping's ogain: log-weights are divided by ogain x particles before N_eff, "
+    "resampling and the weighted mean (default: 3, GMapping's; 0 = plain weights)"
+)
 _CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
 _PROPOSALS = ("odometry", "likelihood_mode")
 _PROPOSAL_HELP = "RBPF-CLAM: odometry (paper) or the CRM improved proposal (default: odometry)"
@@ -249,6 +253,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         batch_kernel=args.batch_kernel,
         ogm_map=args.ogm_map,
         ogm_motion_draws=args.ogm_motion_draws,
+        ogm_weight_smoothing=args.ogm_weight_smoothing,
     )
     res = run_slam_log(
         args.log,
@@ -364,6 +369,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             resolution=args.resolution,
             ogm_map=args.ogm_map,
             ogm_motion_draws=args.ogm_motion_draws,
+            ogm_weight_smoothing=args.ogm_weight_smoothing,
             motion=args.motion,
             motion_params=tuple(args.motion_params) if args.motion_params else None,
             weight_stride=args.weight_stride,
@@ -515,6 +521,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--batch-kernel", choices=_BATCH_KERNELS, default="windowed", help=_BATCH_KERNEL_HELP)
     p.add_argument("--ogm-map", choices=_OGM_MAPS, default="log_odds", help=_OGM_MAP_HELP)
     p.add_argument("--ogm-motion-draws", choices=_MOTION_DRAWS, default="per_update", help=_MOTION_DRAWS_HELP)
+    p.add_argument("--ogm-weight-smoothing", type=_nonnegative_float, default=3.0, help=_WEIGHT_SMOOTHING_HELP)
     p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
     p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
     p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
@@ -587,6 +594,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rl.add_argument("--ogm-map", choices=_OGM_MAPS, default="log_odds", help=_OGM_MAP_HELP)
     rl.add_argument("--ogm-motion-draws", choices=_MOTION_DRAWS, default="per_update", help=_MOTION_DRAWS_HELP)
+    rl.add_argument("--ogm-weight-smoothing", type=_nonnegative_float, default=3.0, help=_WEIGHT_SMOOTHING_HELP)
     rl.add_argument(
         "--motion",
         choices=("thrun", "gmapping"),

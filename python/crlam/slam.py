@@ -115,6 +115,11 @@ class SlamConfig:
         every scan of the log, on its own increment, as GMapping's ``processScan`` does;
         step-proportional noise then adds up in variance, about 1/sqrt(k) of one draw over k
         steps). Ignored by RBPF-CLAM.
+    ogm_weight_smoothing : float
+        RBPF-OGM's weight smoothing, GMapping's ``ogain`` (default 3): the accumulated
+        log-weights are divided by ``ogm_weight_smoothing * particles`` before N_eff, resampling
+        and the weighted mean; 0 uses them as they are. The best particle is the same either way;
+        the smoothing sets how often the filter resamples. Ignored by RBPF-CLAM.
     smoothing_lag : int or None
         The lineage smoother written next to the weighted mean (:meth:`SlamRun.smoothed_trajectory`):
         ``None`` (default) weighs every processed scan's ancestors with the final weights (full
@@ -152,6 +157,7 @@ class SlamConfig:
     smoothing_lag: int | None = None
     ogm_map: str = "log_odds"
     ogm_motion_draws: str = "per_update"
+    ogm_weight_smoothing: float = 3.0
 
     def __post_init__(self) -> None:
         self.validate()
@@ -199,6 +205,12 @@ class SlamConfig:
             raise bad("ogm_map", "must be 'log_odds', 'hit_rate' or 'gmapping'")
         if self.ogm_motion_draws not in ("per_update", "per_scan"):
             raise bad("ogm_motion_draws", "must be 'per_update' or 'per_scan'")
+        if not (
+            isinstance(self.ogm_weight_smoothing, (int, float))
+            and math.isfinite(self.ogm_weight_smoothing)
+            and self.ogm_weight_smoothing >= 0
+        ):
+            raise bad("ogm_weight_smoothing", "must be finite and >= 0 (0 = plain weights)")
         if self.cause_kernel not in ("midpoint", "chord"):
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
         if self.batch_kernel not in ("windowed", "full_ray"):
@@ -279,6 +291,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
                 proposal_pose=config.proposal_pose,
                 map_model=config.ogm_map,
                 motion_draws=config.ogm_motion_draws,
+                weight_smoothing=config.ogm_weight_smoothing,
                 seed=config.seed,
             )
         except ValueError as e:

@@ -424,7 +424,7 @@ filter_pymethods!(OgmFilter {
     #[new]
     #[pyo3(signature = (initial_pose, *, n_particles=30, resolution=0.05, usable_range=30.0, motion="thrun", motion_params=None,
         linear_update=0.0, angular_update=0.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0), proposal_pose="sample",
-        map_model="log_odds", motion_draws="per_update", seed=0))]
+        map_model="log_odds", motion_draws="per_update", weight_smoothing=3.0, seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         n_particles: usize,
@@ -439,6 +439,7 @@ filter_pymethods!(OgmFilter {
         proposal_pose: &str,
         map_model: &str,
         motion_draws: &str,
+        weight_smoothing: f64,
         seed: u64,
     ) -> PyResult<Self> {
         let defaults = OgmFilterConfig::default();
@@ -455,6 +456,7 @@ filter_pymethods!(OgmFilter {
                 angular: angular_update,
             },
             resample_threshold,
+            weight_smoothing,
             geometry: GridGeometry::new([0.0, 0.0], resolution).py_err()?,
             log_odds: LogOddsParams {
                 z_max: usable_range,
