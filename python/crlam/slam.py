@@ -205,12 +205,6 @@ class SlamConfig:
             raise bad("ogm_map", "must be 'log_odds', 'hit_rate' or 'gmapping'")
         if self.ogm_motion_draws not in ("per_update", "per_scan"):
             raise bad("ogm_motion_draws", "must be 'per_update' or 'per_scan'")
-        if not (
-            isinstance(self.ogm_weight_smoothing, (int, float))
-            and math.isfinite(self.ogm_weight_smoothing)
-            and self.ogm_weight_smoothing >= 0
-        ):
-            raise bad("ogm_weight_smoothing", "must be finite and >= 0 (0 = plain weights)")
         if self.cause_kernel not in ("midpoint", "chord"):
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
         if self.batch_kernel not in ("windowed", "full_ray"):
@@ -219,7 +213,7 @@ class SlamConfig:
             raise bad("motion", "must be 'gaussian', 'thrun' or 'gmapping'")
         if self.motion_params is not None and len(self.motion_params) != (3 if self.motion == "gaussian" else 4):
             raise bad("motion_params", "needs 3 sigmas (gaussian), 4 alphas (thrun) or srr srt str stt (gmapping)")
-        for name in ("linear_update", "angular_update", "sigma_range"):
+        for name in ("linear_update", "angular_update", "sigma_range", "ogm_weight_smoothing"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v >= 0):
                 raise bad(name, "must be finite and >= 0")
