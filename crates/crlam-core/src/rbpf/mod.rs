@@ -12,8 +12,10 @@ pub mod lineage;
 pub mod match_surface;
 mod motion_prior;
 pub mod ogm;
+mod ogm_config;
 mod proposal;
 pub mod scanmatch;
+mod scanmatch_params;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
 pub use common::{
