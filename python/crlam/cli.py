@@ -10,156 +10,31 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from crlam import __version__
+from crlam.cli_options import (
+    BATCH_KERNEL_HELP,
+    BATCH_KERNELS,
+    CAUSE_KERNEL_HELP,
+    CAUSE_KERNELS,
+    MATCH_STRIDE_HELP,
+    MOTION_DRAWS,
+    MOTION_DRAWS_HELP,
+    OGM_MAP_HELP,
+    OGM_MAPS,
+    PROPOSAL_HELP,
+    PROPOSAL_POSE_HELP,
+    PROPOSALS,
+    SIGMA_RANGE_HELP,
+    WEIGHT_SMOOTHING_HELP,
+    add_estimate_options,
+    add_likelihood_mode_options,
+    add_map_options,
+    nonnegative_float,
+    positive_float,
+    positive_int,
+)
 from crlam.errors import CrlamError
 
 __all__ = ["main", "build_parser"]
-
-
-def _positive_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v > 0 and v != float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
-    return v
-
-
-_CAUSE_KERNELS = ("midpoint", "chord")
-_BATCH_KERNELS = ("windowed", "full_ray")
-_BATCH_KERNEL_HELP = (
-    "how a batch scan computes each beam: windowed (default; likelihoods near the reading, the cells before it "
-    "as pass counts) or full_ray (every cell: the reference); they agree to rounding"
-)
-_OGM_MAPS = ("log_odds", "hit_rate", "gmapping")
-_OGM_MAP_HELP = (
-    "RBPF-OGM cells: log_odds (default; a match needs its companion cell seen free), hit_rate (GMapping's "
-    "counting cells, occupied above a 0.1 hit rate; a companion passes unless occupied) or gmapping (hit_rate "
-    "cells that also keep the mean of their hits, to which matches are measured, as GMapping's)"
-)
-_MOTION_DRAWS = ("per_update", "per_scan")
-_MOTION_DRAWS_HELP = (
-    "when RBPF-OGM draws its odometry noise: per processed scan (per_update, default) or at every scan of the log "
-    "on its own increment, as GMapping does (per_scan)"
-)
-_WEIGHT_SMOOTHING_HELP = (
-    "RBPF-OGM weight smoothing, GMapping's ogain: log-weights are divided by ogain x particles before N_eff, "
-    "resampling and the weighted mean (default: 3, GMapping's; 0 = plain weights)"
-)
-_CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
-_PROPOSALS = ("odometry", "likelihood_mode")
-_PROPOSAL_HELP = "RBPF-CLAM: odometry (paper) or the CRM improved proposal (default: odometry)"
-_PROPOSAL_POSE_HELP = (
-    "improved proposals (RBPF-CLAM likelihood_mode, RBPF-OGM): draw the pose from the Gaussian fitted around the "
-    "match (sample, default) or keep the match, as GMapping's code does (match)"
-)
-_MATCH_STRIDE_HELP = (
-    "RBPF-CLAM likelihood_mode: climb to the mode on every n-th beam (default: 3); the lattice and the weights use every beam"
-)
-_LATTICE_STEP_HELP = (
-    "RBPF-CLAM likelihood_mode: spacing (m, rad) of the 3x3x3 lattice around the mode that the Gaussian is fitted "
-    "to and the weight sums (default: 0.05 0.025; GMapping samples at 0.01 0.005)"
-)
-_SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
-
-
-def _nonnegative_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v >= 0 and v != float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return v
-
-
-def _add_likelihood_mode_options(parser: argparse.ArgumentParser) -> None:
-    """``--lattice-step DXY DTHETA`` and ``--motion-outlier EPS`` of the likelihood-mode proposal, shared by
-    ``slam`` and the experiments."""
-    parser.add_argument(
-        "--lattice-step", type=_positive_float, nargs=2, default=[0.05, 0.025], metavar=("DXY", "DTHETA"), help=_LATTICE_STEP_HELP
-    )
-    parser.add_argument(
-        "--motion-outlier",
-        type=_nonnegative_float,
-        default=0.0,
-        metavar="EPS",
-        help="RBPF-CLAM likelihood_mode: probability that an odometry increment is an outlier; the climb's motion "
-        "density gets a floor of log EPS, so a large likelihood gain (a loop closure) can move the pose however "
-        "tight the motion model (default: 0, off)",
-    )
-
-
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
-    return v
-
-
-def _nonnegative_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
-    return v
-
-
-def _add_estimate_options(parser: argparse.ArgumentParser) -> None:
-    """``--mode-bandwidth DXY DTHETA`` and ``--smoothing-lag L``: the estimates recorded next to the weighted mean."""
-    parser.add_argument(
-        "--mode-bandwidth",
-        type=_positive_float,
-        nargs=2,
-        default=[0.05, 0.025],
-        metavar=("DXY", "DTHETA"),
-        help="kernel bandwidths (m, rad) of the mode-seeking estimate written to trajectory_mode.tum (the weighted mean of "
-        "the densest group of particles; it does not change the filter; default: 0.05 0.025)",
-    )
-    parser.add_argument(
-        "--smoothing-lag",
-        type=_nonnegative_int,
-        default=None,
-        metavar="L",
-        help="lineage smoother written to trajectory_smoothed.tum: weigh each processed scan's particle ancestors with "
-        "the weights L processed scans later (default: the final weights, full smoothing)",
-    )
-
-
-def _add_map_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("map settings")
-    g.add_argument("--resolution", type=_positive_float, default=0.2, help="cell size in metres (default: 0.2)")
-    g.add_argument(
-        "--max-range", type=_positive_float, default=8.0, help="z_max in metres; longer readings are no-returns (default: 8)"
-    )
-    g.add_argument(
-        "--model",
-        choices=("ijrr", "mixture", "authors_code"),
-        default="ijrr",
-        help="sensor cause model of the CRM update (default: ijrr)",
-    )
-    g.add_argument(
-        "--levels",
-        choices=("midpoints", "endpoints", "r1_right"),
-        default="midpoints",
-        help="occupancy level placement (default: midpoints)",
-    )
-    g.add_argument(
-        "--scan-update", choices=("batch", "sequential"), default="batch", help="how the beams of a scan combine (default: batch)"
-    )
-    g.add_argument(
-        "--cause-kernel",
-        choices=_CAUSE_KERNELS,
-        default="midpoint",
-        help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord",
-    )
-    g.add_argument("--batch-kernel", choices=_BATCH_KERNELS, default="windowed", help=_BATCH_KERNEL_HELP)
-    g.add_argument("--beam-stride", type=_positive_int, default=1, help="use every n-th beam (default: 1)")
 
 
 def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
@@ -432,7 +307,7 @@ def build_parser() -> argparse.ArgumentParser:
         "figures and report.md.",
     )
     p.add_argument("--out", default="demo-out", help="output folder (default: demo-out)")
-    p.add_argument("--scans", type=_positive_int, default=4000, help="number of scans to simulate (default: 4000)")
+    p.add_argument("--scans", type=positive_int, default=4000, help="number of scans to simulate (default: 4000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_demo)
@@ -443,7 +318,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Writes log.clf (CARMEN), groundtruth.tum, world.pgm/yaml and simulation.json. Same seed, same bytes.",
     )
     p.add_argument("--world", default="office", help="museum, office, or a PGM/PNG/Nav2-YAML path (default: office)")
-    p.add_argument("--scans", type=_positive_int, default=500, help="number of scans (default: 500)")
+    p.add_argument("--scans", type=positive_int, default=500, help="number of scans (default: 500)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument(
         "--sensor",
@@ -469,10 +344,10 @@ def build_parser() -> argparse.ArgumentParser:
         default="log",
         help="which pose field to trust: the scan's pose field or its odometry field (default: log)",
     )
-    p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
+    p.add_argument("--max-scans", type=positive_int, default=None, help="stop after this many scans")
     p.add_argument("--skip-malformed", action="store_true", help="skip (and count) malformed lines instead of stopping")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
-    _add_map_options(p)
+    add_map_options(p)
     p.set_defaults(func=cmd_map)
 
     p = sub.add_parser(
@@ -484,22 +359,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("log", help="CARMEN log (plain, .gz or .bz2)")
     p.add_argument("--out", required=True, help="run folder")
     p.add_argument("--method", choices=("clam", "ogm"), default="clam", help="filter (default: clam)")
-    p.add_argument("--particles", type=_positive_int, default=100, help="number of particles (default: 100)")
+    p.add_argument("--particles", type=positive_int, default=100, help="number of particles (default: 100)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--resolution", type=_positive_float, default=0.2, help="cell size in metres (default: 0.2)")
-    p.add_argument("--max-range", type=_positive_float, default=8.0, help="z_max in metres (default: 8)")
+    p.add_argument("--resolution", type=positive_float, default=0.2, help="cell size in metres (default: 0.2)")
+    p.add_argument("--max-range", type=positive_float, default=8.0, help="z_max in metres (default: 8)")
     p.add_argument("--reference", help="ground-truth TUM trajectory: report MAE x, y, theta and position RMSE")
     p.add_argument("--relations", help="Kuemmerle relations file: report the relations metric")
     p.add_argument(
         "--proposal",
-        choices=_PROPOSALS,
+        choices=PROPOSALS,
         default="odometry",
-        help=_PROPOSAL_HELP,
+        help=PROPOSAL_HELP,
     )
-    p.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
-    p.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
-    _add_likelihood_mode_options(p)
-    _add_estimate_options(p)
+    p.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=PROPOSAL_POSE_HELP)
+    p.add_argument("--match-stride", type=positive_int, default=3, help=MATCH_STRIDE_HELP)
+    add_likelihood_mode_options(p)
+    add_estimate_options(p)
     p.add_argument(
         "--motion",
         choices=("gaussian", "thrun", "gmapping"),
@@ -513,18 +388,18 @@ def build_parser() -> argparse.ArgumentParser:
         help="3 sigmas (gaussian), 4 alphas (thrun; RBPF-OGM's thrun default is 0.04 0.01 0.01 0.04) or srr srt "
         "str stt (gmapping; default 0.1 0.2 0.1 0.2)",
     )
-    p.add_argument("--weight-stride", type=_positive_int, default=1, help="every n-th beam for the weights (default: 1)")
-    p.add_argument("--map-stride", type=_positive_int, default=1, help="every n-th beam for the map update (default: 1)")
-    p.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering tau (default: 1)")
-    p.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
-    p.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
-    p.add_argument("--batch-kernel", choices=_BATCH_KERNELS, default="windowed", help=_BATCH_KERNEL_HELP)
-    p.add_argument("--ogm-map", choices=_OGM_MAPS, default="log_odds", help=_OGM_MAP_HELP)
-    p.add_argument("--ogm-motion-draws", choices=_MOTION_DRAWS, default="per_update", help=_MOTION_DRAWS_HELP)
-    p.add_argument("--ogm-weight-smoothing", type=_nonnegative_float, default=3.0, help=_WEIGHT_SMOOTHING_HELP)
+    p.add_argument("--weight-stride", type=positive_int, default=1, help="every n-th beam for the weights (default: 1)")
+    p.add_argument("--map-stride", type=positive_int, default=1, help="every n-th beam for the map update (default: 1)")
+    p.add_argument("--tempering", type=positive_float, default=1.0, help="weight tempering tau (default: 1)")
+    p.add_argument("--sigma-range", type=nonnegative_float, default=0.01, help=SIGMA_RANGE_HELP)
+    p.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default="midpoint", help=CAUSE_KERNEL_HELP)
+    p.add_argument("--batch-kernel", choices=BATCH_KERNELS, default="windowed", help=BATCH_KERNEL_HELP)
+    p.add_argument("--ogm-map", choices=OGM_MAPS, default="log_odds", help=OGM_MAP_HELP)
+    p.add_argument("--ogm-motion-draws", choices=MOTION_DRAWS, default="per_update", help=MOTION_DRAWS_HELP)
+    p.add_argument("--ogm-weight-smoothing", type=nonnegative_float, default=3.0, help=WEIGHT_SMOOTHING_HELP)
     p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
     p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
-    p.add_argument("--max-scans", type=_positive_int, default=None, help="stop after this many scans")
+    p.add_argument("--max-scans", type=positive_int, default=None, help="stop after this many scans")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_slam)
 
@@ -537,9 +412,9 @@ def build_parser() -> argparse.ArgumentParser:
     from crlam.cli_explore import add_explore_parser
     from crlam.cli_info import add_info_parser
 
-    add_info_parser(sub, _positive_float, _positive_int)
-    add_explore_parser(sub, _positive_float, _positive_int)
-    add_diagnose_parser(sub, _positive_float, _positive_int)
+    add_info_parser(sub)
+    add_explore_parser(sub)
+    add_diagnose_parser(sub)
 
     p = sub.add_parser(
         "experiment",
@@ -556,13 +431,13 @@ def build_parser() -> argparse.ArgumentParser:
         "against the exact ground truth; writes table.md/csv, results.json and the Fig. 2 figures.",
     )
     t1.add_argument("--out", required=True, help="experiment folder (reused to resume)")
-    t1.add_argument("--runs", type=_positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
-    t1.add_argument("--scans", type=_positive_int, default=5500, help="scans of the simulated log (default: 5500)")
-    t1.add_argument("--particles", type=_positive_int, default=100, help="particles (default: 100)")
+    t1.add_argument("--runs", type=positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
+    t1.add_argument("--scans", type=positive_int, default=5500, help="scans of the simulated log (default: 5500)")
+    t1.add_argument("--particles", type=positive_int, default=100, help="particles (default: 100)")
     t1.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"], help="filters to run")
     t1.add_argument(
         "--resolution",
-        type=_positive_float,
+        type=positive_float,
         default=0.2,
         help="cell size in metres (default: 0.2, the paper's; any other value is reported as a deviation)",
     )
@@ -575,11 +450,11 @@ def build_parser() -> argparse.ArgumentParser:
     rl.add_argument("--out", required=True, help="experiment folder (reused to resume)")
     rl.add_argument("--datasets", nargs="+", choices=("intel", "aces"), default=["intel", "aces"])
     rl.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"])
-    rl.add_argument("--particles", dest="particles_list", type=_positive_int, nargs="+", default=[30, 100])
-    rl.add_argument("--seeds", type=_positive_int, default=3, help="seeds per setting (default: 3)")
+    rl.add_argument("--particles", dest="particles_list", type=positive_int, nargs="+", default=[30, 100])
+    rl.add_argument("--seeds", type=positive_int, default=3, help="seeds per setting (default: 3)")
     rl.add_argument("--ranges", nargs="+", default=["full", "8"], help="z_max settings: 'full' and/or metres (default: full 8)")
-    rl.add_argument("--resolution", type=_positive_float, default=0.1, help="cell size in metres (default: 0.1)")
-    rl.add_argument("--max-scans", type=_positive_int, default=None, help="only the first N scans of each log")
+    rl.add_argument("--resolution", type=positive_float, default=0.1, help="cell size in metres (default: 0.1)")
+    rl.add_argument("--max-scans", type=positive_int, default=None, help="only the first N scans of each log")
     rl.add_argument(
         "--linear-update",
         type=float,
@@ -592,9 +467,9 @@ def build_parser() -> argparse.ArgumentParser:
         default=0.0,
         help="... or this rotation in rad (default: every scan; GMapping's default is 0.5)",
     )
-    rl.add_argument("--ogm-map", choices=_OGM_MAPS, default="log_odds", help=_OGM_MAP_HELP)
-    rl.add_argument("--ogm-motion-draws", choices=_MOTION_DRAWS, default="per_update", help=_MOTION_DRAWS_HELP)
-    rl.add_argument("--ogm-weight-smoothing", type=_nonnegative_float, default=3.0, help=_WEIGHT_SMOOTHING_HELP)
+    rl.add_argument("--ogm-map", choices=OGM_MAPS, default="log_odds", help=OGM_MAP_HELP)
+    rl.add_argument("--ogm-motion-draws", choices=MOTION_DRAWS, default="per_update", help=MOTION_DRAWS_HELP)
+    rl.add_argument("--ogm-weight-smoothing", type=nonnegative_float, default=3.0, help=WEIGHT_SMOOTHING_HELP)
     rl.add_argument(
         "--motion",
         choices=("thrun", "gmapping"),
@@ -603,7 +478,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     rl.add_argument(
         "--motion-params",
-        type=_nonnegative_float,
+        type=nonnegative_float,
         nargs=4,
         default=None,
         metavar=("A1", "A2", "A3", "A4"),
@@ -621,14 +496,14 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ig.add_argument("--map", default=None, help="map (.pgm read as the planner reads cave.pgm, or Nav2 .yaml); default: cave-map")
     ig.add_argument("--out", required=True, help="experiment folder (reused to resume)")
-    ig.add_argument("--runs", type=_positive_int, default=20, help="runs (seeds) per function (default: 20)")
+    ig.add_argument("--runs", type=positive_int, default=20, help="runs (seeds) per function (default: 20)")
     ig.add_argument("--functions", default="ogmi,crmi,ucrmi,gpvr,ugpvr", help="comma-separated (default: all five)")
     ig.add_argument("--mode", choices=("reference", "clean"), default="reference", help="planner and function quirks")
     ig.add_argument("--ogmi", choices=("fsmi", "iig_mi", "julian"), default="fsmi", help="what OGMI means (default: exact FSMI)")
-    ig.add_argument("--particles", type=_positive_int, default=100, help="UCRMI particles per node (default: 100)")
+    ig.add_argument("--particles", type=positive_int, default=100, help="UCRMI particles per node (default: 100)")
     ig.add_argument("--start", type=float, nargs=2, default=(10.0, 2.0), metavar=("X", "Y"), help="start (default: 10 2)")
-    ig.add_argument("--max-seconds", type=_positive_float, default=600.0, help="wall-clock guard per run (default: 600)")
-    ig.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
+    ig.add_argument("--max-seconds", type=positive_float, default=600.0, help="wall-clock guard per run (default: 600)")
+    ig.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ig.add_argument("--quiet", action="store_true", help="no progress output")
     ig.set_defaults(func=cmd_experiment)
     ex = exp.add_parser(
@@ -642,27 +517,27 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--worlds", nargs="+", default=["office"], help="museum | office | map files (default: office)")
     ex.add_argument("--functions", default="crmi,ucrmi,fsmi,frontier", help="comma-separated (default: all four)")
     ex.add_argument("--alphas", default="0,0.25,0.5,0.75,1", help="UCRMI weights of the map term (default: 0,...,1)")
-    ex.add_argument("--runs", type=_positive_int, default=3, help="seeds per setting (default: 3)")
-    ex.add_argument("--budget", type=_positive_float, default=60.0, help="travel budget per run in metres (default: 60)")
-    ex.add_argument("--particles", type=_positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
+    ex.add_argument("--runs", type=positive_int, default=3, help="seeds per setting (default: 3)")
+    ex.add_argument("--budget", type=positive_float, default=60.0, help="travel budget per run in metres (default: 60)")
+    ex.add_argument("--particles", type=positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
     ex.add_argument("--known-poses", action="store_true", help="no SLAM: the robot knows its pose")
-    ex.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
+    ex.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ex.add_argument("--quiet", action="store_true", help="no progress output")
     ex.set_defaults(func=cmd_experiment)
     for q in (t1, rl):
-        q.add_argument("--workers", type=_positive_int, default=2, help="worker processes (spawn; default: 2)")
+        q.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
         q.add_argument(
-            "--threads", type=_positive_int, default=1, help="threads of each run (default: 1; the results do not depend on it)"
+            "--threads", type=positive_int, default=1, help="threads of each run (default: 1; the results do not depend on it)"
         )
-        q.add_argument("--weight-stride", type=_positive_int, default=1, help="beam stride of the weights (default: 1)")
-        q.add_argument("--tempering", type=_positive_float, default=1.0, help="weight tempering (default: 1)")
-        q.add_argument("--sigma-range", type=_nonnegative_float, default=0.01, help=_SIGMA_RANGE_HELP)
-        q.add_argument("--cause-kernel", choices=_CAUSE_KERNELS, default="midpoint", help=_CAUSE_KERNEL_HELP)
-        q.add_argument("--proposal", choices=_PROPOSALS, default="odometry", help=_PROPOSAL_HELP)
-        q.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=_PROPOSAL_POSE_HELP)
-        q.add_argument("--match-stride", type=_positive_int, default=3, help=_MATCH_STRIDE_HELP)
-        _add_likelihood_mode_options(q)
-        _add_estimate_options(q)
+        q.add_argument("--weight-stride", type=positive_int, default=1, help="beam stride of the weights (default: 1)")
+        q.add_argument("--tempering", type=positive_float, default=1.0, help="weight tempering (default: 1)")
+        q.add_argument("--sigma-range", type=nonnegative_float, default=0.01, help=SIGMA_RANGE_HELP)
+        q.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default="midpoint", help=CAUSE_KERNEL_HELP)
+        q.add_argument("--proposal", choices=PROPOSALS, default="odometry", help=PROPOSAL_HELP)
+        q.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=PROPOSAL_POSE_HELP)
+        q.add_argument("--match-stride", type=positive_int, default=3, help=MATCH_STRIDE_HELP)
+        add_likelihood_mode_options(q)
+        add_estimate_options(q)
         q.add_argument("--quiet", action="store_true", help="no progress output")
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"
@@ -678,7 +553,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", help="also write the full result (figures, details, machine) to this file")
     p.add_argument("--only", nargs="*", help="run only these figures")
     p.add_argument("--quick", action="store_true", help="small workloads (smoke test)")
-    p.add_argument("--repeats", type=_positive_int, default=3, help="best of N (default: 3)")
+    p.add_argument("--repeats", type=positive_int, default=3, help="best of N (default: 3)")
     p.add_argument("--verbose", action="store_true", help="print the full result, not just the figures")
     p.set_defaults(func=cmd_bench)
     return parser

@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from crlam.cli_options import positive_float, positive_int
 
 if TYPE_CHECKING:
     from crlam.experiments.known_poses import KnownPoseScan
@@ -101,11 +102,7 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_diagnose_parser(
-    sub: argparse._SubParsersAction,
-    positive_float: Callable[[str], float],
-    positive_int: Callable[[str], int],
-) -> None:
+def add_diagnose_parser(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "diagnose",
         help="diagnostics of the models (where the scan likelihood peaks)",

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from crlam.cli_options import positive_float, positive_int
+
 __all__ = ["add_explore_parser", "cmd_explore"]
 
 
@@ -45,7 +47,7 @@ def cmd_explore(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_explore_parser(subparsers: Any, positive_float: Any, positive_int: Any) -> argparse.ArgumentParser:
+def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``explore`` to ``subparsers``."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         "explore",

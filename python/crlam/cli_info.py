@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from crlam.cli_options import positive_float, positive_int
+
 __all__ = ["add_info_parser", "cmd_info"]
 
 
@@ -61,7 +63,7 @@ def cmd_info(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_info_parser(subparsers: Any, positive_float: Any, positive_int: Any) -> argparse.ArgumentParser:
+def add_info_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``info`` to ``subparsers``."""
     from crlam.info import FUNCTION_NAMES
 

@@ -236,7 +236,7 @@ impl LogOddsGrid {
         Ok((used, dropped))
     }
 
-    /// Log-odds over `rect`, row-major [iy][ix] (the hit means, if kept, are not exported).
+    /// Log-odds over `rect`, row-major `[iy][ix]` (the hit means, if kept, are not exported).
     pub fn export(&self, rect: CellRect) -> Vec<f32> {
         let stride = self.grid.stride();
         let all = self.grid.export(rect);

@@ -5,7 +5,7 @@ use crate::grid::{check_pose, CellRect, GridGeometry};
 use crate::raycast::first_hit;
 use rayon::prelude::*;
 
-/// A boolean world raster indexed [iy][ix] (iy = 0 at the minimum y).
+/// A boolean world raster indexed `[iy][ix]` (iy = 0 at the minimum y).
 #[derive(Clone, Debug)]
 pub struct WorldRaster<'a> {
     pub geometry: GridGeometry,
@@ -33,7 +33,7 @@ impl<'a> WorldRaster<'a> {
 
     /// Exact distance along each beam to the entry of the first occupied cell, or +inf when
     /// none lies within `max_range`; 0 if the sensor sits in an occupied cell. Cells outside the
-    /// raster are free. `out` is row-major [pose][beam].
+    /// raster are free. `out` is row-major `[pose][beam]`.
     pub fn cast(
         &self,
         poses: &[[f64; 3]],

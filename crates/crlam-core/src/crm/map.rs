@@ -237,7 +237,7 @@ impl CrmMap {
         })
     }
 
-    /// Expected occupancy m̂ of every cell of `rect` into `out` (row-major [iy][ix], length
+    /// Expected occupancy m̂ of every cell of `rect` into `out` (row-major `[iy][ix]`, length
     /// `rect.n_cells()`), equal to [`Self::mean_at`] cell by cell, read a tile row at a time.
     pub fn means_into(&self, rect: CellRect, out: &mut [f64]) -> Result<()> {
         if out.len() != rect.n_cells() {
@@ -276,7 +276,7 @@ impl CrmMap {
         Ok(())
     }
 
-    /// Replaces the pmfs over `rect` (row-major [iy][ix][k], normalised here).
+    /// Replaces the pmfs over `rect` (row-major `[iy][ix][k]`, normalised here).
     pub fn set_beliefs(&mut self, rect: CellRect, values: &[f64]) -> Result<()> {
         let k = self.mu.len();
         if values.len() != rect.n_cells() * k {
@@ -304,12 +304,12 @@ impl CrmMap {
         self.grid.import(rect, &out)
     }
 
-    /// Pmfs over `rect`, row-major [iy][ix][k].
+    /// Pmfs over `rect`, row-major `[iy][ix][k]`.
     pub fn beliefs(&self, rect: CellRect) -> Vec<f32> {
         self.grid.export(rect)
     }
 
-    /// (mean, variance, entropy in bits) per cell over `rect`, each row-major [iy][ix].
+    /// (mean, variance, entropy in bits) per cell over `rect`, each row-major `[iy][ix]`.
     pub fn derived(&self, rect: CellRect) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
         let n = rect.n_cells();
         let (mut m, mut v, mut h) = (

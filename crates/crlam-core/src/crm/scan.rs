@@ -201,7 +201,7 @@ impl CrmMap {
     }
 
     /// Updates the map with one scan taken from the sensor pose `pose` (x, y, θ); beam b points
-    /// at θ + angles[b] and read ranges[b] (crm-spec 3.1, 3.3).
+    /// at θ + `angles[b]` and read `ranges[b]` (crm-spec 3.1, 3.3).
     pub fn update_scan(
         &mut self,
         pose: [f64; 3],

@@ -86,7 +86,7 @@ const Q: [f64; 8] = [
 /// where no e ln 2 term can cancel, absolute elsewhere), branch-free and without a division:
 /// x = 2^e·m with m ∈ [47/64, 47/32), its node c_j (1 + j/16, or half that for the halved
 /// mantissas; m − c_j is exact and |r| ≤ 1/32 for r = (m − c_j)·(1/c_j)), then
-/// ln x = e ln 2 + ln c_j + ln(1 + r), the last by a degree-9 polynomial ([`Q`]) in Estrin's
+/// ln x = e ln 2 + ln c_j + ln(1 + r), the last by a degree-9 polynomial (`Q`) in Estrin's
 /// scheme (e ln 2 with one constant: its rounding, |e|·2.3e-17, is below an ulp of e ln 2).
 /// ln(1) is exactly 0 (there c_0 = 1 and r = 0). The exponent is read as a float through the
 /// 2^52 trick and j straight from the mantissa bits, so the only loads are three 16-entry tables

@@ -52,29 +52,29 @@ named_modes!(
 named_modes!(
     /// Where the free points of a beam lie (planner-spec 5.2 step 2).
     FreePoints, "free_points", {
-        /// [REF] on the segment from the world origin (0, 0) to each hit; the first free point of
+        /// \[REF\] on the segment from the world origin (0, 0) to each hit; the first free point of
         /// a beam uses its own N, all the others the N of the last hit.
         WorldOrigin = "world_origin" | "reference",
-        /// [CLEAN] on the segment from the robot to each hit, N per beam.
+        /// \[CLEAN\] on the segment from the robot to each hit, N per beam.
         Robot = "robot" | "clean",
     }
 );
 named_modes!(
     /// Which test points are fused into the variance map (planner-spec 5.2 step 5).
     Fusion, "fusion", {
-        /// [REF] the hits only.
+        /// \[REF\] the hits only.
         HitsOnly = "hits_only" | "reference",
-        /// [CLEAN] every test point.
+        /// \[CLEAN\] every test point.
         AllPoints = "all_points" | "clean",
     }
 );
 named_modes!(
     /// The expected kernel of UGPVR (planner-spec 5.3).
     UgpvrKernel, "ugpvr_kernel", {
-        /// [REF] weights / (2π), offsets R·ξ with the upper factor RᵀR = Σ: about half the
+        /// \[REF\] weights / (2π), offsets R·ξ with the upper factor RᵀR = Σ: about half the
         /// expected kernel, applied to K and K* but not k(t, t).
         ReferenceHalf = "reference_half" | "reference",
-        /// [CLEAN] weights / π, offsets √2·L·ξ with L Lᵀ = Σ: E_{u∼N(x,Σ)} k(u, z); K unchanged.
+        /// \[CLEAN\] weights / π, offsets √2·L·ξ with L Lᵀ = Σ: E_{u∼N(x,Σ)} k(u, z); K unchanged.
         Expected = "expected" | "clean",
     }
 );
@@ -381,8 +381,8 @@ pub struct ExpectedKernel {
 
 impl ExpectedKernel {
     /// The quadrature for `mode` and the position covariance `sigma_xy` (m²). `Ok(None)` means
-    /// the plain kernel applies: [REF] Σ is not positive definite (its Cholesky fails);
-    /// [CLEAN] Σ = 0 (a PSD singular Σ uses its semi-definite lower factor). Errors on a
+    /// the plain kernel applies: \[REF\] Σ is not positive definite (its Cholesky fails);
+    /// \[CLEAN\] Σ = 0 (a PSD singular Σ uses its semi-definite lower factor). Errors on a
     /// non-finite, asymmetric or (clean) non-PSD Σ.
     pub fn new(mode: UgpvrKernel, sigma_xy: [[f64; 2]; 2]) -> Result<Option<Self>> {
         let [[a, b], [b2, c]] = sigma_xy;

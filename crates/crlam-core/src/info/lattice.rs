@@ -228,7 +228,7 @@ pub struct LatticeCell {
 }
 
 /// The cells of the lattice crossed by a beam from `origin` for `t ∈ [0, length]`, each once, in
-/// order (planner-spec 2.3 [CLEAN]); the walk stops at the lattice border. Clears `out` first.
+/// order (planner-spec 2.3 \[CLEAN\]); the walk stops at the lattice border. Clears `out` first.
 pub fn traverse_lattice(
     lat: &OccupancyLattice,
     origin: [f64; 2],

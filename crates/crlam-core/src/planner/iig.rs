@@ -128,7 +128,7 @@ impl<B> IigResult<B> {
         self.nodes.iter().map(|n| n.gain).collect()
     }
 
-    /// "Average I_RIC" (planner-spec 3.6, Q4): cumRIC[end] / (#nodes − 1); 0 for a lone root.
+    /// "Average I_RIC" (planner-spec 3.6, Q4): `cumRIC[end]` / (#nodes − 1); 0 for a lone root.
     pub fn mean_ric(&self) -> f64 {
         let n = self.nodes.len().saturating_sub(1);
         if n == 0 {

@@ -11,7 +11,7 @@
 //! - [`spatial`]: the incremental bucket-grid index behind Nearest, Near and NoCollision.
 //! - [`iig`]: [`run_iig`], the main loop, and its result types.
 //! - [`paths`]: main-path voting and the most informative path, usable on hand-made trees.
-//! - [`geodesic`]: 8-connected Dijkstra distances on a traversable grid (the exploration loop's
+//! - [`mod@geodesic`]: 8-connected Dijkstra distances on a traversable grid (the exploration loop's
 //!   path search).
 
 pub mod geodesic;

@@ -7,10 +7,10 @@ use crate::info::posecov::{check_covariance, root_covariance, Cov3, EdgeNoise, P
 /// How a point is moved toward a target (planner-spec 3.2 Steer).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SteerMode {
-    /// [REF] fail when ‖b − a‖ < `min_distance` (m), else return a + `fraction`·(b − a). The
+    /// \[REF\] fail when ‖b − a‖ < `min_distance` (m), else return a + `fraction`·(b − a). The
     /// reference uses fraction 0.5 and a 1 m minimum, so every edge is in [0.5, ½ r_near] m.
     Reference { fraction: f64, min_distance: f64 },
-    /// [CLEAN] the classic RIG step: b itself when ‖b − a‖ ≤ `step` (m), else the point `step`
+    /// \[CLEAN\] the classic RIG step: b itself when ‖b − a‖ ≤ `step` (m), else the point `step`
     /// metres from a toward b. Fails only for coincident points (‖b − a‖ ≤ [`MIN_EDGE`]).
     Clean { step: f64 },
 }
@@ -83,11 +83,11 @@ impl SteerMode {
 /// How an edge is checked against the obstacle points (planner-spec 3.2 NoCollision).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum CollisionMode {
-    /// [REF] test a + s·(b − a) for s = 0.08, 0.16, … ≤ L = ‖b − a‖: the direction is not
+    /// \[REF\] test a + s·(b − a) for s = 0.08, 0.16, … ≤ L = ‖b − a‖: the direction is not
     /// normalised, so only the first fraction L of a short edge is checked and a long edge is
     /// checked beyond b.
     Reference,
-    /// [CLEAN] walk a → b in equal steps of at most 0.08 m, both endpoints included.
+    /// \[CLEAN\] walk a → b in equal steps of at most 0.08 m, both endpoints included.
     Clean,
 }
 
@@ -119,9 +119,9 @@ impl CollisionMode {
 /// How the cumulative information of a new node is formed (planner-spec 3.4).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum InfoAccumulation {
-    /// [REF] I_new = ΔI + I_{π(v)} for the near node v (the root is its own parent).
+    /// \[REF\] I_new = ΔI + I_{π(v)} for the near node v (the root is its own parent).
     Reference,
-    /// [CLEAN] I_new = I_v + ΔI: the sum of the gains on the path, root included.
+    /// \[CLEAN\] I_new = I_v + ΔI: the sum of the gains on the path, root included.
     PathSum,
 }
 
@@ -150,7 +150,7 @@ impl InfoAccumulation {
 /// Which evaluations are committed to the map (planner-spec 3.5).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MapMutation {
-    /// [REF] every evaluation, including those of pruned candidates.
+    /// \[REF\] every evaluation, including those of pruned candidates.
     EveryEvaluation,
     /// [CLEAN ablation] only the root's and the accepted nodes' evaluations.
     AcceptedOnly,
@@ -181,9 +181,9 @@ impl MapMutation {
 /// Which nodes Nearest searches (planner-spec 3.2).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum NearestMode {
-    /// [REF] all nodes; a sample whose nearest node is closed is discarded.
+    /// \[REF\] all nodes; a sample whose nearest node is closed is discarded.
     AllNodes,
-    /// [CLEAN] open nodes only (RIG's V \ V_closed).
+    /// \[CLEAN\] open nodes only (RIG's V \ V_closed).
     OpenOnly,
 }
 

@@ -1,5 +1,5 @@
 //! A uniform bucket grid over 2-D points with exact nearest-neighbour and radius queries
-//! (planner-spec 3.11 [CLEAN]: an incremental structure instead of rebuilding a kd-tree after
+//! (planner-spec 3.11 \[CLEAN\]: an incremental structure instead of rebuilding a kd-tree after
 //! every insertion). Used for the tree nodes and for the obstacle points.
 //!
 //! Every answer is exact (distances are compared directly, the grid only prunes), and ties are

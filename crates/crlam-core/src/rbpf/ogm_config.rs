@@ -40,7 +40,7 @@ impl MotionDraws {
 /// Configuration of [`RbpfOgm`](super::ogm::RbpfOgm). GMapping's parameter names are given in brackets.
 #[derive(Clone, Debug, PartialEq)]
 pub struct OgmFilterConfig {
-    /// [particles] 30.
+    /// \[particles\] 30.
     pub n_particles: usize,
     /// Odometry model. Default: Thrun's model with α = (0.04, 0.01, 0.01, 0.04), the squares of
     /// GMapping's srr 0.1, srt 0.2, str 0.1, stt 0.2 (its coefficients scale standard deviations,
@@ -52,23 +52,23 @@ pub struct OgmFilterConfig {
     pub motion: MotionModel,
     /// When the motion model draws: per processed scan (default) or per incoming scan (GMapping).
     pub motion_draws: MotionDraws,
-    /// [linearUpdate, angularUpdate] Default: every scan. GMapping uses 1.0 m / 0.5 rad.
+    /// \[linearUpdate, angularUpdate\] Default: every scan. GMapping uses 1.0 m / 0.5 rad.
     pub trigger: UpdateTrigger,
-    /// [resampleThreshold] Resample when N_eff < threshold · n. 0.5.
+    /// \[resampleThreshold\] Resample when N_eff < threshold · n. 0.5.
     pub resample_threshold: f64,
-    /// [ogain] Weight smoothing: log-weights are divided by ogain · n before normalising. 3.
+    /// \[ogain\] Weight smoothing: log-weights are divided by ogain · n before normalising. 3.
     /// 0 disables it (textbook weights).
     pub weight_smoothing: f64,
-    /// [delta] Map origin and resolution. 0.05 m, as GMapping (its scan matcher steps and
+    /// \[delta\] Map origin and resolution. 0.05 m, as GMapping (its scan matcher steps and
     /// kernel are tuned for 5 cm cells).
     pub geometry: GridGeometry,
     /// Tile side of the copy-on-write map storage (cells). 32.
     pub tile_size: usize,
-    /// Inverse sensor model of the maps. Its `z_max` is the usable range [maxUrange]: longer
+    /// Inverse sensor model of the maps. Its `z_max` is the usable range \[maxUrange\]: longer
     /// readings are cropped to it for mapping (free space only) and not used for matching.
     /// Default: [`LogOddsParams::new`] with z_max = 30 m.
     pub log_odds: LogOddsParams,
-    /// [maxrange] Readings at or above this (and non-finite ones) are ignored entirely. 80 m.
+    /// \[maxrange\] Readings at or above this (and non-finite ones) are ignored entirely. 80 m.
     pub max_range: f64,
     /// Scan matcher (score, likelihood, hill climbing, beam stride).
     pub matcher: MatcherParams,

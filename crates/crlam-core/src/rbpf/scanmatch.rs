@@ -153,7 +153,7 @@ pub struct ProposalDraw {
     pub covariance: [[f64; 3]; 3],
 }
 
-/// Scan matcher over [`LogOddsGrid`]s.
+/// Scan matcher over [`LogOddsGrid`](crate::ogm::LogOddsGrid)s.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScanMatcher {
     pub params: MatcherParams,

@@ -32,21 +32,21 @@ impl FreeTest {
 /// Parameters of the scan matcher (GMapping names in brackets).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MatcherParams {
-    /// [sigma] Score kernel, m²: score per beam exp(−d²/score_sigma). 0.05.
+    /// \[sigma\] Score kernel, m²: score per beam exp(−d²/score_sigma). 0.05.
     pub score_sigma: f64,
-    /// [lsigma] Likelihood kernel, m²: log-lik per beam −d²/likelihood_sigma. 0.075.
+    /// \[lsigma\] Likelihood kernel, m²: log-lik per beam −d²/likelihood_sigma. 0.075.
     pub likelihood_sigma: f64,
-    /// [nullLikelihood] Log-lik numerator of an unmatched beam (< 0). −0.5.
+    /// \[nullLikelihood\] Log-lik numerator of an unmatched beam (< 0). −0.5.
     pub null_likelihood: f64,
-    /// [kernelSize] Half-width k of the search window in cells. 1.
+    /// \[kernelSize\] Half-width k of the search window in cells. 1.
     pub kernel_size: usize,
-    /// [lstep] Initial translational step of the hill climbing (m). 0.05.
+    /// \[lstep\] Initial translational step of the hill climbing (m). 0.05.
     pub lstep: f64,
-    /// [astep] Initial rotational step (rad). 0.05.
+    /// \[astep\] Initial rotational step (rad). 0.05.
     pub astep: f64,
-    /// [iterations] Number of step halvings before the search stops. 5.
+    /// \[iterations\] Number of step halvings before the search stops. 5.
     pub iterations: usize,
-    /// [lskip + 1] Use every `beam_stride`-th beam for score and likelihood. 1.
+    /// \[lskip + 1\] Use every `beam_stride`-th beam for score and likelihood. 1.
     pub beam_stride: usize,
     /// When the companion cell of a match counts as free. [`FreeTest::Observed`].
     pub free_test: FreeTest,
@@ -115,7 +115,7 @@ impl MatcherParams {
 /// of (2h+1)³ poses centred on the match, spanning ±`range` (world x, y, and heading).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProposalParams {
-    /// [minimumScore] A match is accepted when its score exceeds this. 0 (GMapping's default):
+    /// \[minimumScore\] A match is accepted when its score exceeds this. 0 (GMapping's default):
     /// at least one beam must match.
     pub min_score: f64,
     /// Half-width h of the lattice in steps (1..=3); K = (2h+1)³ poses. 1 (K = 27, as GMapping).
