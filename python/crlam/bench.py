@@ -49,6 +49,8 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
     BenchSpec("rbpf_clam_scans_per_s_1079x100", size=20, quick_size=2, target_per_s=37.0),
     # The same run with the reference kernel (every cell swept): the baseline of the ratio below.
     BenchSpec("rbpf_clam_scans_per_s_1079x100_full_ray", size=10, quick_size=2),
+    # The likelihood-mode proposal on the same workload (the Table I setting with --proposal likelihood_mode).
+    BenchSpec("rbpf_clam_likelihood_mode_scans_per_s_1079x100", size=4, quick_size=1),
     BenchSpec("rbpf_clam_scans_per_s_180x30", size=100, quick_size=5),
     BenchSpec("rbpf_ogm_scans_per_s_180x30", size=100, quick_size=5),
     # The baseline with GMapping's cells in full (--ogm-map gmapping) and per-scan motion draws.

@@ -272,6 +272,33 @@ pub fn rbpf_clam_scans_with(
     ))
 }
 
+/// RBPF-CLAM with the likelihood-mode proposal (hill climb on every third beam, 3×3×3 lattice and
+/// weights on every beam) on [`rbpf_clam_scans`]'s workload: 0.2 m grid, 8 m, one thread.
+pub fn rbpf_clam_likelihood_mode_scans(
+    n_scans: usize,
+    n_particles: usize,
+    n_beams: usize,
+) -> Result<BenchFigure> {
+    use crate::rbpf::{ClamConfig, ClamProposal, RbpfClam};
+    let fov = if n_beams == 1079 { 270.0 } else { 180.0 };
+    let w = filter_workload(n_scans + 1, n_beams, fov, 8.0)?;
+    let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), 8.0);
+    cfg.n_particles = n_particles;
+    cfg.proposal = ClamProposal::likelihood_mode();
+    let mut f = RbpfClam::new(cfg, w.odom[0])?;
+    let secs = time_filter(&w, n_scans, |s| f.process(s))?;
+    let name = match (n_beams, n_particles) {
+        (1079, 100) => "rbpf_clam_likelihood_mode_scans_per_s_1079x100",
+        _ => "rbpf_clam_likelihood_mode_scans_per_s",
+    };
+    Ok(filter_figure(
+        name,
+        "processed scan (all particles: hill climb, lattice, weight, map update; 0.2 m grid, 8 m, one thread)",
+        n_scans,
+        secs,
+    ))
+}
+
 /// RBPF-OGM (GMapping-style) scans per second on one thread, 180 beams over 180°, 0.05 m grid.
 pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
     use crate::rbpf::{OgmFilterConfig, RbpfOgm};

@@ -40,6 +40,9 @@ pub fn run_benchmark<'py>(
             }
             "raycast_cells_per_s" => Some(bench::raycast_cells(size)),
             "rbpf_clam_scans_per_s_1079x100" => Some(bench::rbpf_clam_scans(size, 100, 1079)),
+            "rbpf_clam_likelihood_mode_scans_per_s_1079x100" => {
+                Some(bench::rbpf_clam_likelihood_mode_scans(size, 100, 1079))
+            }
             "rbpf_clam_scans_per_s_1079x100_full_ray" => Some(bench::rbpf_clam_scans_with(
                 size,
                 100,

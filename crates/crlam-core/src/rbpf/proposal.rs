@@ -3,7 +3,7 @@
 //! the mode, fit a Gaussian and draw from it (or keep the mode); the weight increment is the log
 //! of the lattice normaliser.
 
-use crate::crm::{CrmScratch, ScanOptions};
+use crate::crm::{CrmMap, CrmScratch};
 use crate::error::Result;
 use crate::pose::{compose, wrap, Pose};
 use crate::rbpf::clam::{scan_opts, ClamConfig, ClamParticle, ClamProposal};
@@ -22,6 +22,66 @@ pub(crate) struct Proposed {
     pub dlogw: f64,
 }
 
+/// How the proposal evaluates a scan's Σ log η at the poses it tries, all within a few decimetres
+/// of the odometry guess. Where the scan's window is small (8 m at 0.05 m or coarser), by the
+/// batch scan's weight-only path ([`CrmMap::weigh_scan`]) on a copy of the particle's map: the
+/// copy shares the map's tiles and its window mean table, which the first pose fills and later
+/// poses (and the particle's relatives) read, and it weighs sixteen beams at a time in lanes.
+/// Elsewhere (long ranges on fine grids, where a table per copy costs more than it saves), by
+/// the forward walk ([`CrmMap::scan_log_likelihood`]). The two agree to rounding. The copy may
+/// grow its storage to cover a pose's scan; the particle's own map is never written here.
+struct ScanLikelihood<'a> {
+    cfg: &'a ClamConfig,
+    scan: &'a ScanInput<'a>,
+    map: &'a CrmMap,
+    batch: Option<CrmMap>,
+}
+
+impl<'a> ScanLikelihood<'a> {
+    fn new(cfg: &'a ClamConfig, scan: &'a ScanInput<'a>, map: &'a CrmMap, near: Pose) -> Self {
+        let sensor = compose(near, scan.laser_offset);
+        let z_max = cfg.weight_model.z_max.max(cfg.mapping_model.z_max);
+        let small = map.weighs_in_a_small_window(
+            [sensor[0], sensor[1]],
+            z_max,
+            &scan_opts(cfg, cfg.map_stride),
+        );
+        Self {
+            cfg,
+            scan,
+            map,
+            batch: small.then(|| map.clone()),
+        }
+    }
+
+    /// Σ log η of every `stride`-th beam of the scan taken at robot pose `pose`.
+    fn eval(&mut self, pose: Pose, stride: usize, sc: &mut CrmScratch) -> Result<f64> {
+        let (cfg, scan) = (self.cfg, self.scan);
+        let sensor = compose(pose, scan.laser_offset);
+        let (ll, _) = match &mut self.batch {
+            Some(copy) => copy.weigh_scan(
+                sensor,
+                scan.angles,
+                scan.ranges,
+                &cfg.weight_model,
+                stride,
+                &cfg.mapping_model,
+                &scan_opts(cfg, cfg.map_stride),
+                sc,
+            )?,
+            None => self.map.scan_log_likelihood(
+                sensor,
+                scan.angles,
+                scan.ranges,
+                &cfg.weight_model,
+                &scan_opts(cfg, stride),
+                sc,
+            )?,
+        };
+        Ok(ll)
+    }
+}
+
 /// Proposes the particle's new pose and the log-weight increment.
 pub(crate) fn propose(
     cfg: &ClamConfig,
@@ -32,23 +92,11 @@ pub(crate) fn propose(
     rng: &mut Rng,
     sc: &mut CrmScratch,
 ) -> Result<Proposed> {
-    let weight_opts = scan_opts(cfg, cfg.weight_stride);
-    let loglik = |pose: Pose, opts: &ScanOptions, sc: &mut CrmScratch| -> Result<f64> {
-        let sensor = compose(pose, scan.laser_offset);
-        let (ll, _) = p.map.scan_log_likelihood(
-            sensor,
-            scan.angles,
-            scan.ranges,
-            &cfg.weight_model,
-            opts,
-            sc,
-        )?;
-        Ok(ll)
-    };
+    let mut like = ScanLikelihood::new(cfg, scan, &p.map, compose(p.pose, u));
     match cfg.proposal {
         ClamProposal::Odometry => {
             let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
-            let dlogw = loglik(pose, &weight_opts, sc)? / cfg.tempering;
+            let dlogw = like.eval(pose, cfg.weight_stride, sc)? / cfg.tempering;
             Ok(Proposed {
                 pose,
                 mean: compose(p.pose, u),
@@ -63,7 +111,6 @@ pub(crate) fn propose(
             pose: pose_rule,
             motion_outlier,
         } => {
-            let match_opts = scan_opts(cfg, match_stride);
             // With `Match` nothing is drawn after the climb, so the climb must start from a
             // motion-model sample (as in GMapping): from the odometry guess, the children of one
             // parent (same pose, same map) would stay identical copies for ever.
@@ -80,7 +127,7 @@ pub(crate) fn propose(
                 )
             };
             let mode = hill_climb(guess, step, iterations, |x| {
-                Ok(loglik(x, &match_opts, sc)? + prior(x))
+                Ok(like.eval(x, match_stride, sc)? + prior(x))
             })?;
             // Lattice around the mode: likelihood × motion density.
             let mut pts = Vec::with_capacity(27);
@@ -93,7 +140,7 @@ pub(crate) fn propose(
                             mode[1] + dy as f64 * fine[1],
                             wrap(mode[2] + dt as f64 * fine[2]),
                         ];
-                        let l = loglik(x, &weight_opts, sc)? + prior(x);
+                        let l = like.eval(x, cfg.weight_stride, sc)? + prior(x);
                         pts.push(x);
                         lw.push(l);
                     }
@@ -103,7 +150,7 @@ pub(crate) fn propose(
             if !m.is_finite() {
                 // No lattice point is plausible under the motion model: fall back to odometry.
                 let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
-                let dlogw = loglik(pose, &weight_opts, sc)? / cfg.tempering;
+                let dlogw = like.eval(pose, cfg.weight_stride, sc)? / cfg.tempering;
                 return Ok(Proposed {
                     pose,
                     mean: pose,
@@ -315,6 +362,95 @@ mod tests {
             let v = robust_log_density(lp, eps);
             assert!(v >= eps.ln() && v >= (1.0 - eps).ln() + lp);
         }
+    }
+
+    /// A map of a 4 m × 3 m room (0.1 m cells) seen from near its centre by 361 beams over 360°,
+    /// and the scan taken at the centre.
+    fn room_scan(z_max: f64) -> (ClamConfig, CrmMap, Vec<f64>, Vec<f64>) {
+        use crate::crm::CrmConfig;
+        use crate::grid::GridGeometry;
+        let cfg = ClamConfig::paper(
+            CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.1).unwrap()),
+            z_max,
+        );
+        let angles: Vec<f64> = (0..361)
+            .map(|i| -std::f64::consts::PI + i as f64 * std::f64::consts::TAU / 361.0)
+            .collect();
+        // Distances to the walls x = ±2, y = ±1.5 from the origin.
+        let ranges: Vec<f64> = angles
+            .iter()
+            .map(|a| {
+                let (s, c) = a.sin_cos();
+                let tx = if c.abs() > 1e-12 {
+                    2.0 / c.abs()
+                } else {
+                    f64::INFINITY
+                };
+                let ty = if s.abs() > 1e-12 {
+                    1.5 / s.abs()
+                } else {
+                    f64::INFINITY
+                };
+                tx.min(ty)
+            })
+            .collect();
+        let mut map = CrmMap::new(&cfg.crm).unwrap();
+        let mut sc = CrmScratch::default();
+        for k in 0..3 {
+            let pose = [0.02 * k as f64, -0.01 * k as f64, 0.01 * k as f64];
+            map.update_scan(
+                pose,
+                &angles,
+                &ranges,
+                &cfg.mapping_model,
+                &scan_opts(&cfg, 1),
+                &mut sc,
+            )
+            .unwrap();
+        }
+        (cfg, map, angles, ranges)
+    }
+
+    #[test]
+    fn batch_and_forward_likelihoods_agree_and_the_window_picks_the_path() {
+        let (cfg, map, angles, ranges) = room_scan(8.0);
+        let scan = ScanInput {
+            odom: [0.0; 3],
+            angles: &angles,
+            ranges: &ranges,
+            laser_offset: [0.0; 3],
+        };
+        let mut sc = CrmScratch::default();
+        // 8 m at 0.1 m: a small window, so the batch path on a copy of the map.
+        let mut like = ScanLikelihood::new(&cfg, &scan, &map, [0.0; 3]);
+        assert!(like.batch.is_some());
+        let mut forward = ScanLikelihood {
+            batch: None,
+            ..ScanLikelihood::new(&cfg, &scan, &map, [0.0; 3])
+        };
+        let mut distinct = Vec::new();
+        for pose in [[0.0, 0.0, 0.0], [0.07, -0.04, 0.02], [-0.3, 0.2, -0.1]] {
+            for stride in [1, 3] {
+                let (a, b) = (
+                    like.eval(pose, stride, &mut sc).unwrap(),
+                    forward.eval(pose, stride, &mut sc).unwrap(),
+                );
+                assert!(
+                    a.is_finite() && (a - b).abs() <= 1e-10 * b.abs(),
+                    "{pose:?} {stride}: {a} vs {b}"
+                );
+                distinct.push(a);
+            }
+        }
+        assert!(
+            distinct.windows(2).any(|w| (w[0] - w[1]).abs() > 1.0),
+            "{distinct:?}"
+        );
+        // 80 m at 0.1 m: a window of 2.6 M cells, so the forward walk.
+        let (cfg80, map80, ..) = room_scan(80.0);
+        assert!(ScanLikelihood::new(&cfg80, &scan, &map80, [0.0; 3])
+            .batch
+            .is_none());
     }
 
     #[test]
