@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
+from typing import TypeVar
 
 __all__ = [
     "BATCH_KERNELS",
@@ -30,13 +32,42 @@ __all__ = [
 ]
 
 
-def positive_float(text: str) -> float:
+_Number = TypeVar("_Number", int, float)
+
+
+def _parse(text: str, kind: Callable[[str], _Number], what: str) -> _Number:
+    """``kind(text)``, with argparse's error naming the value when it is not ``what``."""
     try:
-        v = float(text)
+        return kind(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+        raise argparse.ArgumentTypeError(f"not {what}: {text!r}") from None
+
+
+def positive_float(text: str) -> float:
+    v = _parse(text, float, "a number")
     if not (v > 0 and v != float("inf")):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
+
+
+def nonnegative_float(text: str) -> float:
+    v = _parse(text, float, "a number")
+    if not (v >= 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
+    return v
+
+
+def positive_int(text: str) -> int:
+    v = _parse(text, int, "an integer")
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
+    return v
+
+
+def nonnegative_int(text: str) -> int:
+    v = _parse(text, int, "an integer")
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
     return v
 
 
@@ -78,16 +109,6 @@ LATTICE_STEP_HELP = (
 SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
 
 
-def nonnegative_float(text: str) -> float:
-    try:
-        v = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
-    if not (v >= 0 and v != float("inf")):
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text}")
-    return v
-
-
 def add_likelihood_mode_options(parser: argparse.ArgumentParser) -> None:
     """``--lattice-step DXY DTHETA`` and ``--motion-outlier EPS`` of the likelihood-mode proposal, shared by
     ``slam`` and the experiments."""
@@ -103,26 +124,6 @@ def add_likelihood_mode_options(parser: argparse.ArgumentParser) -> None:
         "density gets a floor of log EPS, so a large likelihood gain (a loop closure) can move the pose however "
         "tight the motion model (default: 0, off)",
     )
-
-
-def positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f"must be > 0, got {text}")
-    return v
-
-
-def nonnegative_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not an integer: {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
-    return v
 
 
 def add_estimate_options(parser: argparse.ArgumentParser) -> None:

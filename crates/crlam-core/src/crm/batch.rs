@@ -122,18 +122,15 @@ impl CrmMap {
         Ok((ll, used))
     }
 
-    /// True if [`Self::weigh_scan`] with `opts` from `position` runs the windowed kernel on a
+    /// True if [`Self::weigh_scan`] with `opts` and reach `z_max` runs the windowed kernel on a
     /// window mean table of its own (at most [`SMALL_WINDOW_CELLS`] cells: 8 m at 0.05 m), so
     /// that a caller weighing many nearby poses on one copy of the map reads one table. Long
     /// ranges on fine grids (80 m at 0.1 m: 2.6 M cells a table) are better served by
     /// [`Self::scan_log_likelihood`], which reads the map's block means only where beams go.
-    pub(crate) fn weighs_in_a_small_window(
-        &self,
-        position: [f64; 2],
-        z_max: f64,
-        opts: &ScanOptions,
-    ) -> bool {
-        let window = scan_window(self.grid.geometry(), position, z_max);
+    pub(crate) fn weighs_in_a_small_window(&self, z_max: f64, opts: &ScanOptions) -> bool {
+        // The window's size depends on the reach and the cell size only, not on the position.
+        let g = self.grid.geometry();
+        let window = scan_window(g, g.origin, z_max);
         opts.mode == ScanUpdateMode::Batch
             && opts.kernel == BatchKernel::Windowed
             && self.grid.fixed_extent().is_none()

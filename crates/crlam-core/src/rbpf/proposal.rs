@@ -38,14 +38,9 @@ struct ScanLikelihood<'a> {
 }
 
 impl<'a> ScanLikelihood<'a> {
-    fn new(cfg: &'a ClamConfig, scan: &'a ScanInput<'a>, map: &'a CrmMap, near: Pose) -> Self {
-        let sensor = compose(near, scan.laser_offset);
+    fn new(cfg: &'a ClamConfig, scan: &'a ScanInput<'a>, map: &'a CrmMap) -> Self {
         let z_max = cfg.weight_model.z_max.max(cfg.mapping_model.z_max);
-        let small = map.weighs_in_a_small_window(
-            [sensor[0], sensor[1]],
-            z_max,
-            &scan_opts(cfg, cfg.map_stride),
-        );
+        let small = map.weighs_in_a_small_window(z_max, &scan_opts(cfg, cfg.map_stride));
         Self {
             cfg,
             scan,
@@ -92,7 +87,7 @@ pub(crate) fn propose(
     rng: &mut Rng,
     sc: &mut CrmScratch,
 ) -> Result<Proposed> {
-    let mut like = ScanLikelihood::new(cfg, scan, &p.map, compose(p.pose, u));
+    let mut like = ScanLikelihood::new(cfg, scan, &p.map);
     match cfg.proposal {
         ClamProposal::Odometry => {
             let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
@@ -422,11 +417,11 @@ mod tests {
         };
         let mut sc = CrmScratch::default();
         // 8 m at 0.1 m: a small window, so the batch path on a copy of the map.
-        let mut like = ScanLikelihood::new(&cfg, &scan, &map, [0.0; 3]);
+        let mut like = ScanLikelihood::new(&cfg, &scan, &map);
         assert!(like.batch.is_some());
         let mut forward = ScanLikelihood {
             batch: None,
-            ..ScanLikelihood::new(&cfg, &scan, &map, [0.0; 3])
+            ..ScanLikelihood::new(&cfg, &scan, &map)
         };
         let mut distinct = Vec::new();
         for pose in [[0.0, 0.0, 0.0], [0.07, -0.04, 0.02], [-0.3, 0.2, -0.1]] {
@@ -448,9 +443,7 @@ mod tests {
         );
         // 80 m at 0.1 m: a window of 2.6 M cells, so the forward walk.
         let (cfg80, map80, ..) = room_scan(80.0);
-        assert!(ScanLikelihood::new(&cfg80, &scan, &map80, [0.0; 3])
-            .batch
-            .is_none());
+        assert!(ScanLikelihood::new(&cfg80, &scan, &map80).batch.is_none());
     }
 
     #[test]
