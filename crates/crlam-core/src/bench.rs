@@ -238,6 +238,24 @@ fn filter_figure(name: &'static str, unit: &'static str, n_scans: usize, secs: f
     }
 }
 
+/// Seconds RBPF-CLAM takes for `n_scans` of the filter workload (1079 beams over 270°, otherwise
+/// over 180°; 8 m, 0.2 m grid, one thread), with the paper's settings changed by `adjust`.
+fn time_clam(
+    n_scans: usize,
+    n_particles: usize,
+    n_beams: usize,
+    adjust: impl FnOnce(&mut crate::rbpf::ClamConfig),
+) -> Result<f64> {
+    use crate::rbpf::{ClamConfig, RbpfClam};
+    let fov = if n_beams == 1079 { 270.0 } else { 180.0 };
+    let w = filter_workload(n_scans + 1, n_beams, fov, 8.0)?;
+    let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), 8.0);
+    cfg.n_particles = n_particles;
+    adjust(&mut cfg);
+    let mut f = RbpfClam::new(cfg, w.odom[0])?;
+    time_filter(&w, n_scans, |s| f.process(s))
+}
+
 /// RBPF-CLAM scans per second on one thread (paper settings: every beam, odometry proposal).
 pub fn rbpf_clam_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<BenchFigure> {
     rbpf_clam_scans_with(n_scans, n_particles, n_beams, BatchKernel::Windowed)
@@ -250,14 +268,9 @@ pub fn rbpf_clam_scans_with(
     n_beams: usize,
     kernel: BatchKernel,
 ) -> Result<BenchFigure> {
-    use crate::rbpf::{ClamConfig, RbpfClam};
-    let fov = if n_beams == 1079 { 270.0 } else { 180.0 };
-    let w = filter_workload(n_scans + 1, n_beams, fov, 8.0)?;
-    let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), 8.0);
-    cfg.n_particles = n_particles;
-    cfg.batch_kernel = kernel;
-    let mut f = RbpfClam::new(cfg, w.odom[0])?;
-    let secs = time_filter(&w, n_scans, |s| f.process(s))?;
+    let secs = time_clam(n_scans, n_particles, n_beams, |cfg| {
+        cfg.batch_kernel = kernel
+    })?;
     let name = match (n_beams, n_particles, kernel) {
         (1079, 100, BatchKernel::Windowed) => "rbpf_clam_scans_per_s_1079x100",
         (1079, 100, BatchKernel::FullRay) => "rbpf_clam_scans_per_s_1079x100_full_ray",
@@ -279,14 +292,10 @@ pub fn rbpf_clam_likelihood_mode_scans(
     n_particles: usize,
     n_beams: usize,
 ) -> Result<BenchFigure> {
-    use crate::rbpf::{ClamConfig, ClamProposal, RbpfClam};
-    let fov = if n_beams == 1079 { 270.0 } else { 180.0 };
-    let w = filter_workload(n_scans + 1, n_beams, fov, 8.0)?;
-    let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), 8.0);
-    cfg.n_particles = n_particles;
-    cfg.proposal = ClamProposal::likelihood_mode();
-    let mut f = RbpfClam::new(cfg, w.odom[0])?;
-    let secs = time_filter(&w, n_scans, |s| f.process(s))?;
+    use crate::rbpf::ClamProposal;
+    let secs = time_clam(n_scans, n_particles, n_beams, |cfg| {
+        cfg.proposal = ClamProposal::likelihood_mode()
+    })?;
     let name = match (n_beams, n_particles) {
         (1079, 100) => "rbpf_clam_likelihood_mode_scans_per_s_1079x100",
         _ => "rbpf_clam_likelihood_mode_scans_per_s",
