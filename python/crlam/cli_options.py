@@ -93,7 +93,7 @@ WEIGHT_SMOOTHING_HELP = (
     "resampling and the weighted mean (default: 3, GMapping's; 0 = plain weights)"
 )
 CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
-PROPOSALS = ("odometry", "likelihood_mode")
+PROPOSALS = ("odometry", "likelihood_mode", "scan_match")
 PROPOSAL_HELP = "RBPF-CLAM: odometry (paper) or the CRM improved proposal (default: odometry)"
 PROPOSAL_POSE_HELP = (
     "improved proposals (RBPF-CLAM likelihood_mode, RBPF-OGM): draw the pose from the Gaussian fitted around the "

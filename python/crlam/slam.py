@@ -195,8 +195,8 @@ class SlamConfig:
             raise bad("motion_outlier", "must be in [0, 1)")
         if not 0.0 <= self.resample_threshold <= 1.0:
             raise bad("resample_threshold", "must be in [0, 1]")
-        if self.proposal not in ("odometry", "likelihood_mode"):
-            raise bad("proposal", "must be 'odometry' or 'likelihood_mode'")
+        if self.proposal not in ("odometry", "likelihood_mode", "scan_match"):
+            raise bad("proposal", "must be 'odometry', 'likelihood_mode' or 'scan_match'")
         if self.proposal_pose not in ("sample", "match"):
             raise bad("proposal_pose", "must be 'sample' or 'match'")
         if self.method == "clam" and self.proposal == "odometry" and self.proposal_pose != "sample":

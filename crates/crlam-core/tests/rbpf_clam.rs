@@ -5,7 +5,9 @@ use crlam_core::crm::CrmConfig;
 use crlam_core::grid::GridGeometry;
 use crlam_core::motion::MotionModel;
 use crlam_core::pose::{between, compose, wrap, Pose};
-use crlam_core::rbpf::{ClamConfig, ClamProposal, ProposalPose, RbpfClam, ScanInput};
+use crlam_core::rbpf::{
+    ClamConfig, ClamProposal, ProposalPose, RbpfClam, ScanInput, ScanMatchSettings,
+};
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
 
@@ -131,13 +133,15 @@ fn mean_position_error(est: &[Pose], truth: &[Pose]) -> f64 {
 }
 
 #[test]
-fn clam_beats_raw_odometry_with_both_proposals() {
+fn clam_beats_raw_odometry_with_every_proposal() {
     let run = simulate(150);
     let odo_err = mean_position_error(&run.odom, &run.truth);
     for (proposal, n_particles) in [
         (ClamProposal::Odometry, 30),
         (ClamProposal::likelihood_mode(), 8),
         (ClamProposal::likelihood_mode_with(ProposalPose::Match), 8),
+        (scan_match(ProposalPose::Sample), 8),
+        (scan_match(ProposalPose::Match), 8),
     ] {
         let t = std::time::Instant::now();
         let est = run_filter(
@@ -157,6 +161,49 @@ fn clam_beats_raw_odometry_with_both_proposals() {
             "{proposal:?}: filter {err:.3} m vs odometry {odo_err:.3} m"
         );
     }
+}
+
+fn scan_match(pose: ProposalPose) -> ClamProposal {
+    let mut settings = ScanMatchSettings::default();
+    settings.lattice.pose = pose;
+    ClamProposal::ScanMatch(settings)
+}
+
+#[test]
+fn scan_match_is_thread_independent_and_records_its_means() {
+    let run = simulate(40);
+    let (one, two) = (pool(1), pool(2));
+    for pose in [ProposalPose::Sample, ProposalPose::Match] {
+        let cfg = || config(scan_match(pose));
+        assert_eq!(
+            one.install(|| run_filter(&run, cfg())),
+            two.install(|| run_filter(&run, cfg()))
+        );
+        let mut f = RbpfClam::new(cfg(), run.truth[0]).unwrap();
+        feed_processed(&run, &mut f, |_| {});
+        // Drawn poses keep their proposal means (the lineage's poses without the draw's jitter).
+        let means = f.best_path_means();
+        assert_eq!(means.is_some(), pose == ProposalPose::Sample);
+        if let Some(m) = means {
+            let path = f.best_path();
+            assert_eq!(m.len(), path.len());
+            assert!(m.iter().zip(&path).skip(1).any(|(a, b)| a != b));
+        }
+    }
+}
+
+#[test]
+fn scan_match_settings_are_validated() {
+    let bad = ScanMatchSettings {
+        occupied_above: 1.0,
+        ..Default::default()
+    };
+    let mut cfg = config(ClamProposal::ScanMatch(bad));
+    assert!(RbpfClam::new(cfg.clone(), [0.0; 3]).is_err());
+    let mut bad = ScanMatchSettings::default();
+    bad.matcher.beam_stride = 0;
+    cfg.proposal = ClamProposal::ScanMatch(bad);
+    assert!(RbpfClam::new(cfg, [0.0; 3]).is_err());
 }
 
 #[test]

@@ -6,8 +6,8 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
     mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamProposal, FilterStep,
-    ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose,
-    RbpfClam, RbpfOgm, ScanInput, UpdateTrigger,
+    MatcherParams, ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams,
+    ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -373,9 +373,29 @@ filter_pymethods!(ClamFilter {
                 },
                 other => other,
             },
+            ("scan_match", rule) => {
+                if motion_outlier != 0.0 {
+                    return Err(shape_err(
+                        "motion_outlier applies to proposal=\"likelihood_mode\" only",
+                    ));
+                }
+                let defaults = ScanMatchSettings::default();
+                ClamProposal::ScanMatch(ScanMatchSettings {
+                    matcher: MatcherParams {
+                        beam_stride: match_stride,
+                        ..defaults.matcher
+                    },
+                    lattice: ProposalParams {
+                        pose: rule,
+                        range: [lattice_step.0, lattice_step.0, lattice_step.1],
+                        ..defaults.lattice
+                    },
+                    ..defaults
+                })
+            }
             (other, _) => {
                 return Err(shape_err(format!(
-                    "unknown proposal {other:?}; expected odometry or likelihood_mode"
+                    "unknown proposal {other:?}; expected odometry, likelihood_mode or scan_match"
                 )))
             }
         };

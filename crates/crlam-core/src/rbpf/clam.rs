@@ -18,12 +18,14 @@ use crate::crm::{
 use crate::error::{config_err, Result};
 use crate::motion::MotionModel;
 use crate::pose::{between, compose, wrap, Pose};
+use crate::rbpf::clam_match::{prepare_scan, propose_by_scan_match, ScanMatchSettings};
 use crate::rbpf::common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ProposalPose, ScanInput, UpdateTrigger,
 };
 use crate::rbpf::estimate::WeighedSet;
 use crate::rbpf::lineage::{NodeId, PathTree, NO_NODE};
 use crate::rbpf::proposal::propose;
+use crate::rbpf::scanmatch::PreparedScan;
 use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
 use crate::rng::Rng;
 use crate::sensor::SensorModel;
@@ -59,6 +61,10 @@ pub enum ClamProposal {
         /// closure), however tight the motion model. 0 (default): the motion model alone.
         motion_outlier: f64,
     },
+    /// GMapping's improved proposal on the CRM: hill-climb and sample the scan's endpoint match
+    /// against the particle map's expected occupancy, weigh once by the CRM predictive
+    /// likelihood (see [`crate::rbpf::clam_match`]). Tens of times cheaper than `LikelihoodMode`.
+    ScanMatch(ScanMatchSettings),
 }
 
 impl ClamProposal {
@@ -194,6 +200,9 @@ impl ClamConfig {
                 ));
             }
         }
+        if let ClamProposal::ScanMatch(settings) = &self.proposal {
+            settings.validate()?;
+        }
         self.motion.validate()?;
         self.trigger.validate()?;
         self.mapping_model.validate()?;
@@ -285,13 +294,12 @@ impl RbpfClam {
             .collect::<Vec<_>>();
         // Only a drawn improved proposal has a mean worth a path of its own: the odometry
         // proposal's mean is dead reckoning, and `Match` keeps the mode itself.
-        let paths = if matches!(
-            cfg.proposal,
-            ClamProposal::LikelihoodMode {
-                pose: ProposalPose::Sample,
-                ..
-            }
-        ) {
+        let drawn = match &cfg.proposal {
+            ClamProposal::Odometry => false,
+            ClamProposal::LikelihoodMode { pose, .. } => *pose == ProposalPose::Sample,
+            ClamProposal::ScanMatch(s) => s.lattice.pose == ProposalPose::Sample,
+        };
+        let paths = if drawn {
             PathTree::recording_means()
         } else {
             PathTree::default()
@@ -410,6 +418,11 @@ impl RbpfClam {
         } else {
             PendingUpdate::None
         };
+        // The matcher's view of the scan, shared by every particle.
+        let prepared: Option<PreparedScan> = match &cfg.proposal {
+            ClamProposal::ScanMatch(settings) => Some(prepare_scan(cfg, settings, scan)?),
+            _ => None,
+        };
         // Each particle's proposal mean, for the path tree.
         let results: Vec<Result<Pose>> = self
             .particles
@@ -445,7 +458,15 @@ impl RbpfClam {
                         p.log_w += ll / cfg.tempering;
                         return Ok(mean);
                     }
-                    let proposed = propose(cfg, p, u, n_steps, scan, &mut rng, sc)?;
+                    let proposed = match (&cfg.proposal, &prepared) {
+                        (ClamProposal::ScanMatch(settings), Some(prepared)) => {
+                            propose_by_scan_match(
+                                cfg, settings, prepared, p.pose, &mut p.map, u, n_steps, scan,
+                                &mut rng, sc,
+                            )?
+                        }
+                        _ => propose(cfg, p, u, n_steps, scan, &mut rng, sc)?,
+                    };
                     p.pose = proposed.pose;
                     p.log_w += proposed.dlogw;
                     if pending == PendingUpdate::None {

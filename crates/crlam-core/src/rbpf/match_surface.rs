@@ -2,6 +2,12 @@
 //! (log-odds > 0) or free. "Free" follows the matcher's [`FreeTest`]: log-odds < 0 (observed
 //! free), or anything not occupied, unknown cells included (GMapping's test).
 //!
+//! A confidence-rich map is read the same way through its expected occupancy m̂: a cell is
+//! occupied when m̂ exceeds a threshold (the prior's mean 0.5 by default: more evidence of a
+//! wall than of free space) and observed free below it, i.e. m̂ − threshold plays the log-odds.
+//! The means come from the map's block means, which copies of one map share, so the particles
+//! of one parent compute each block once.
+//!
 //! A match evaluation reads two cells per beam at least, and a particle's hill climbing and
 //! proposal lattice evaluate some hundred poses, so the reads dominate the matcher. Through the
 //! tiles, a read is a tile-slot computation and a pointer chase; a [`MatchSurface`] copies the
@@ -10,7 +16,8 @@
 //! the same class, so the matcher's results do not depend on whether, or where, a patch exists.
 
 use super::scanmatch::{FreeTest, PreparedScan};
-use crate::grid::{GridGeometry, TiledGrid};
+use crate::crm::CrmMap;
+use crate::grid::{CellRect, GridGeometry, TiledGrid};
 use crate::ogm::{hit_mean_of, LogOddsGrid};
 use crate::pose::Pose;
 
@@ -38,10 +45,52 @@ fn class_of(v: f32, free_test: FreeTest) -> u8 {
     u8::from(occupied) | (u8::from(free) << 1)
 }
 
+/// The cells a surface reads where it has no patch.
+#[derive(Clone, Copy, Debug)]
+enum Cells<'a> {
+    /// Log-odds grids (first value of each cell; hit-mean grids keep more after it).
+    LogOdds(&'a TiledGrid<f32>),
+    /// A confidence-rich map, classified by `m̂ − occupied_above`.
+    Crm {
+        map: &'a CrmMap,
+        occupied_above: f64,
+    },
+}
+
+impl Cells<'_> {
+    /// The value whose sign gives the class: log-odds, or m̂ minus the threshold.
+    #[inline]
+    fn value(&self, ix: i64, iy: i64) -> f32 {
+        match *self {
+            Cells::LogOdds(grid) => grid.get(ix, iy)[0],
+            Cells::Crm {
+                map,
+                occupied_above,
+            } => {
+                let mean = match map.tile_means() {
+                    Some(tm) => match map.mean_block(tm, ix, iy) {
+                        (_, Some(block)) => block[tm.offset(ix, iy)],
+                        (_, None) => tm.outside(),
+                    },
+                    None => map.mean_at(ix, iy),
+                };
+                (mean - occupied_above) as f32
+            }
+        }
+    }
+
+    fn geometry(&self) -> &GridGeometry {
+        match self {
+            Cells::LogOdds(grid) => grid.geometry(),
+            Cells::Crm { map, .. } => map.geometry(),
+        }
+    }
+}
+
 /// A particle's grid as the scan matcher reads it, with an optional dense patch of cell classes.
 #[derive(Clone, Debug)]
 pub struct MatchSurface<'a> {
-    grid: &'a TiledGrid<f32>,
+    cells: Cells<'a>,
     ix0: i64,
     iy0: i64,
     nx: usize,
@@ -53,8 +102,12 @@ pub struct MatchSurface<'a> {
 impl<'a> MatchSurface<'a> {
     /// The grid alone: every read goes to the tiles.
     pub fn tiles(map: &'a LogOddsGrid, free_test: FreeTest) -> Self {
+        Self::over(Cells::LogOdds(map.grid()), free_test)
+    }
+
+    fn over(cells: Cells<'a>, free_test: FreeTest) -> Self {
         Self {
-            grid: map.grid(),
+            cells,
             ix0: 0,
             iy0: 0,
             nx: 0,
@@ -94,45 +147,22 @@ impl<'a> MatchSurface<'a> {
         cells_per_beam: usize,
     ) -> Self {
         let mut surface = Self::tiles(map, free_test);
-        if scan.is_empty() || !pose.iter().all(|v| v.is_finite()) {
+        let Some(rect) = patch_rect(
+            map.grid().geometry(),
+            scan,
+            pose,
+            kernel_size,
+            cells_per_beam,
+        ) else {
             return surface;
-        }
-        let g: GridGeometry = *map.grid().geometry();
-        let (s, c) = pose[2].sin_cos();
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-        for e in scan.endpoints() {
-            let w = [pose[0] + c * e[0] - s * e[1], pose[1] + s * e[0] + c * e[1]];
-            for k in 0..2 {
-                lo[k] = lo[k].min(w[k]);
-                hi[k] = hi[k].max(w[k]);
-            }
-        }
-        // The free points lie √2 Δ before the endpoints, the window k cells around either.
-        let pad = PATCH_MARGIN + (2 + kernel_size) as f64 * g.resolution;
-        let inv = 1.0 / g.resolution;
-        let cell = |v: f64, o: f64| ((v - o) * inv).floor();
-        let (fx0, fy0) = (
-            cell(lo[0] - pad, g.origin[0]),
-            cell(lo[1] - pad, g.origin[1]),
-        );
-        let (fx1, fy1) = (
-            cell(hi[0] + pad, g.origin[0]),
-            cell(hi[1] + pad, g.origin[1]),
-        );
-        let (nx, ny) = (fx1 - fx0 + 1.0, fy1 - fy0 + 1.0);
-        let budget = cells_per_beam as f64 * scan.len() as f64;
-        // Also refuses non-finite extents and anything beyond the i64 range (a budget of cells
-        // is far below it).
-        if !(nx >= 1.0 && ny >= 1.0 && nx * ny <= budget) {
-            return surface;
-        }
-        let (ix0, iy0, nx, ny) = (fx0 as i64, fy0 as i64, nx as usize, ny as usize);
+        };
         let grid = map.grid();
         let stride = grid.stride();
+        let (nx, ny) = (rect.nx as usize, rect.ny as usize);
         let mut classes = Vec::with_capacity(nx * ny);
-        for iy in iy0..iy0 + ny as i64 {
-            let mut ix = ix0;
-            let end = ix0 + nx as i64;
+        for iy in rect.iy0..rect.iy0 + rect.ny {
+            let mut ix = rect.ix0;
+            let end = rect.ix0 + rect.nx;
             while ix < end {
                 let (vals, cells, stored) = grid.row_run(ix, iy, (end - ix) as usize);
                 if stored {
@@ -143,17 +173,74 @@ impl<'a> MatchSurface<'a> {
                 ix += cells as i64;
             }
         }
-        debug_assert_eq!(classes.len(), nx * ny);
-        surface.ix0 = ix0;
-        surface.iy0 = iy0;
-        surface.nx = nx;
-        surface.ny = ny;
-        surface.classes = classes;
+        surface.set_patch(rect, classes);
         surface
     }
 
+    /// A confidence-rich map as the matcher reads it: cells with expected occupancy above
+    /// `occupied_above` are occupied, those below it observed free (see the module
+    /// documentation), with a patch over the cells `scan` reaches from `pose` when it is small.
+    pub fn around_crm(
+        map: &'a CrmMap,
+        scan: &PreparedScan,
+        pose: Pose,
+        kernel_size: usize,
+        free_test: FreeTest,
+        occupied_above: f64,
+    ) -> Self {
+        Self::around_crm_within(
+            map,
+            scan,
+            pose,
+            kernel_size,
+            free_test,
+            occupied_above,
+            PATCH_CELLS_PER_BEAM,
+        )
+    }
+
+    /// [`Self::around_crm`] with the patch built when it has at most `cells_per_beam` cells per
+    /// beam of `scan`.
+    pub fn around_crm_within(
+        map: &'a CrmMap,
+        scan: &PreparedScan,
+        pose: Pose,
+        kernel_size: usize,
+        free_test: FreeTest,
+        occupied_above: f64,
+        cells_per_beam: usize,
+    ) -> Self {
+        let cells = Cells::Crm {
+            map,
+            occupied_above,
+        };
+        let mut surface = Self::over(cells, free_test);
+        let Some(rect) = patch_rect(map.geometry(), scan, pose, kernel_size, cells_per_beam) else {
+            return surface;
+        };
+        let mut means = vec![0.0; rect.n_cells()];
+        if map.means_into(rect, &mut means).is_err() {
+            return surface;
+        }
+        let classes = means
+            .iter()
+            .map(|&m| class_of((m - occupied_above) as f32, free_test))
+            .collect();
+        surface.set_patch(rect, classes);
+        surface
+    }
+
+    fn set_patch(&mut self, rect: CellRect, classes: Vec<u8>) {
+        debug_assert_eq!(classes.len(), rect.n_cells());
+        self.ix0 = rect.ix0;
+        self.iy0 = rect.iy0;
+        self.nx = rect.nx as usize;
+        self.ny = rect.ny as usize;
+        self.classes = classes;
+    }
+
     pub fn geometry(&self) -> &GridGeometry {
-        self.grid.geometry()
+        self.cells.geometry()
     }
 
     /// Whether a patch was built (for tests and diagnostics).
@@ -166,7 +253,7 @@ impl<'a> MatchSurface<'a> {
     /// [`LogOddsParams::hit_means`]: crate::ogm::LogOddsParams::hit_means
     #[inline]
     pub fn has_hit_means(&self) -> bool {
-        self.grid.stride() >= 4
+        matches!(self.cells, Cells::LogOdds(grid) if grid.stride() >= 4)
     }
 
     /// For an occupied cell (ix, iy), the offset (m) of the mean of its hits from its centre
@@ -174,8 +261,13 @@ impl<'a> MatchSurface<'a> {
     /// (grids with hit means get no patch benefit here: the patch holds classes only).
     #[inline]
     pub(crate) fn occupied_hit_mean(&self, ix: i64, iy: i64) -> Option<[f64; 2]> {
-        let v = self.grid.get(ix, iy);
-        (class_of(v[0], self.free_test) & OCCUPIED != 0).then(|| hit_mean_of(v))
+        match self.cells {
+            Cells::LogOdds(grid) => {
+                let v = grid.get(ix, iy);
+                (class_of(v[0], self.free_test) & OCCUPIED != 0).then(|| hit_mean_of(v))
+            }
+            Cells::Crm { .. } => (self.class(ix, iy) & OCCUPIED != 0).then_some([0.0; 2]),
+        }
     }
 
     /// The class bits of cell (ix, iy): [`OCCUPIED`], [`FREE`] or neither.
@@ -185,8 +277,53 @@ impl<'a> MatchSurface<'a> {
         if (dx as u64) < self.nx as u64 && (dy as u64) < self.ny as u64 {
             return self.classes[dy as usize * self.nx + dx as usize];
         }
-        class_of(self.grid.get(ix, iy)[0], self.free_test)
+        class_of(self.cells.value(ix, iy), self.free_test)
     }
+}
+
+/// The rectangle of cells that `scan` reaches from `pose` (endpoints and free points, the
+/// window around either, plus a margin), if it has at most `cells_per_beam` cells per beam.
+fn patch_rect(
+    g: &GridGeometry,
+    scan: &PreparedScan,
+    pose: Pose,
+    kernel_size: usize,
+    cells_per_beam: usize,
+) -> Option<CellRect> {
+    if scan.is_empty() || !pose.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let (s, c) = pose[2].sin_cos();
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for e in scan.endpoints() {
+        let w = [pose[0] + c * e[0] - s * e[1], pose[1] + s * e[0] + c * e[1]];
+        for k in 0..2 {
+            lo[k] = lo[k].min(w[k]);
+            hi[k] = hi[k].max(w[k]);
+        }
+    }
+    // The free points lie √2 Δ before the endpoints, the window k cells around either.
+    let pad = PATCH_MARGIN + (2 + kernel_size) as f64 * g.resolution;
+    let inv = 1.0 / g.resolution;
+    let cell = |v: f64, o: f64| ((v - o) * inv).floor();
+    let (fx0, fy0) = (
+        cell(lo[0] - pad, g.origin[0]),
+        cell(lo[1] - pad, g.origin[1]),
+    );
+    let (fx1, fy1) = (
+        cell(hi[0] + pad, g.origin[0]),
+        cell(hi[1] + pad, g.origin[1]),
+    );
+    let (nx, ny) = (fx1 - fx0 + 1.0, fy1 - fy0 + 1.0);
+    let budget = cells_per_beam as f64 * scan.len() as f64;
+    // Also refuses non-finite extents and anything beyond the i64 range (a budget of cells is
+    // far below it).
+    (nx >= 1.0 && ny >= 1.0 && nx * ny <= budget).then_some(CellRect {
+        ix0: fx0 as i64,
+        iy0: fy0 as i64,
+        nx: nx as i64,
+        ny: ny as i64,
+    })
 }
 
 #[cfg(test)]
@@ -228,6 +365,63 @@ mod tests {
             match test {
                 FreeTest::Observed => assert!(seen[0] > 0),
                 FreeTest::NotOccupied => assert_eq!(seen[0], 0),
+            }
+        }
+    }
+
+    #[test]
+    fn a_crm_reads_as_occupied_above_the_threshold_on_patch_and_tiles_alike() {
+        use crate::crm::{CrmConfig, CrmScratch, ScanOptions};
+        use crate::sensor::{SensorModel, SensorModelKind};
+        let g = GridGeometry::new([0.0, 0.0], 0.2).unwrap();
+        let mut map = CrmMap::new(&CrmConfig::new(g)).unwrap();
+        let angles: Vec<f64> = (0..90).map(|i| -1.5 + i as f64 * 0.033).collect();
+        let ranges: Vec<f64> = (0..90).map(|i| 2.0 + (i % 7) as f64 * 0.3).collect();
+        let model = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.2);
+        let mut sc = CrmScratch::default();
+        map.update_scan(
+            [1.0, -2.0, 0.3],
+            &angles,
+            &ranges,
+            &model,
+            &ScanOptions::default(),
+            &mut sc,
+        )
+        .unwrap();
+        let scan = PreparedScan::new(&angles, &ranges, [0.0; 3], 7.5, 1).unwrap();
+        let pose = [1.0, -2.0, 0.3];
+        for test in [FreeTest::Observed, FreeTest::NotOccupied] {
+            for threshold in [0.5, 0.6] {
+                let patched =
+                    MatchSurface::around_crm_within(&map, &scan, pose, 1, test, threshold, 1000);
+                assert!(patched.has_patch() && !patched.has_hit_means());
+                // A pose far away gets no patch: every read goes to the block means.
+                let far = [400.0, 400.0, 0.0];
+                let tiles = MatchSurface::around_crm(&map, &scan, far, 1, test, threshold);
+                assert!(!tiles.has_patch());
+                let mut seen = [0usize; 4];
+                for iy in -40..30 {
+                    for ix in -30..50 {
+                        let c = patched.class(ix, iy);
+                        assert_eq!(c, tiles.class(ix, iy), "cell ({ix}, {iy})");
+                        let m = map.mean_at(ix, iy);
+                        let v = (m - threshold) as f32;
+                        let expected = if v > 0.0 {
+                            OCCUPIED
+                        } else if v < 0.0 || test == FreeTest::NotOccupied {
+                            FREE
+                        } else {
+                            0
+                        };
+                        assert_eq!(c, expected, "cell ({ix}, {iy}), mean {m}");
+                        seen[c as usize] += 1;
+                    }
+                }
+                assert!(seen[1] > 0 && seen[2] > 0 && seen[3] == 0, "{seen:?}");
+                // Unknown cells hold the prior (mean 0.5): neither class under the observed test.
+                if test == FreeTest::Observed && threshold == 0.5 {
+                    assert!(seen[0] > 0);
+                }
             }
         }
     }

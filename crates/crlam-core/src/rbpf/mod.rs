@@ -6,6 +6,7 @@
 //! processed scans), the weighted-mean estimate and the resampling rule.
 
 pub mod clam;
+pub mod clam_match;
 pub mod common;
 pub mod estimate;
 pub mod lineage;
@@ -18,6 +19,7 @@ pub mod scanmatch;
 mod scanmatch_params;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
+pub use clam_match::ScanMatchSettings;
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,
     UpdateTrigger,

@@ -89,7 +89,9 @@ pub(crate) fn propose(
 ) -> Result<Proposed> {
     let mut like = ScanLikelihood::new(cfg, scan, &p.map);
     match cfg.proposal {
-        ClamProposal::Odometry => {
+        // The scan-match proposal needs the prepared scan: the filter calls it directly
+        // (`clam_match`); here it stands for the paper's proposal.
+        ClamProposal::Odometry | ClamProposal::ScanMatch(_) => {
             let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
             let dlogw = like.eval(pose, cfg.weight_stride, sc)? / cfg.tempering;
             Ok(Proposed {
