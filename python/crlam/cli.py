@@ -8,6 +8,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from crlam import __version__
 from crlam.cli_options import (
@@ -37,6 +38,9 @@ from crlam.cli_options import (
 )
 from crlam.errors import CrlamError
 from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
+
+if TYPE_CHECKING:
+    from crlam.slam import SlamConfig
 
 __all__ = ["main", "build_parser"]
 
@@ -106,7 +110,7 @@ def _base_method(methods: list[str]) -> str:
     return "ogm" if set(methods) == {"ogm"} else "clam"
 
 
-def slam_config_of(args: argparse.Namespace):  # type: ignore[no-untyped-def]
+def slam_config_of(args: argparse.Namespace) -> tuple[SlamConfig, int | None]:
     """``crlam slam``'s configuration and scan limit: the preset (``--preset``, default robust) or
     the settings of ``--config FILE``, with every SLAM flag given on top."""
     from crlam.presets import load_config_file, resolve

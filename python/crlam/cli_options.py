@@ -165,7 +165,7 @@ def add_preset_option(parser: argparse._ActionsContainer, default: str) -> None:
         metavar="NAME",
         help=f"named SLAM settings ({'; '.join(f'{n}: {preset_description(n)}' for n in names)}); every SLAM flag "
         f"given overrides the preset's value, every one not given keeps it (default: {default}; the values are in "
-        "python/crlam/presets/NAME.toml)",
+        "the package's crlam/presets/NAME.toml)",
     )
 
 
