@@ -8,6 +8,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from crlam import __version__
 from crlam.cli_options import (
@@ -28,13 +29,23 @@ from crlam.cli_options import (
     add_estimate_options,
     add_likelihood_mode_options,
     add_map_options,
+    add_preset_option,
     nonnegative_float,
+    nonnegative_int,
     positive_float,
     positive_int,
+    slam_overrides,
 )
 from crlam.errors import CrlamError
+from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
+
+if TYPE_CHECKING:
+    from crlam.slam import SlamConfig
 
 __all__ = ["main", "build_parser"]
+
+#: How every SLAM flag's help ends: the flag overrides the preset, whose value is the default.
+FROM_PRESET = "default: the preset's"
 
 
 def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
@@ -99,47 +110,39 @@ def _base_method(methods: list[str]) -> str:
     return "ogm" if set(methods) == {"ogm"} else "clam"
 
 
+def slam_config_of(args: argparse.Namespace) -> tuple[SlamConfig, int | None]:
+    """``crlam slam``'s configuration and scan limit: the preset (``--preset``, default robust) or
+    the settings of ``--config FILE``, with every SLAM flag given on top."""
+    from crlam.presets import load_config_file, resolve
+
+    preset: str | None = args.preset
+    settings: dict[str, object] = {}
+    max_scans = args.max_scans
+    if args.config is not None:
+        stored = load_config_file(args.config)
+        preset, settings = stored.preset, stored.settings
+        max_scans = stored.max_scans if max_scans is None else max_scans
+    elif preset is None:
+        preset = DEFAULT_PRESET
+    return resolve(preset, settings | slam_overrides(args)), max_scans
+
+
 def cmd_slam(args: argparse.Namespace) -> int:
     from crlam.experiments.slam_run import run_slam_log
-    from crlam.slam import SlamConfig
 
-    config = SlamConfig(
-        method=args.method,
-        particles=args.particles,
-        seed=args.seed,
-        resolution=args.resolution,
-        max_range=args.max_range,
-        proposal=args.proposal,
-        proposal_pose=args.proposal_pose,
-        match_stride=args.match_stride,
-        lattice_step=tuple(args.lattice_step),
-        motion_outlier=args.motion_outlier,
-        mode_bandwidth=tuple(args.mode_bandwidth),
-        smoothing_lag=args.smoothing_lag,
-        motion=args.motion,
-        motion_params=tuple(args.motion_params) if args.motion_params else None,
-        weight_stride=args.weight_stride,
-        map_stride=args.map_stride,
-        tempering=args.tempering,
-        linear_update=args.linear_update,
-        angular_update=args.angular_update,
-        sigma_range=args.sigma_range,
-        cause_kernel=args.cause_kernel,
-        batch_kernel=args.batch_kernel,
-        ogm_map=args.ogm_map,
-        ogm_motion_draws=args.ogm_motion_draws,
-        ogm_weight_smoothing=args.ogm_weight_smoothing,
-    )
+    config, max_scans = slam_config_of(args)
     res = run_slam_log(
         args.log,
         args.out,
         config,
         reference=args.reference,
         relations=args.relations,
-        max_scans=args.max_scans,
+        max_scans=max_scans,
         progress=not args.quiet,
     )
     m = res.metrics
+    deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
+    print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
         f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {res.out_dir}"
@@ -166,7 +169,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    from crlam.slam import SlamConfig
+    from crlam.presets import resolve
 
     out = Path(args.out)
     if args.experiment == "iig":
@@ -205,30 +208,18 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
     if args.experiment == "table1":
-        from crlam.experiments.table1 import run_table1
+        from crlam.experiments.table1 import PROTOCOL_MAX_RANGE, run_table1
 
-        base = SlamConfig(
-            method=_base_method(args.methods),
-            particles=args.particles,
-            resolution=args.resolution,
-            max_range=8.0,
-            weight_stride=args.weight_stride,
-            tempering=args.tempering,
-            proposal=args.proposal,
-            proposal_pose=args.proposal_pose,
-            match_stride=args.match_stride,
-            lattice_step=tuple(args.lattice_step),
-            motion_outlier=args.motion_outlier,
-            mode_bandwidth=tuple(args.mode_bandwidth),
-            smoothing_lag=args.smoothing_lag,
-            sigma_range=args.sigma_range,
-            cause_kernel=args.cause_kernel,
+        # The paper's protocol: the paper preset unless --preset says otherwise, at the simulated LIDAR's range.
+        base = resolve(
+            args.preset or PAPER_PRESET,
+            slam_overrides(args) | {"method": _base_method(args.methods), "max_range": PROTOCOL_MAX_RANGE},
         )
         run_table1(
             out,
             runs=args.runs,
             scans=args.scans,
-            particles=args.particles,
+            particles=base.particles,
             methods=args.methods,
             workers=args.workers,
             threads=args.threads,
@@ -239,28 +230,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     else:
         from crlam.experiments.real_logs import run_real_logs
 
-        base = SlamConfig(
-            method=_base_method(args.methods),
-            resolution=args.resolution,
-            ogm_map=args.ogm_map,
-            ogm_motion_draws=args.ogm_motion_draws,
-            ogm_weight_smoothing=args.ogm_weight_smoothing,
-            motion=args.motion,
-            motion_params=tuple(args.motion_params) if args.motion_params else None,
-            weight_stride=args.weight_stride,
-            tempering=args.tempering,
-            proposal=args.proposal,
-            proposal_pose=args.proposal_pose,
-            match_stride=args.match_stride,
-            lattice_step=tuple(args.lattice_step),
-            motion_outlier=args.motion_outlier,
-            mode_bandwidth=tuple(args.mode_bandwidth),
-            smoothing_lag=args.smoothing_lag,
-            linear_update=args.linear_update,
-            angular_update=args.angular_update,
-            sigma_range=args.sigma_range,
-            cause_kernel=args.cause_kernel,
-        )
+        # Every run: the preset (default robust) with the flags given; the grid sets method, particles, seed, range.
+        base = resolve(args.preset or DEFAULT_PRESET, slam_overrides(args) | {"method": _base_method(args.methods)})
         run_real_logs(
             out,
             datasets=args.datasets,
@@ -354,52 +325,74 @@ def build_parser() -> argparse.ArgumentParser:
         "slam",
         help="run RBPF-CLAM (or RBPF-OGM) on a CARMEN log and write a run folder",
         description="Runs a Rao-Blackwellized particle filter on a log and writes config.toml, trajectory.tum "
-        "(one pose per scan, file order), metrics.json, map.pgm/yaml, belief.npz and figures.",
+        "(one pose per scan, file order), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
+        "named preset (--preset, default robust) or a run folder's config.toml (--config); every SLAM flag given "
+        "overrides them.",
     )
     p.add_argument("log", help="CARMEN log (plain, .gz or .bz2)")
     p.add_argument("--out", required=True, help="run folder")
-    p.add_argument("--method", choices=("clam", "ogm"), default="clam", help="filter (default: clam)")
-    p.add_argument("--particles", type=positive_int, default=100, help="number of particles (default: 100)")
-    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--resolution", type=positive_float, default=0.2, help="cell size in metres (default: 0.2)")
-    p.add_argument("--max-range", type=positive_float, default=8.0, help="z_max in metres (default: 8)")
+    source = p.add_mutually_exclusive_group()
+    add_preset_option(source, DEFAULT_PRESET)
+    source.add_argument(
+        "--config",
+        metavar="FILE",
+        help="start from the [slam] settings (and [run] max_scans) of FILE, a run folder's config.toml, instead of a "
+        "preset: re-runs that configuration; flags given beside it still override it",
+    )
+    p.add_argument("--method", choices=("clam", "ogm"), default=None, help=f"filter (paper: clam; {FROM_PRESET})")
+    p.add_argument("--particles", type=positive_int, default=None, help=f"number of particles (paper: 100; {FROM_PRESET})")
+    p.add_argument("--seed", type=nonnegative_int, default=None, help=f"random seed ({FROM_PRESET}; 0 unless it sets one)")
+    p.add_argument("--resolution", type=positive_float, default=None, help=f"cell size in metres (paper: 0.2; {FROM_PRESET})")
+    p.add_argument("--max-range", type=positive_float, default=None, help=f"z_max in metres (paper: 8; {FROM_PRESET})")
     p.add_argument("--reference", help="ground-truth TUM trajectory: report MAE x, y, theta and position RMSE")
     p.add_argument("--relations", help="Kuemmerle relations file: report the relations metric")
-    p.add_argument(
-        "--proposal",
-        choices=PROPOSALS,
-        default="odometry",
-        help=PROPOSAL_HELP,
-    )
-    p.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=PROPOSAL_POSE_HELP)
-    p.add_argument("--match-stride", type=positive_int, default=3, help=MATCH_STRIDE_HELP)
+    p.add_argument("--proposal", choices=PROPOSALS, default=None, help=PROPOSAL_HELP)
+    p.add_argument("--proposal-pose", choices=("sample", "match"), default=None, help=PROPOSAL_POSE_HELP)
+    p.add_argument("--match-stride", type=positive_int, default=None, help=MATCH_STRIDE_HELP)
     add_likelihood_mode_options(p)
     add_estimate_options(p)
     p.add_argument(
         "--motion",
         choices=("gaussian", "thrun", "gmapping"),
-        default="gaussian",
-        help="odometry noise model (default: gaussian); gmapping is GMapping's own model",
+        default=None,
+        help=f"odometry noise model (paper: gaussian; {FROM_PRESET}); gmapping is GMapping's own model",
     )
     p.add_argument(
         "--motion-params",
         type=float,
         nargs="+",
+        default=None,
         help="3 sigmas (gaussian), 4 alphas (thrun; RBPF-OGM's thrun default is 0.04 0.01 0.01 0.04) or srr srt "
-        "str stt (gmapping; default 0.1 0.2 0.1 0.2)",
+        f"str stt (gmapping; default 0.1 0.2 0.1 0.2) ({FROM_PRESET}; unset there: the model's own)",
     )
-    p.add_argument("--weight-stride", type=positive_int, default=1, help="every n-th beam for the weights (default: 1)")
-    p.add_argument("--map-stride", type=positive_int, default=1, help="every n-th beam for the map update (default: 1)")
-    p.add_argument("--tempering", type=positive_float, default=1.0, help="weight tempering tau (default: 1)")
-    p.add_argument("--sigma-range", type=nonnegative_float, default=0.01, help=SIGMA_RANGE_HELP)
-    p.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default="midpoint", help=CAUSE_KERNEL_HELP)
-    p.add_argument("--batch-kernel", choices=BATCH_KERNELS, default="windowed", help=BATCH_KERNEL_HELP)
-    p.add_argument("--ogm-map", choices=OGM_MAPS, default="log_odds", help=OGM_MAP_HELP)
-    p.add_argument("--ogm-motion-draws", choices=MOTION_DRAWS, default="per_update", help=MOTION_DRAWS_HELP)
-    p.add_argument("--ogm-weight-smoothing", type=nonnegative_float, default=3.0, help=WEIGHT_SMOOTHING_HELP)
-    p.add_argument("--linear-update", type=float, default=0.0, help="process a scan after this travel in m (default: every scan)")
-    p.add_argument("--angular-update", type=float, default=0.0, help="... or this rotation in rad (default: every scan)")
-    p.add_argument("--max-scans", type=positive_int, default=None, help="stop after this many scans")
+    p.add_argument(
+        "--weight-stride", type=positive_int, default=None, help=f"every n-th beam for the weights (paper: 1; {FROM_PRESET})"
+    )
+    p.add_argument(
+        "--map-stride", type=positive_int, default=None, help=f"every n-th beam for the map update (paper: 1; {FROM_PRESET})"
+    )
+    p.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering tau (paper: 1; {FROM_PRESET})")
+    p.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
+    p.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)
+    p.add_argument("--batch-kernel", choices=BATCH_KERNELS, default=None, help=f"{BATCH_KERNEL_HELP} ({FROM_PRESET})")
+    p.add_argument("--ogm-map", choices=OGM_MAPS, default=None, help=OGM_MAP_HELP)
+    p.add_argument("--ogm-motion-draws", choices=MOTION_DRAWS, default=None, help=MOTION_DRAWS_HELP)
+    p.add_argument("--ogm-weight-smoothing", type=nonnegative_float, default=None, help=WEIGHT_SMOOTHING_HELP)
+    p.add_argument(
+        "--linear-update",
+        type=nonnegative_float,
+        default=None,
+        help=f"process a scan after this travel in m (paper: 0, every scan; {FROM_PRESET})",
+    )
+    p.add_argument(
+        "--angular-update",
+        type=nonnegative_float,
+        default=None,
+        help=f"... or this rotation in rad (paper: 0, every scan; {FROM_PRESET})",
+    )
+    p.add_argument(
+        "--max-scans", type=positive_int, default=None, help="stop after this many scans (with --config: the file's, if any)"
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=cmd_slam)
 
@@ -433,48 +426,52 @@ def build_parser() -> argparse.ArgumentParser:
     t1.add_argument("--out", required=True, help="experiment folder (reused to resume)")
     t1.add_argument("--runs", type=positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
     t1.add_argument("--scans", type=positive_int, default=5500, help="scans of the simulated log (default: 5500)")
-    t1.add_argument("--particles", type=positive_int, default=100, help="particles (default: 100)")
+    t1.add_argument("--particles", type=positive_int, default=None, help=f"particles (paper: 100; {FROM_PRESET})")
     t1.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"], help="filters to run")
     t1.add_argument(
         "--resolution",
         type=positive_float,
-        default=0.2,
-        help="cell size in metres (default: 0.2, the paper's; any other value is reported as a deviation)",
+        default=None,
+        help=f"cell size in metres (paper: 0.2; {FROM_PRESET}; any value other than the paper's is reported as a deviation)",
     )
+    add_preset_option(t1, PAPER_PRESET)
     rl = exp.add_parser(
         "real-logs",
         help="Intel and ACES raw logs with their relations",
         description="Both methods on the raw Intel and ACES logs at several particle counts, seeds and ranges; "
-        "relations metric, wall time and memory next to the published numbers.",
+        "relations metric, wall time and memory next to the published numbers. Every run has the settings of "
+        "--preset (default robust) with the SLAM flags given on top; the grid (--methods, --particles, --seeds, "
+        "--ranges) sets each run's method, particle count, seed and z_max.",
     )
+    add_preset_option(rl, DEFAULT_PRESET)
     rl.add_argument("--out", required=True, help="experiment folder (reused to resume)")
     rl.add_argument("--datasets", nargs="+", choices=("intel", "aces"), default=["intel", "aces"])
     rl.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"])
     rl.add_argument("--particles", dest="particles_list", type=positive_int, nargs="+", default=[30, 100])
     rl.add_argument("--seeds", type=positive_int, default=3, help="seeds per setting (default: 3)")
     rl.add_argument("--ranges", nargs="+", default=["full", "8"], help="z_max settings: 'full' and/or metres (default: full 8)")
-    rl.add_argument("--resolution", type=positive_float, default=0.1, help="cell size in metres (default: 0.1)")
+    rl.add_argument("--resolution", type=positive_float, default=None, help=f"cell size in metres (paper: 0.2; {FROM_PRESET})")
     rl.add_argument("--max-scans", type=positive_int, default=None, help="only the first N scans of each log")
     rl.add_argument(
         "--linear-update",
-        type=float,
-        default=0.0,
-        help="process a scan after this travel in m (default: every scan; GMapping's default is 1)",
+        type=nonnegative_float,
+        default=None,
+        help=f"process a scan after this travel in m (paper: 0, every scan; GMapping's default is 1; {FROM_PRESET})",
     )
     rl.add_argument(
         "--angular-update",
-        type=float,
-        default=0.0,
-        help="... or this rotation in rad (default: every scan; GMapping's default is 0.5)",
+        type=nonnegative_float,
+        default=None,
+        help=f"... or this rotation in rad (paper: 0, every scan; GMapping's default is 0.5; {FROM_PRESET})",
     )
-    rl.add_argument("--ogm-map", choices=OGM_MAPS, default="log_odds", help=OGM_MAP_HELP)
-    rl.add_argument("--ogm-motion-draws", choices=MOTION_DRAWS, default="per_update", help=MOTION_DRAWS_HELP)
-    rl.add_argument("--ogm-weight-smoothing", type=nonnegative_float, default=3.0, help=WEIGHT_SMOOTHING_HELP)
+    rl.add_argument("--ogm-map", choices=OGM_MAPS, default=None, help=OGM_MAP_HELP)
+    rl.add_argument("--ogm-motion-draws", choices=MOTION_DRAWS, default=None, help=MOTION_DRAWS_HELP)
+    rl.add_argument("--ogm-weight-smoothing", type=nonnegative_float, default=None, help=WEIGHT_SMOOTHING_HELP)
     rl.add_argument(
         "--motion",
         choices=("thrun", "gmapping"),
-        default="thrun",
-        help="odometry noise model of every method of the sweep (default: thrun); gmapping is GMapping's own model",
+        default=None,
+        help=f"odometry noise model of every method of the sweep ({FROM_PRESET}); gmapping is GMapping's own model",
     )
     rl.add_argument(
         "--motion-params",
@@ -482,10 +479,11 @@ def build_parser() -> argparse.ArgumentParser:
         nargs=4,
         default=None,
         metavar=("A1", "A2", "A3", "A4"),
-        help="the four parameters of the odometry model, given to every method of the sweep. thrun: alpha1..alpha4 "
-        "(default: 0.1 0.1 0.2 0.05 for RBPF-CLAM, 0.04 0.01 0.01 0.04 for RBPF-OGM); alpha3 scales the variance of "
-        "the travelled distance (0.002 is a 4.5 %% standard deviation), alpha2 that of the heading per metre "
-        "travelled. gmapping: srr srt str stt (default 0.1 0.2 0.1 0.2)",
+        help=f"the four parameters of the odometry model, given to every method of the sweep ({FROM_PRESET}; unset "
+        "there: the model's own). thrun: alpha1..alpha4 (the model's own: 0.1 0.1 0.2 0.05 for RBPF-CLAM, "
+        "0.04 0.01 0.01 0.04 for RBPF-OGM); alpha3 scales the variance of the travelled distance (0.002 is a 4.5 %% "
+        "standard deviation), alpha2 that of the heading per metre travelled. gmapping: srr srt str stt (the model's "
+        "own: 0.1 0.2 0.1 0.2)",
     )
     ig = exp.add_parser(
         "iig",
@@ -529,13 +527,15 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument(
             "--threads", type=positive_int, default=1, help="threads of each run (default: 1; the results do not depend on it)"
         )
-        q.add_argument("--weight-stride", type=positive_int, default=1, help="beam stride of the weights (default: 1)")
-        q.add_argument("--tempering", type=positive_float, default=1.0, help="weight tempering (default: 1)")
-        q.add_argument("--sigma-range", type=nonnegative_float, default=0.01, help=SIGMA_RANGE_HELP)
-        q.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default="midpoint", help=CAUSE_KERNEL_HELP)
-        q.add_argument("--proposal", choices=PROPOSALS, default="odometry", help=PROPOSAL_HELP)
-        q.add_argument("--proposal-pose", choices=("sample", "match"), default="sample", help=PROPOSAL_POSE_HELP)
-        q.add_argument("--match-stride", type=positive_int, default=3, help=MATCH_STRIDE_HELP)
+        q.add_argument(
+            "--weight-stride", type=positive_int, default=None, help=f"beam stride of the weights (paper: 1; {FROM_PRESET})"
+        )
+        q.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering (paper: 1; {FROM_PRESET})")
+        q.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
+        q.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)
+        q.add_argument("--proposal", choices=PROPOSALS, default=None, help=PROPOSAL_HELP)
+        q.add_argument("--proposal-pose", choices=("sample", "match"), default=None, help=PROPOSAL_POSE_HELP)
+        q.add_argument("--match-stride", type=positive_int, default=None, help=MATCH_STRIDE_HELP)
         add_likelihood_mode_options(q)
         add_estimate_options(q)
         q.add_argument("--quiet", action="store_true", help="no progress output")

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Callable
-from typing import TypeVar
+from typing import Any, TypeVar
 
 __all__ = [
     "BATCH_KERNELS",
@@ -25,6 +25,8 @@ __all__ = [
     "add_estimate_options",
     "add_likelihood_mode_options",
     "add_map_options",
+    "add_preset_option",
+    "slam_overrides",
     "nonnegative_float",
     "nonnegative_int",
     "positive_float",
@@ -79,50 +81,57 @@ BATCH_KERNEL_HELP = (
 )
 OGM_MAPS = ("log_odds", "hit_rate", "gmapping")
 OGM_MAP_HELP = (
-    "RBPF-OGM cells: log_odds (default; a match needs its companion cell seen free), hit_rate (GMapping's "
+    "RBPF-OGM cells: log_odds (paper preset; a match needs its companion cell seen free), hit_rate (GMapping's "
     "counting cells, occupied above a 0.1 hit rate; a companion passes unless occupied) or gmapping (hit_rate "
-    "cells that also keep the mean of their hits, to which matches are measured, as GMapping's)"
+    "cells that also keep the mean of their hits, to which matches are measured, as GMapping's) (default: the preset's)"
 )
 MOTION_DRAWS = ("per_update", "per_scan")
 MOTION_DRAWS_HELP = (
-    "when RBPF-OGM draws its odometry noise: per processed scan (per_update, default) or at every scan of the log "
-    "on its own increment, as GMapping does (per_scan)"
+    "when RBPF-OGM draws its odometry noise: per processed scan (per_update, paper preset) or at every scan of the log "
+    "on its own increment, as GMapping does (per_scan) (default: the preset's)"
 )
 WEIGHT_SMOOTHING_HELP = (
     "RBPF-OGM weight smoothing, GMapping's ogain: log-weights are divided by ogain x particles before N_eff, "
-    "resampling and the weighted mean (default: 3, GMapping's; 0 = plain weights)"
+    "resampling and the weighted mean (0 = plain weights; paper: 3, GMapping's; default: the preset's)"
 )
-CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec default) or spread along the chord"
+CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec, paper) or spread along the chord (default: the preset's)"
 PROPOSALS = ("odometry", "likelihood_mode", "scan_match")
-PROPOSAL_HELP = "RBPF-CLAM: odometry (paper) or the CRM improved proposal (default: odometry)"
+PROPOSAL_HELP = (
+    "RBPF-CLAM: odometry (paper), the CRM improved proposal (likelihood_mode) or GMapping's endpoint scan match on the "
+    "CRM weighed by the CRM likelihood (scan_match) (default: the preset's)"
+)
 PROPOSAL_POSE_HELP = (
     "improved proposals (RBPF-CLAM likelihood_mode, RBPF-OGM): draw the pose from the Gaussian fitted around the "
-    "match (sample, default) or keep the match, as GMapping's code does (match)"
+    "match (sample, paper) or keep the match, as GMapping's code does (match) (default: the preset's)"
 )
 MATCH_STRIDE_HELP = (
-    "RBPF-CLAM likelihood_mode: climb to the mode on every n-th beam (default: 3); the lattice and the weights use every beam"
+    "RBPF-CLAM likelihood_mode: climb to the mode on every n-th beam (paper: 3; default: the preset's); the lattice "
+    "and the weights use every beam"
 )
 LATTICE_STEP_HELP = (
     "RBPF-CLAM likelihood_mode: spacing (m, rad) of the 3x3x3 lattice around the mode that the Gaussian is fitted "
-    "to and the weight sums (default: 0.05 0.025; GMapping samples at 0.01 0.005)"
+    "to and the weight sums (paper: 0.05 0.025; default: the preset's; GMapping samples at 0.01 0.005)"
 )
-SIGMA_RANGE_HELP = "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (default: 0.01, the spec's)"
+SIGMA_RANGE_HELP = (
+    "RBPF-CLAM range noise sigma_r in m; its hit sigma is sqrt(sigma_r^2 + cell^2/12) (paper: 0.01, the spec's; "
+    "default: the preset's)"
+)
 
 
 def add_likelihood_mode_options(parser: argparse.ArgumentParser) -> None:
     """``--lattice-step DXY DTHETA`` and ``--motion-outlier EPS`` of the likelihood-mode proposal, shared by
     ``slam`` and the experiments."""
     parser.add_argument(
-        "--lattice-step", type=positive_float, nargs=2, default=[0.05, 0.025], metavar=("DXY", "DTHETA"), help=LATTICE_STEP_HELP
+        "--lattice-step", type=positive_float, nargs=2, default=None, metavar=("DXY", "DTHETA"), help=LATTICE_STEP_HELP
     )
     parser.add_argument(
         "--motion-outlier",
         type=nonnegative_float,
-        default=0.0,
+        default=None,
         metavar="EPS",
         help="RBPF-CLAM likelihood_mode: probability that an odometry increment is an outlier; the climb's motion "
         "density gets a floor of log EPS, so a large likelihood gain (a loop closure) can move the pose however "
-        "tight the motion model (default: 0, off)",
+        "tight the motion model (paper: 0, off; default: the preset's)",
     )
 
 
@@ -132,10 +141,10 @@ def add_estimate_options(parser: argparse.ArgumentParser) -> None:
         "--mode-bandwidth",
         type=positive_float,
         nargs=2,
-        default=[0.05, 0.025],
+        default=None,
         metavar=("DXY", "DTHETA"),
         help="kernel bandwidths (m, rad) of the mode-seeking estimate written to trajectory_mode.tum (the weighted mean of "
-        "the densest group of particles; it does not change the filter; default: 0.05 0.025)",
+        "the densest group of particles; it does not change the filter; paper: 0.05 0.025; default: the preset's)",
     )
     parser.add_argument(
         "--smoothing-lag",
@@ -143,8 +152,39 @@ def add_estimate_options(parser: argparse.ArgumentParser) -> None:
         default=None,
         metavar="L",
         help="lineage smoother written to trajectory_smoothed.tum: weigh each processed scan's particle ancestors with "
-        "the weights L processed scans later (default: the final weights, full smoothing)",
+        "the weights L processed scans later (default: the preset's; unset there: the final weights, full smoothing)",
     )
+
+
+def add_preset_option(parser: argparse._ActionsContainer, default: str) -> None:
+    """``--preset NAME``: the named settings (:mod:`crlam.presets`) that the SLAM flags override."""
+    from crlam.presets import list_presets, preset_description
+
+    names = list_presets()
+    parser.add_argument(
+        "--preset",
+        choices=names,
+        default=None,
+        metavar="NAME",
+        help=f"named SLAM settings ({'; '.join(f'{n}: {preset_description(n)}' for n in names)}); every SLAM flag "
+        f"given overrides the preset's value, every one not given keeps it (default: {default}; the values are in "
+        "the package's crlam/presets/NAME.toml)",
+    )
+
+
+def slam_overrides(args: argparse.Namespace) -> dict[str, Any]:
+    """The SLAM settings given on the command line: every :class:`crlam.slam.SlamConfig` field whose
+    flag was typed (flags not typed are None and keep the preset's value); lists become tuples."""
+    from dataclasses import fields
+
+    from crlam.slam import SlamConfig
+
+    out: dict[str, Any] = {}
+    for f in fields(SlamConfig):
+        value = getattr(args, f.name, None)
+        if f.name != "preset" and value is not None:
+            out[f.name] = tuple(value) if isinstance(value, list) else value
+    return out
 
 
 def add_map_options(p: argparse.ArgumentParser) -> None:

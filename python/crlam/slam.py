@@ -26,7 +26,6 @@ __all__ = [
     "particle_spread",
     "mode_seeking_pose",
     "make_filter",
-    "PAPER_DEFAULTS",
 ]
 
 Method = Literal["clam", "ogm"]
@@ -34,7 +33,9 @@ Method = Literal["clam", "ogm"]
 
 @dataclass(frozen=True)
 class SlamConfig:
-    """Settings of a SLAM run (crm-spec 4 and 9).
+    """Settings of a SLAM run (crm-spec 4 and 9). The defaults are the paper's algorithm (the
+    ``paper`` preset); :meth:`from_preset` builds the configuration of a named preset (default
+    ``robust``), as the command line does.
 
     Attributes
     ----------
@@ -126,6 +127,10 @@ class SlamConfig:
         smoothing, available at the end of the run); an integer L weighs them with the weights
         L processed scans later (fixed lag, online with a delay of L scans). It does not change
         the filter.
+    preset : str or None
+        Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
+        ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
+        not compared by ``==``, and it does not change the filter.
     """
 
     method: str = "clam"
@@ -158,6 +163,16 @@ class SlamConfig:
     ogm_map: str = "log_odds"
     ogm_motion_draws: str = "per_update"
     ogm_weight_smoothing: float = 3.0
+    preset: str | None = field(default=None, compare=False)
+
+    @classmethod
+    def from_preset(cls, name: str | None = None, **overrides: Any) -> SlamConfig:
+        """The settings of preset ``name`` (default ``robust``, :data:`crlam.presets.DEFAULT_PRESET`)
+        with ``overrides`` (SlamConfig field names) on top; fields neither names keep the paper's
+        defaults. Raises :class:`ConfigError` for an unknown preset or field, or a bad value."""
+        from crlam.presets import DEFAULT_PRESET, resolve
+
+        return resolve(DEFAULT_PRESET if name is None else name, overrides)
 
     def __post_init__(self) -> None:
         self.validate()
@@ -187,6 +202,8 @@ class SlamConfig:
         bandwidth = self.mode_bandwidth
         if not (len(bandwidth) == 2 and all(isinstance(v, (int, float)) and v > 0 for v in bandwidth)):
             raise bad("mode_bandwidth", "needs 2 bandwidths > 0 (m, rad; inf allowed)")
+        if self.preset is not None and not isinstance(self.preset, str):
+            raise bad("preset", "must be None or a preset name")
         if self.smoothing_lag is not None and not (
             isinstance(self.smoothing_lag, int) and not isinstance(self.smoothing_lag, bool) and self.smoothing_lag >= 0
         ):
@@ -234,28 +251,21 @@ class SlamConfig:
         return asdict(self)
 
     def deviations(self) -> list[str]:
-        """Settings that differ from the paper's (crm-spec 4.3, B6): reported with every result."""
+        """Settings that differ from the paper's algorithm (crm-spec 4.3, B6), reported with every
+        result: every field whose value differs from the ``paper`` preset, as
+        ``"name = value (paper: value)"`` in field order. Fields that do not change the filter
+        (``seed``, ``mode_bandwidth``, ``smoothing_lag``) and the ``preset`` name are never listed."""
+        from crlam.presets import NOT_DEVIATIONS, paper_settings
+
+        paper = paper_settings()
         out = []
         for f in fields(self):
-            if f.name in PAPER_DEFAULTS and getattr(self, f.name) != PAPER_DEFAULTS[f.name]:
-                out.append(f"{f.name} = {getattr(self, f.name)!r} (paper: {PAPER_DEFAULTS[f.name]!r})")
+            if f.name in NOT_DEVIATIONS:
+                continue
+            mine, theirs = getattr(self, f.name), paper[f.name]
+            if (tuple(mine) if isinstance(mine, list) else mine) != theirs:
+                out.append(f"{f.name} = {mine!r} (paper: {theirs!r})")
         return out
-
-
-#: The settings the paper states or implies for RBPF-CLAM.
-PAPER_DEFAULTS: dict[str, Any] = {
-    "weight_stride": 1,
-    "map_stride": 1,
-    "tempering": 1.0,
-    "resample_threshold": 0.5,
-    "proposal": "odometry",
-    "proposal_pose": "sample",
-    "linear_update": 0.0,
-    "angular_update": 0.0,
-    "mapping_model": "ijrr",
-    "weight_model": "mixture",
-    "cause_kernel": "midpoint",
-}
 
 
 NativeFilter = _native.ClamFilter | _native.OgmFilter

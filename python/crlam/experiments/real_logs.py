@@ -64,8 +64,12 @@ def run_real_logs(
 
     ``threads``: rayon threads of each run (the results do not depend on it; the wall times do).
 
+    ``base`` holds every setting but the grid's (method, particles, seed, max_range, which each
+    run sets); without one the sweep uses the default preset (``SlamConfig.from_preset()``,
+    ``robust``).
+
     ``report_only`` runs nothing: the table covers the runs finished so far."""
-    base = base or SlamConfig(resolution=0.1, motion="thrun")
+    base = base or SlamConfig.from_preset()
     specs: list[RunSpec] = []
     for ds in datasets:
         if ds not in LOGS:
@@ -126,6 +130,7 @@ def run_real_logs(
                     )
     results = {
         "config": base.to_dict(),
+        "preset": base.preset,
         "deviations_from_paper": base.deviations(),
         "rows": rows,
         "errors": errors,

@@ -1,6 +1,8 @@
 """``crlam slam``: run a particle filter on a CARMEN log and write a self-describing run folder.
 
-The folder holds ``config.toml`` (every resolved setting), ``trajectory.tum`` (one pose per laser
+The folder holds ``config.toml`` (every resolved setting: the ``[slam]`` table has every
+:class:`crlam.slam.SlamConfig` field and the preset they were resolved from, so
+``crlam slam --config DIR/config.toml`` runs the same configuration again), ``trajectory.tum`` (one pose per laser
 scan of the log, in file order, stamped with the scan's ipc timestamp), ``metrics.json``,
 ``trajectory_best_path.tum`` (the same from the final best particle's path, GMapping's trajectory;
 its errors are reported as ``reference_best_path`` / ``relations_best_path``),
@@ -120,7 +122,7 @@ def _scan_inputs(scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float
 def run_slam_log(
     log_path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
-    config: SlamConfig,
+    config: SlamConfig | None = None,
     *,
     reference: str | os.PathLike[str] | None = None,
     relations: str | os.PathLike[str] | None = None,
@@ -128,7 +130,11 @@ def run_slam_log(
     progress: bool = True,
     figures: bool = True,
 ) -> SlamResult:
-    """Runs ``config`` on a CARMEN log and writes the run folder (see the module docstring)."""
+    """Runs ``config`` on a CARMEN log and writes the run folder (see the module docstring).
+
+    Without a ``config`` the run uses the default preset (``SlamConfig.from_preset()``, ``robust``)."""
+    if config is None:
+        config = SlamConfig.from_preset()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     reader = CarmenReader(log_path)
@@ -214,6 +220,7 @@ def run_slam_log(
         "n_resamples": run.filter.n_resamples,
         "particle_set": particle_set_summary(run),
         "fill_rule": FILL_RULE,
+        "preset": config.preset,
         "deviations_from_paper": config.deviations(),
     }
     ref_poses = None

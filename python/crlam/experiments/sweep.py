@@ -65,7 +65,8 @@ def stored_setting_differences(spec: RunSpec, folder: Path) -> list[str]:
     """The settings of the finished run in ``folder`` that differ from ``spec``, as
     ``"name: stored X, requested Y"`` (empty when they agree).
 
-    Compared: every ``SlamConfig`` field and ``max_scans``; not the file paths (data may move).
+    Compared: every ``SlamConfig`` field and ``max_scans``; not the file paths (data may move) and
+    not the preset's name (the values it resolved to are compared).
     ``None`` is written as an ``# name = (unset)`` comment. A field the file does not name at all
     did not exist when the run was made; the run then had that field's default behaviour, so it
     matches a request for the default. A run folder without ``config.toml`` is not checked."""
@@ -83,6 +84,8 @@ def stored_setting_differences(spec: RunSpec, folder: Path) -> list[str]:
     diffs = []
     requested = spec.config.to_dict()
     for key, want in requested.items():
+        if key == "preset":
+            continue  # provenance, not a setting: the values themselves are compared
         want = _normalised(want)
         if key in stored_slam:
             have = stored_slam[key]
