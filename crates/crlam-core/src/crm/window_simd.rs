@@ -1,5 +1,6 @@
 //! The window of up to sixteen weighed beams at once, after their far phases, in two sets of
-//! eight AVX-512 lanes (the [`super::far_simd`] walk lanes).
+//! eight AVX-512 lanes (the [`super::far_simd`] walk lanes), or four sets of four AVX2 lanes
+//! ([`super::lanes_avx2`]), by the level of [`crate::simd`].
 //!
 //! In the window, a weighed beam's cells from the far phase's end to the end of the mapping ray,
 //! each cause adds π·L to η: the mixture's hit density (a Gaussian through
@@ -16,6 +17,7 @@ use super::far_simd::{LANES, SET};
 use crate::info::fastmath::exp_table_avx512;
 use crate::raycast::FastWalk;
 use crate::sensor::{SensorModel, GAUSS_CUTOFF_SIGMAS, SQRT_2PI, TRUNC_SIGMAS};
+use crate::simd::SimdLevel;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
@@ -46,22 +48,29 @@ pub(crate) struct WindowModel {
     pub(crate) hit_reach: f64,
 }
 
-/// Walks the windows of `io`'s beams (at most [`LANES`]), reading m̂ from `means` at the walk's
-/// window index. Every walk's cells must lie inside `means`' window. Returns false, touching
-/// nothing, where the CPU lacks AVX-512F.
-pub(crate) fn window_phase(io: WindowLanesIo, means: &[f64], w: &WindowModel) -> bool {
+/// Walks the windows of `io`'s beams (at most [`LANES`]) at `level` (lowered to the best the
+/// CPU supports), reading m̂ from `means` at the walk's window index. Every walk's cells must lie
+/// inside `means`' window. Returns false, touching nothing, at the scalar level.
+pub(crate) fn window_phase(
+    level: SimdLevel,
+    io: WindowLanesIo,
+    means: &[f64],
+    w: &WindowModel,
+) -> bool {
     assert!(io.walks.len() <= LANES);
-    #[cfg(target_arch = "x86_64")]
-    {
-        if crate::info::fastlog::has_avx512() {
-            // SAFETY: the CPU has AVX-512F; the caller guarantees every index the walks reach
-            // lies in `means`.
-            unsafe { window_phase_avx512(io, means, w) };
-            return true;
+    match level.runnable() {
+        // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index
+        // the walks reach lies in `means`.
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 => unsafe { window_phase_avx512(io, means, w) },
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 => unsafe { super::lanes_avx2::window_phase_avx2(io, means, w) },
+        _ => {
+            let _ = (io, means, w);
+            return false;
         }
     }
-    let _ = (io, means, w);
-    false
+    true
 }
 
 /// The broadcast constants of one window step.
