@@ -23,6 +23,7 @@
 //! product), so one set of eight lanes leaves the core waiting on latencies; two independent sets
 //! stepped in the same loop overlap their chains.
 
+#[cfg(target_arch = "x86_64")]
 use crate::crm::windowed::TAIL_EPS;
 #[cfg(target_arch = "x86_64")]
 use crate::info::fastmath::exp_for_sums_avx512;
@@ -50,16 +51,22 @@ pub(crate) fn far_phase(
     means: &[f64],
 ) -> bool {
     assert!(walks.len() <= LANES && lo.len() == walks.len() && reach.len() == walks.len());
+    // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index the
+    // walks reach lies in `means`.
+    #[cfg(target_arch = "x86_64")]
     match level.runnable() {
-        // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index
-        // the walks reach lies in `means`.
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx512 => unsafe { far_phase_avx512(walks, lo, reach, means) },
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx2 => unsafe { super::lanes_avx2::far_phase_avx2(walks, lo, reach, means) },
-        _ => return false,
+        SimdLevel::Avx512 => {
+            unsafe { far_phase_avx512(walks, lo, reach, means) };
+            return true;
+        }
+        SimdLevel::Avx2 => {
+            unsafe { super::lanes_avx2::far_phase_avx2(walks, lo, reach, means) };
+            return true;
+        }
+        SimdLevel::Scalar => {}
     }
-    true
+    let _ = (level, walks, lo, reach, means);
+    false
 }
 
 /// Weighed beams at the first cell of their tails (past the mapping ray and the weight's hit
@@ -67,6 +74,7 @@ pub(crate) fn far_phase(
 /// the start), the part `base` of the stop rule's lower bound of η that the tail does not change
 /// ((1 − R_far)·far_like + η_w) and the bound `sup_past` of every cause's likelihood past the
 /// mapping ray. On return: where each walk ended, the sums, and whether the stop rule ended it.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct TailLanesIo<'a> {
     /// Lanes to walk (the others are left untouched).
     pub(crate) enabled: &'a [bool],
@@ -91,21 +99,22 @@ pub(crate) fn tail_phase(
     neg_lambda: f64,
 ) -> bool {
     assert!(io.walks.len() <= LANES);
+    // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index the
+    // walks reach lies in `means`.
+    #[cfg(target_arch = "x86_64")]
     match level.runnable() {
-        // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index
-        // the walks reach lies in `means`.
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx512 => unsafe { tail_phase_avx512(io, means, floor, neg_lambda) },
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx2 => unsafe {
-            super::lanes_avx2::tail_phase_avx2(io, means, floor, neg_lambda)
-        },
-        _ => {
-            let _ = (io, means, floor, neg_lambda);
-            return false;
+        SimdLevel::Avx512 => {
+            unsafe { tail_phase_avx512(io, means, floor, neg_lambda) };
+            return true;
         }
+        SimdLevel::Avx2 => {
+            unsafe { super::lanes_avx2::tail_phase_avx2(io, means, floor, neg_lambda) };
+            return true;
+        }
+        SimdLevel::Scalar => {}
     }
-    true
+    let _ = (level, io, means, floor, neg_lambda);
+    false
 }
 
 /// Eight [`FastWalk`]s stepped together, with the operations of `next` in its order.

@@ -10,13 +10,17 @@
 //! mapping ray, or where the hit density needs its truncation normaliser near 0 or z_max), for
 //! the scalar kernel to take up from the same state. So a beam ends as if it had walked alone.
 
+use super::far_simd::LANES;
+#[cfg(target_arch = "x86_64")]
+use super::far_simd::SET;
 #[cfg(target_arch = "x86_64")]
 use super::far_simd::{Crossing, WalkLanes};
-use super::far_simd::{LANES, SET};
 #[cfg(target_arch = "x86_64")]
 use crate::info::fastmath::exp_table_avx512;
 use crate::raycast::FastWalk;
-use crate::sensor::{SensorModel, GAUSS_CUTOFF_SIGMAS, SQRT_2PI, TRUNC_SIGMAS};
+use crate::sensor::SensorModel;
+#[cfg(target_arch = "x86_64")]
+use crate::sensor::{GAUSS_CUTOFF_SIGMAS, SQRT_2PI, TRUNC_SIGMAS};
 use crate::simd::SimdLevel;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
@@ -28,6 +32,7 @@ use std::arch::x86_64::*;
 /// entered), `eta` the window's Σ π·L so far, and each lane either stopped before its first tail
 /// cell (`at_tail`: past the mapping ray and the hit reach), or before a cell only the scalar
 /// kernel handles (`bailed`), or reached the end of its ray (neither).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct WindowLanesIo<'a> {
     pub(crate) walks: &'a mut [FastWalk],
     pub(crate) reach: &'a mut [f64],
@@ -43,6 +48,7 @@ pub(crate) struct WindowLanesIo<'a> {
 /// The weight model's constants the window needs; `hit_reach` is the kernel's (beyond it the
 /// hit term is left out).
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct WindowModel {
     pub(crate) model: SensorModel,
     pub(crate) hit_reach: f64,
@@ -58,19 +64,22 @@ pub(crate) fn window_phase(
     w: &WindowModel,
 ) -> bool {
     assert!(io.walks.len() <= LANES);
+    // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index the
+    // walks reach lies in `means`.
+    #[cfg(target_arch = "x86_64")]
     match level.runnable() {
-        // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index
-        // the walks reach lies in `means`.
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx512 => unsafe { window_phase_avx512(io, means, w) },
-        #[cfg(target_arch = "x86_64")]
-        SimdLevel::Avx2 => unsafe { super::lanes_avx2::window_phase_avx2(io, means, w) },
-        _ => {
-            let _ = (io, means, w);
-            return false;
+        SimdLevel::Avx512 => {
+            unsafe { window_phase_avx512(io, means, w) };
+            return true;
         }
+        SimdLevel::Avx2 => {
+            unsafe { super::lanes_avx2::window_phase_avx2(io, means, w) };
+            return true;
+        }
+        SimdLevel::Scalar => {}
     }
-    true
+    let _ = (level, io, means, w);
+    false
 }
 
 /// The broadcast constants of one window step.

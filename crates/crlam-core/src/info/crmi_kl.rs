@@ -144,16 +144,15 @@ impl KlBatch {
     /// `self.kl` for the queued jobs at `level` (lowered to the best the CPU supports): eight
     /// jobs at a time at AVX-512, four at AVX2, level by level otherwise.
     fn evaluate(&mut self, level: crate::simd::SimdLevel, probs: &[f64], mu: &[f64]) {
-        use crate::simd::SimdLevel;
         let level = level.runnable();
         #[cfg(target_arch = "x86_64")]
-        if level >= SimdLevel::Avx2 {
+        if level >= crate::simd::SimdLevel::Avx2 {
             let k = mu.len();
             assert!(self.jobs.iter().all(|j| (j.cell + 1) * k <= probs.len()));
             // SAFETY: the CPU supports the level (`runnable`), and every cell's K entries are
             // in `probs` (checked above).
             unsafe {
-                if level == SimdLevel::Avx512 {
+                if level == crate::simd::SimdLevel::Avx512 {
                     kl_jobs_wide(probs, mu, &self.jobs, &mut self.kl);
                 } else {
                     kl_jobs_x4(probs, mu, &self.jobs, &mut self.kl);

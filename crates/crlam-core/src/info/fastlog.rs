@@ -230,13 +230,12 @@ macro_rules! log_slice_kernel {
 
         #[doc = concat!("[`", stringify!($name), "`] at a given level (lowered to the best the CPU supports).")]
         $vis fn $at(level: $crate::simd::SimdLevel, $($arg: $ty),*) {
-            use $crate::simd::SimdLevel;
             match level.runnable() {
                 // SAFETY: `runnable` only returns levels the CPU supports.
                 #[cfg(target_arch = "x86_64")]
-                SimdLevel::Avx512 => unsafe { $wide($($arg),*) },
+                $crate::simd::SimdLevel::Avx512 => unsafe { $wide($($arg),*) },
                 #[cfg(target_arch = "x86_64")]
-                SimdLevel::Avx2 => unsafe { $avx($($arg),*) },
+                $crate::simd::SimdLevel::Avx2 => unsafe { $avx($($arg),*) },
                 _ => $body($($arg),*),
             }
         }

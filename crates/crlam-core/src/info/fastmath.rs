@@ -54,6 +54,7 @@ struct CdfTable {
     nodes: Vec<[f64; 3]>,
     /// Interval k's two nodes side by side, (nodes[k], nodes[k + 1], 0, 0): two aligned vector
     /// loads per lane for the AVX2 path.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     intervals: Vec<Interval>,
 }
 
