@@ -338,18 +338,35 @@ unsafe fn kl_group_x4(probs: &[f64], mu: &[f64], jobs: &[KlJob]) -> [f64; 4] {
     let m = _mm256_permute2f128_pd::<0x20>(t1, t3);
     let cell = _mm256_castpd_si256(_mm256_permute2f128_pd::<0x31>(t1, t3));
     // cell · K from 32-bit halves (cells and K are far below 2^32).
-    let row = _mm256_mul_epu32(cell, _mm256_set1_epi64x(mu.len() as i64));
+    let k = mu.len();
+    let row = _mm256_mul_epu32(cell, _mm256_set1_epi64x(k as i64));
+    let rows: [*const f64; 4] = std::array::from_fn(|t| probs.as_ptr().add(jobs[t].cell * k));
     let (mut s, mut g) = (zero, zero);
-    for (i, &mu_i) in mu.iter().enumerate() {
+    let mut step = |mu_i: f64, p: __m256d| {
         // max(·, 0) and max(·, tiny) return the second operand for NaN, as f64::max does.
         let d = _mm256_sub_pd(_mm256_set1_pd(mu_i), m);
         let f = _mm256_max_pd(_mm256_add_pd(one, _mm256_mul_pd(a, d)), zero);
-        let at = _mm256_add_epi64(row, _mm256_set1_epi64x(i as i64));
-        // In bounds: every row + i < (cell + 1) · K <= probs.len() (the caller's contract).
-        let p = _mm256_i64gather_pd::<8>(probs.as_ptr(), at);
         let w = _mm256_mul_pd(p, f);
         s = _mm256_add_pd(s, w);
         g = _mm256_add_pd(g, _mm256_mul_pd(w, ln_normal_x4(_mm256_max_pd(f, tiny))));
+    };
+    // Four levels at a time: the four pmf rows' entries i..i + 4 loaded and transposed (AVX2
+    // gathers are slow on many CPUs); the remaining levels gathered. In bounds: every
+    // row + i < (cell + 1) · K <= probs.len() (the caller's contract).
+    let whole = k / 4 * 4;
+    for i in (0..whole).step_by(4) {
+        let ld = |t: usize| _mm256_loadu_pd(rows[t].add(i));
+        let (r0, r1, r2, r3) = (ld(0), ld(1), ld(2), ld(3));
+        let (t0, t1) = (_mm256_unpacklo_pd(r0, r1), _mm256_unpackhi_pd(r0, r1));
+        let (t2, t3) = (_mm256_unpacklo_pd(r2, r3), _mm256_unpackhi_pd(r2, r3));
+        step(mu[i], _mm256_permute2f128_pd::<0x20>(t0, t2));
+        step(mu[i + 1], _mm256_permute2f128_pd::<0x20>(t1, t3));
+        step(mu[i + 2], _mm256_permute2f128_pd::<0x31>(t0, t2));
+        step(mu[i + 3], _mm256_permute2f128_pd::<0x31>(t1, t3));
+    }
+    for (i, &mu_i) in mu.iter().enumerate().skip(whole) {
+        let at = _mm256_add_epi64(row, _mm256_set1_epi64x(i as i64));
+        step(mu_i, _mm256_i64gather_pd::<8>(probs.as_ptr(), at));
     }
     let mut sv = [0.0; 4];
     let mut gv = [0.0; 4];
