@@ -117,3 +117,35 @@ def test_every_level_gives_the_same_gains_bit_for_bit() -> None:
         assert gains == results["scalar"], level
     if len(results) < len(LEVELS):
         pytest.skip(f"compared {sorted(results)} only: the CPU lacks the other levels")
+
+
+SLAM = """
+import hashlib, sys
+from pathlib import Path
+from crlam.experiments.slam_run import run_slam_log
+from crlam.slam import SlamConfig
+log, out = Path(sys.argv[1]), Path(sys.argv[2])
+run_slam_log(log, out, SlamConfig(particles=10, seed=2), max_scans=40, progress=False)
+print(hashlib.sha256((out / "trajectory.tum").read_bytes()).hexdigest())
+"""
+
+
+def test_every_level_gives_the_same_slam_trajectory_bit_for_bit(tmp_path: Path) -> None:
+    # RBPF-CLAM weighs its particles in the CRM lanes (AVX-512 or AVX2) or by the scalar kernel:
+    # the same trajectory, byte for byte, at every level.
+    from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
+
+    write_simulation(simulate(SimulationConfig(world="office", n_scans=60, seed=4)), tmp_path / "sim")
+    digests = {}
+    for level in LEVELS:
+        if not _supported(level):
+            print(f"skipped: {level} not supported by this CPU")
+            continue
+        r = _run(SLAM, level, str(tmp_path / "sim" / "log.clf"), str(tmp_path / level))
+        assert r.returncode == 0, r.stderr
+        digests[level] = r.stdout.strip()
+    assert "scalar" in digests
+    for level, digest in digests.items():
+        assert digest == digests["scalar"], level
+    if len(digests) < len(LEVELS):
+        pytest.skip(f"compared {sorted(digests)} only: the CPU lacks the other levels")
