@@ -199,8 +199,9 @@ fn upper_to_cdf(xs: &[f64], out: &mut [f64]) {
 }
 
 /// `out[i] = Φ(−|xs[i]|)`: the value of [`normal_tail`]`(xs[i])` (whose flag is `xs[i] > 0`), bit
-/// for bit, in one pass that vectorises (AVX-512F or AVX2 where the CPU has them, with the same
-/// operations as the scalar function, so results do not depend on the CPU). Finite inputs only.
+/// for bit, in one pass that vectorises (AVX-512F or AVX2 by [`crate::simd::level`], with the
+/// same operations as the scalar function, so results do not depend on the level). Finite inputs
+/// only.
 pub fn lower_tail_abs_slice(xs: &[f64], out: &mut [f64]) {
     lower_tail_abs_slice_at(crate::simd::level(), xs, out)
 }
@@ -658,8 +659,8 @@ fn exp_in_range(x: f64) -> f64 {
 simd_by_target! {
     /// In place, x ← `exp_in_range(x)` for x ≥ −708.3 and 0 below (where e^x < 2.2e-308: the
     /// difference cannot show in a sum that has a term near 1, the use here). −∞ gives 0; inputs
-    /// must not be NaN. Branch-free, so it runs four lanes wide on CPUs with AVX2 (the operations,
-    /// hence the results, are those of the scalar `exp_in_range`).
+    /// must not be NaN. Branch-free, so it runs four lanes wide at the AVX2 and AVX-512 levels (the
+    /// operations, hence the results, are those of the scalar `exp_in_range`).
     pub exp_for_sums, exp_for_sums_at, exp_for_sums_avx2, exp_for_sums_body, (xs: &mut [f64])
 }
 
