@@ -26,6 +26,8 @@ __all__ = [
     "cast_ranges",
     "crm_update_ray",
     "run_benchmark",
+    "simd_info",
+    "simd_level",
     "traverse_ray",
 ]
 
@@ -332,6 +334,8 @@ def crm_update_ray(
     belief_floor: float = 0.0,
 ) -> tuple[NDArray[np.float64], float]: ...
 def run_benchmark(name: str, size: int) -> dict[str, Any]: ...
+def simd_level() -> str: ...
+def simd_info() -> dict[str, Any]: ...
 
 @final
 class OccupancyLattice:

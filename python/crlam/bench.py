@@ -17,7 +17,7 @@ from typing import Any
 
 from crlam import __version__, _native
 
-__all__ = ["BENCHMARKS", "BenchSpec", "machine_info", "run_benchmarks"]
+__all__ = ["BENCHMARKS", "BenchSpec", "machine_info", "run_benchmarks", "simd_info"]
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,17 @@ def machine_info() -> dict[str, Any]:
     }
 
 
+def simd_info() -> dict[str, Any]:
+    """The instruction-set level of the core's vector kernels in this process and how it was chosen.
+
+    ``level`` (``"scalar"``, ``"avx2"`` or ``"avx512"``) is the best the CPU supports (``detected``)
+    unless the environment variable ``CRLAM_SIMD`` (``requested``) lowers it; a request the CPU
+    cannot run (or that is not a level) runs at ``detected`` and says why in ``warning``.
+    ``features`` lists the CPU's vector features. Every level gives the same results bit for bit.
+    """
+    return dict(_native.simd_info())
+
+
 def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repeats: int = 3) -> dict[str, Any]:
     """Runs the benchmarks (best of ``repeats``) and returns ``{"figures": {...}, ...}``."""
     specs = [b for b in BENCHMARKS if names is None or b.name in names]
@@ -154,10 +165,17 @@ def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repea
         figures["rbpf_clam_over_ogm_1079x100"] = round(
             figures["rbpf_clam_scans_per_s_1079x100"] / figures["rbpf_ogm_scans_per_s_1079x100"], 2
         )
+    simd = simd_info()
     return {
         "figures": figures,
         "details": details,
         "machine": machine_info(),
+        # The level every figure was measured at (CRLAM_SIMD), and what the CPU offers.
+        "simd": simd["level"],
+        "simd_detected": simd["detected"],
+        "simd_requested": simd["requested"],
+        "simd_warning": simd["warning"],
+        "cpu_features": simd["features"],
         "threads": 1,
         "quick": quick,
         "date": time.strftime("%Y-%m-%d %H:%M:%S %Z"),

@@ -254,6 +254,10 @@ def cmd_bench(args: argparse.Namespace) -> int:
     from crlam.bench import run_benchmarks, write_json
 
     result = run_benchmarks(args.only or None, quick=args.quick, repeats=args.repeats)
+    print(
+        f"crlam bench: vector kernels at {result['simd']} (CRLAM_SIMD; CPU: {' '.join(result['cpu_features']) or 'none'})",
+        file=sys.stderr,
+    )
     text = json.dumps(result["figures"] if not args.verbose else result, indent=2, sort_keys=True)
     print(text)
     if args.json:
@@ -548,7 +552,9 @@ def build_parser() -> argparse.ArgumentParser:
         "bench",
         help="run the micro-benchmarks and print named figures as JSON",
         description="Runs the core's micro-benchmarks (one thread, timed in Rust) and prints a JSON object of "
-        "named figures, all measured in this run.",
+        "named figures, all measured in this run. The vector kernels run at the best instruction-set level the "
+        "CPU supports unless the environment variable CRLAM_SIMD=scalar|avx2|avx512 lowers it (the level is "
+        'reported as "simd" in the --json/--verbose result).',
     )
     p.add_argument("--json", help="also write the full result (figures, details, machine) to this file")
     p.add_argument("--only", nargs="*", help="run only these figures")

@@ -21,5 +21,6 @@ pub mod resample;
 pub mod rng;
 pub mod sensor;
 pub mod sim;
+pub mod simd;
 
 pub use error::{CrlamError, Result};

@@ -8,6 +8,7 @@ use crlam_core::crm::{
 use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::sensor::{SensorModel, SensorModelKind};
 use crlam_core::sim::WorldRaster;
+use crlam_core::simd::{with_level, SimdLevel};
 
 /// A 16 m x 16 m room (0.05 m raster) with two pillars.
 fn room() -> (GridGeometry, Vec<u8>, usize) {
@@ -335,7 +336,7 @@ fn shared_mean_cache_changes_nothing() {
 
 #[test]
 fn weighing_alone_equals_the_fused_weight_bit_for_bit() {
-    // `weigh_scan` walks far phases and tails eight beams at a time (on CPUs with AVX-512); the
+    // `weigh_scan` walks far phases, windows and tails sixteen beams at a time in lanes; the
     // fused weight + update walks every beam alone. Both must give the same bits, on a map whose
     // walls have converged (reach drops behind them, so tails end by the stop rule) and with
     // no-returns, out-of-range and short readings among the beams.
@@ -351,23 +352,33 @@ fn weighing_alone_equals_the_fused_weight_bit_for_bit() {
         map.update_scan(*pose, &angles, r, &ijrr, &o, &mut sc)
             .unwrap();
     }
-    for k in 16..24 {
-        for (dx, dth) in [(0.0, 0.0), (0.07, -0.01), (-0.13, 0.02)] {
-            let p = [poses[k][0] + dx, poses[k][1], poses[k][2] + dth];
-            let alone = map
-                .clone()
-                .weigh_scan(p, &angles, &ranges[k], &mix, 1, &ijrr, &o, &mut sc)
-                .unwrap();
-            let fused = map
-                .clone()
-                .weigh_and_update_scan(p, &angles, &ranges[k], &mix, 1, &ijrr, &o, &mut sc)
-                .unwrap();
-            assert_eq!(
-                alone.0.to_bits(),
-                fused.0.to_bits(),
-                "scan {k}, offset {dx}"
-            );
-            assert_eq!(alone.1, fused.1);
+    // Every level the CPU runs (the lanes at AVX-512 and AVX2, the scalar kernel alone at
+    // scalar), each against the fused weight at the scalar level.
+    for level in SimdLevel::ALL {
+        if !level.supported() {
+            eprintln!("weighing_alone_equals_the_fused_weight: skipped: {level} not supported by this CPU");
+            continue;
+        }
+        for k in 16..24 {
+            for (dx, dth) in [(0.0, 0.0), (0.07, -0.01), (-0.13, 0.02)] {
+                let p = [poses[k][0] + dx, poses[k][1], poses[k][2] + dth];
+                let alone = with_level(level, || {
+                    map.clone()
+                        .weigh_scan(p, &angles, &ranges[k], &mix, 1, &ijrr, &o, &mut sc)
+                        .unwrap()
+                });
+                let fused = with_level(SimdLevel::Scalar, || {
+                    map.clone()
+                        .weigh_and_update_scan(p, &angles, &ranges[k], &mix, 1, &ijrr, &o, &mut sc)
+                        .unwrap()
+                });
+                assert_eq!(
+                    alone.0.to_bits(),
+                    fused.0.to_bits(),
+                    "{level}: scan {k}, offset {dx}"
+                );
+                assert_eq!(alone.1, fused.1);
+            }
         }
     }
 }

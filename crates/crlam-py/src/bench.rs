@@ -68,3 +68,25 @@ pub fn run_benchmark<'py>(
     d.set_item("cells_per_ray", fig.cells_per_ray)?;
     Ok(d)
 }
+
+/// The instruction-set level of the core's vector kernels in this process: `"scalar"`,
+/// `"avx2"` or `"avx512"` (the best the CPU supports, lowered by `CRLAM_SIMD`).
+#[pyfunction]
+pub fn simd_level() -> &'static str {
+    crlam_core::simd::choice().level.name()
+}
+
+/// How the level was chosen: `level`, `detected` (the best the CPU supports), `requested` (the
+/// value of `CRLAM_SIMD`, or None), `warning` (why the request was not followed, or None) and
+/// `features` (the CPU's vector features).
+#[pyfunction]
+pub fn simd_info(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let c = crlam_core::simd::choice();
+    let d = PyDict::new(py);
+    d.set_item("level", c.level.name())?;
+    d.set_item("detected", c.detected.name())?;
+    d.set_item("requested", c.requested.as_deref())?;
+    d.set_item("warning", c.warning.as_deref())?;
+    d.set_item("features", crlam_core::simd::cpu_features())?;
+    Ok(d)
+}

@@ -37,5 +37,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(rays::cast_ranges, m)?)?;
     m.add_function(wrap_pyfunction!(rays::crm_update_ray, m)?)?;
     m.add_function(wrap_pyfunction!(bench::run_benchmark, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::simd_level, m)?)?;
+    m.add_function(wrap_pyfunction!(bench::simd_info, m)?)?;
     Ok(())
 }

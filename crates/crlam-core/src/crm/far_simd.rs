@@ -1,5 +1,6 @@
 //! The far phase and the tail of up to sixteen weighed beams at once, in two sets of eight
-//! AVX-512 lanes.
+//! AVX-512 lanes (or four sets of four AVX2 lanes, [`super::lanes_avx2`], by the level of
+//! [`crate::simd`]).
 //!
 //! A weight needs nothing from the cells far before a reading (or from any cell of a no-return)
 //! but the reach R = Π (1 − m̂) ([`super::windowed`]): a walk, a mean and a product per cell,
@@ -22,10 +23,12 @@
 //! product), so one set of eight lanes leaves the core waiting on latencies; two independent sets
 //! stepped in the same loop overlap their chains.
 
+#[cfg(target_arch = "x86_64")]
 use crate::crm::windowed::TAIL_EPS;
 #[cfg(target_arch = "x86_64")]
 use crate::info::fastmath::exp_for_sums_avx512;
 use crate::raycast::FastWalk;
+use crate::simd::SimdLevel;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
@@ -35,27 +38,34 @@ pub(crate) const SET: usize = 8;
 /// Beams a call takes: two sets of lanes.
 pub(crate) const LANES: usize = 2 * SET;
 
-/// Runs the far phase of `walks` (at most [`LANES`]): lane i consumes cells while their chord
-/// midpoint is below `lo[i]` (+∞ for a no-return), multiplying `reach[i]` by 1 − m̂ with m̂ read
-/// from `means` at the walk's window index. Every walk's cells must lie inside `means`' window.
-/// Returns false, touching nothing, where the CPU lacks AVX-512F.
+/// Runs the far phase of `walks` (at most [`LANES`]) at `level` (lowered to the best the CPU
+/// supports): lane i consumes cells while their chord midpoint is below `lo[i]` (+∞ for a
+/// no-return), multiplying `reach[i]` by 1 − m̂ with m̂ read from `means` at the walk's window
+/// index. Every walk's cells must lie inside `means`' window. Returns false, touching nothing, at
+/// the scalar level (the scalar kernel walks the beams instead).
 pub(crate) fn far_phase(
+    level: SimdLevel,
     walks: &mut [FastWalk],
     lo: &[f64],
     reach: &mut [f64],
     means: &[f64],
 ) -> bool {
     assert!(walks.len() <= LANES && lo.len() == walks.len() && reach.len() == walks.len());
+    // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index the
+    // walks reach lies in `means`.
     #[cfg(target_arch = "x86_64")]
-    {
-        if crate::info::fastlog::has_avx512() {
-            // SAFETY: the CPU has AVX-512F; the caller guarantees every index the walks reach
-            // lies in `means`.
+    match level.runnable() {
+        SimdLevel::Avx512 => {
             unsafe { far_phase_avx512(walks, lo, reach, means) };
             return true;
         }
+        SimdLevel::Avx2 => {
+            unsafe { super::lanes_avx2::far_phase_avx2(walks, lo, reach, means) };
+            return true;
+        }
+        SimdLevel::Scalar => {}
     }
-    let _ = (walks, lo, reach, means);
+    let _ = (level, walks, lo, reach, means);
     false
 }
 
@@ -64,6 +74,7 @@ pub(crate) fn far_phase(
 /// the start), the part `base` of the stop rule's lower bound of η that the tail does not change
 /// ((1 − R_far)·far_like + η_w) and the bound `sup_past` of every cause's likelihood past the
 /// mapping ray. On return: where each walk ended, the sums, and whether the stop rule ended it.
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct TailLanesIo<'a> {
     /// Lanes to walk (the others are left untouched).
     pub(crate) enabled: &'a [bool],
@@ -76,22 +87,33 @@ pub(crate) struct TailLanesIo<'a> {
     pub(crate) stopped: &'a mut [bool],
 }
 
-/// Walks the tails of `io`'s beams (at most [`LANES`]), reading m̂ from `means` at the walk's
-/// window index; `floor` is the mixture's w_r/z_max and `neg_lambda` its −λ. Every walk's cells
-/// must lie inside `means`' window. Returns false, touching nothing, where the CPU lacks
-/// AVX-512F.
-pub(crate) fn tail_phase(io: TailLanesIo, means: &[f64], floor: f64, neg_lambda: f64) -> bool {
+/// Walks the tails of `io`'s beams (at most [`LANES`]) at `level` (lowered to the best the CPU
+/// supports), reading m̂ from `means` at the walk's window index; `floor` is the mixture's
+/// w_r/z_max and `neg_lambda` its −λ. Every walk's cells must lie inside `means`' window.
+/// Returns false, touching nothing, at the scalar level.
+pub(crate) fn tail_phase(
+    level: SimdLevel,
+    io: TailLanesIo,
+    means: &[f64],
+    floor: f64,
+    neg_lambda: f64,
+) -> bool {
     assert!(io.walks.len() <= LANES);
+    // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index the
+    // walks reach lies in `means`.
     #[cfg(target_arch = "x86_64")]
-    {
-        if crate::info::fastlog::has_avx512() {
-            // SAFETY: the CPU has AVX-512F; the caller guarantees every index the walks reach
-            // lies in `means`.
+    match level.runnable() {
+        SimdLevel::Avx512 => {
             unsafe { tail_phase_avx512(io, means, floor, neg_lambda) };
             return true;
         }
+        SimdLevel::Avx2 => {
+            unsafe { super::lanes_avx2::tail_phase_avx2(io, means, floor, neg_lambda) };
+            return true;
+        }
+        SimdLevel::Scalar => {}
     }
-    let _ = (io, means, floor, neg_lambda);
+    let _ = (level, io, means, floor, neg_lambda);
     false
 }
 
@@ -452,11 +474,17 @@ mod tests {
     }
 
     #[test]
-    fn lanes_equal_the_scalar_far_phase_bit_for_bit() {
-        if !crate::info::fastlog::has_avx512() {
-            eprintln!("skipped: this CPU has no AVX-512F (the scalar kernel runs instead)");
-            return;
+    fn lanes_equal_the_scalar_far_phase_bit_for_bit_at_every_level() {
+        for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+            if level.supported() {
+                far_lanes_equal_the_scalar_far_phase_at(level);
+            } else {
+                crate::simd::report_skip("lanes_equal_the_scalar_far_phase", level);
+            }
         }
+    }
+
+    fn far_lanes_equal_the_scalar_far_phase_at(level: SimdLevel) {
         let g = GridGeometry::new([0.013, -0.027], 0.2).unwrap();
         let (ix0, iy0, nx) = (-60i64, -60i64, 121i64);
         let mut state = 3u64;
@@ -493,12 +521,12 @@ mod tests {
                 .map(|(w, &l)| scalar(w, l, &means))
                 .collect();
             let mut reach = vec![1.0; n];
-            assert!(far_phase(&mut walks, &lo, &mut reach, &means));
+            assert!(far_phase(level, &mut walks, &lo, &mut reach, &means));
             for i in 0..n {
                 assert_eq!(
                     reach[i].to_bits(),
                     want_reach[i].to_bits(),
-                    "round {round} lane {i}"
+                    "{level} round {round} lane {i}"
                 );
                 let (a, b) = (walks[i].parts(), want[i].parts());
                 assert_eq!(
@@ -522,7 +550,7 @@ mod tests {
                         b.ty.to_bits(),
                         b.t_in.to_bits()
                     ),
-                    "round {round} lane {i}"
+                    "{level} round {round} lane {i}"
                 );
                 // And the rest of the walk is the same.
                 assert_eq!(

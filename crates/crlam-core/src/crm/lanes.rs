@@ -1,6 +1,6 @@
-//! Weighing a group of beams in AVX-512 lanes: far phase, window and tail
-//! ([`super::far_simd`], [`super::window_simd`]) and the weight's final sum, sixteen beams at a
-//! time.
+//! Weighing a group of beams in AVX-512 or AVX2 lanes (by [`crate::simd::level`]): far phase,
+//! window and tail ([`super::far_simd`], [`super::window_simd`], [`super::lanes_avx2`]) and the
+//! weight's final sum, sixteen beams at a time.
 //!
 //! Each phase does for its lanes what the windowed kernel's scalar loop ([`super::windowed`])
 //! does, in its order, so a beam weighed here has the scalar weight bit for bit. A lane whose
@@ -32,7 +32,7 @@ pub(crate) enum LaneOutcome {
 
 impl CrmMap {
     /// Weighs the beams of `group` (at most [`LANES`]) under `weight` in lanes, as far as the
-    /// lanes go; nothing where the scan has no mean table or the CPU lacks AVX-512.
+    /// lanes go; nothing where the scan has no mean table or the level is scalar.
     pub(crate) fn weigh_in_lanes(
         &self,
         k: &WindowedScan,
@@ -41,6 +41,10 @@ impl CrmMap {
         sc: &CrmScratch,
     ) -> [LaneOutcome; LANES] {
         let mut out: [LaneOutcome; LANES] = Default::default();
+        let level = crate::simd::level();
+        if level == crate::simd::SimdLevel::Scalar {
+            return out;
+        }
         let Some(t) = sc.scan.mean_table() else {
             return out;
         };
@@ -84,7 +88,7 @@ impl CrmMap {
         }
         let walks = &mut walks[..n];
         let mut reach = [1.0; LANES];
-        if n == 0 || !far_phase(walks, &lo[..n], &mut reach[..n], &t.values) {
+        if n == 0 || !far_phase(level, walks, &lo[..n], &mut reach[..n], &t.values) {
             return out;
         }
         let Some(wm) = k.window_model() else {
@@ -103,7 +107,7 @@ impl CrmMap {
             at_tail: &mut at_tail[..n],
             bailed: &mut bailed[..n],
         };
-        if !window_phase(io, &t.values, &wm) {
+        if !window_phase(level, io, &t.values, &wm) {
             return out;
         }
         // The tails of the lanes that reached theirs (in place), then every finished lane's η.
@@ -132,7 +136,7 @@ impl CrmMap {
                 sup_past: &sup_past[..n],
                 stopped: &mut stopped[..n],
             };
-            if !tail_phase(io, &t.values, floor, -weight.lambda_short) {
+            if !tail_phase(level, io, &t.values, floor, -weight.lambda_short) {
                 return out;
             }
         }

@@ -5,6 +5,8 @@ pub mod beam;
 mod far_simd;
 mod forward;
 mod lanes;
+#[cfg(target_arch = "x86_64")]
+mod lanes_avx2;
 pub mod levels;
 pub mod map;
 mod mean_cache;

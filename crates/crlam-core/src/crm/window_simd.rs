@@ -1,5 +1,6 @@
 //! The window of up to sixteen weighed beams at once, after their far phases, in two sets of
-//! eight AVX-512 lanes (the [`super::far_simd`] walk lanes).
+//! eight AVX-512 lanes (the [`super::far_simd`] walk lanes), or four sets of four AVX2 lanes
+//! ([`super::lanes_avx2`]), by the level of [`crate::simd`].
 //!
 //! In the window, a weighed beam's cells from the far phase's end to the end of the mapping ray,
 //! each cause adds π·L to η: the mixture's hit density (a Gaussian through
@@ -9,13 +10,18 @@
 //! mapping ray, or where the hit density needs its truncation normaliser near 0 or z_max), for
 //! the scalar kernel to take up from the same state. So a beam ends as if it had walked alone.
 
+use super::far_simd::LANES;
+#[cfg(target_arch = "x86_64")]
+use super::far_simd::SET;
 #[cfg(target_arch = "x86_64")]
 use super::far_simd::{Crossing, WalkLanes};
-use super::far_simd::{LANES, SET};
 #[cfg(target_arch = "x86_64")]
 use crate::info::fastmath::exp_table_avx512;
 use crate::raycast::FastWalk;
-use crate::sensor::{SensorModel, GAUSS_CUTOFF_SIGMAS, SQRT_2PI, TRUNC_SIGMAS};
+use crate::sensor::SensorModel;
+#[cfg(target_arch = "x86_64")]
+use crate::sensor::{GAUSS_CUTOFF_SIGMAS, SQRT_2PI, TRUNC_SIGMAS};
+use crate::simd::SimdLevel;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
 
@@ -26,6 +32,7 @@ use std::arch::x86_64::*;
 /// entered), `eta` the window's Σ π·L so far, and each lane either stopped before its first tail
 /// cell (`at_tail`: past the mapping ray and the hit reach), or before a cell only the scalar
 /// kernel handles (`bailed`), or reached the end of its ray (neither).
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct WindowLanesIo<'a> {
     pub(crate) walks: &'a mut [FastWalk],
     pub(crate) reach: &'a mut [f64],
@@ -41,26 +48,37 @@ pub(crate) struct WindowLanesIo<'a> {
 /// The weight model's constants the window needs; `hit_reach` is the kernel's (beyond it the
 /// hit term is left out).
 #[derive(Clone, Copy, Debug)]
+#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
 pub(crate) struct WindowModel {
     pub(crate) model: SensorModel,
     pub(crate) hit_reach: f64,
 }
 
-/// Walks the windows of `io`'s beams (at most [`LANES`]), reading m̂ from `means` at the walk's
-/// window index. Every walk's cells must lie inside `means`' window. Returns false, touching
-/// nothing, where the CPU lacks AVX-512F.
-pub(crate) fn window_phase(io: WindowLanesIo, means: &[f64], w: &WindowModel) -> bool {
+/// Walks the windows of `io`'s beams (at most [`LANES`]) at `level` (lowered to the best the
+/// CPU supports), reading m̂ from `means` at the walk's window index. Every walk's cells must lie
+/// inside `means`' window. Returns false, touching nothing, at the scalar level.
+pub(crate) fn window_phase(
+    level: SimdLevel,
+    io: WindowLanesIo,
+    means: &[f64],
+    w: &WindowModel,
+) -> bool {
     assert!(io.walks.len() <= LANES);
+    // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index the
+    // walks reach lies in `means`.
     #[cfg(target_arch = "x86_64")]
-    {
-        if crate::info::fastlog::has_avx512() {
-            // SAFETY: the CPU has AVX-512F; the caller guarantees every index the walks reach
-            // lies in `means`.
+    match level.runnable() {
+        SimdLevel::Avx512 => {
             unsafe { window_phase_avx512(io, means, w) };
             return true;
         }
+        SimdLevel::Avx2 => {
+            unsafe { super::lanes_avx2::window_phase_avx2(io, means, w) };
+            return true;
+        }
+        SimdLevel::Scalar => {}
     }
-    let _ = (io, means, w);
+    let _ = (level, io, means, w);
     false
 }
 

@@ -1,8 +1,9 @@
 //! KL divergences of many CRMI posteriors from their priors, batched (crm-spec 5.2): the MI of a
 //! cell is Σ_q P(q) KL(p'(q) ‖ p), and each (cell, bin) posterior p' = p ⊙ f / s with
 //! f_i = max(1 + α(μ_i − m̂), 0) needs K logarithms, most of CRMI's time. The batch evaluates them
-//! eight posteriors at a time with explicit AVX-512, or level by level (four lanes with AVX2),
-//! with the scalar definition's operations in its order, so every path gives the same bits.
+//! eight posteriors at a time with explicit AVX-512, four at a time with explicit AVX2, or level by
+//! level (by [`crate::simd::level`]), with the scalar definition's operations in its order, so
+//! every path gives the same bits.
 
 use crate::info::fastmath::ln_normal;
 
@@ -133,25 +134,37 @@ impl KlBatch {
         let n = self.jobs.len();
         self.kl.clear();
         self.kl.resize(n, 0.0);
-        #[cfg(target_arch = "x86_64")]
-        if crate::info::fastlog::has_avx512() {
-            let k = mu.len();
-            assert!(self.jobs.iter().all(|j| (j.cell + 1) * k <= probs.len()));
-            // SAFETY: AVX-512F is there (checked), and every cell's K entries are in `probs`.
-            unsafe { kl_jobs_wide(probs, mu, &self.jobs, &mut self.kl) };
-        } else {
-            self.level_by_level(probs, mu);
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        self.level_by_level(probs, mu);
+        self.evaluate(crate::simd::level(), probs, mu);
         for (job, kl) in self.jobs.iter().zip(&self.kl) {
             out[job.cell] += job.weight * kl;
         }
         self.jobs.clear();
     }
 
+    /// `self.kl` for the queued jobs at `level` (lowered to the best the CPU supports): eight
+    /// jobs at a time at AVX-512, four at AVX2, level by level otherwise.
+    fn evaluate(&mut self, level: crate::simd::SimdLevel, probs: &[f64], mu: &[f64]) {
+        let level = level.runnable();
+        #[cfg(target_arch = "x86_64")]
+        if level >= crate::simd::SimdLevel::Avx2 {
+            let k = mu.len();
+            assert!(self.jobs.iter().all(|j| (j.cell + 1) * k <= probs.len()));
+            // SAFETY: the CPU supports the level (`runnable`), and every cell's K entries are
+            // in `probs` (checked above).
+            unsafe {
+                if level == crate::simd::SimdLevel::Avx512 {
+                    kl_jobs_wide(probs, mu, &self.jobs, &mut self.kl);
+                } else {
+                    kl_jobs_x4(probs, mu, &self.jobs, &mut self.kl);
+                }
+            }
+            return;
+        }
+        self.level_by_level(level, probs, mu);
+    }
+
     /// `self.kl` by sweeping the levels over all jobs (each step vectorises).
-    fn level_by_level(&mut self, probs: &[f64], mu: &[f64]) {
+    fn level_by_level(&mut self, level: crate::simd::SimdLevel, probs: &[f64], mu: &[f64]) {
         let k = mu.len();
         let n = self.jobs.len();
         self.alpha.clear();
@@ -167,7 +180,8 @@ impl KlBatch {
             for (pl, job) in self.p_level.iter_mut().zip(&self.jobs) {
                 *pl = probs[job.cell * k + i];
             }
-            kl_level_sums(
+            kl_level_sums_at(
+                level,
                 m,
                 &self.alpha,
                 &self.mhat,
@@ -195,7 +209,7 @@ fn kl_level_step(mu: f64, alpha: f64, mhat: f64, p: f64, s: &mut f64, g: &mut f6
 
 crate::info::fastmath::simd_by_target! {
     /// [`kl_level_step`] of level `mu` for every pair j (α_j, m̂_j, p_j), into the pair's sums.
-    kl_level_sums, kl_level_sums_avx2, kl_level_sums_body,
+    kl_level_sums, kl_level_sums_at, kl_level_sums_avx2, kl_level_sums_body,
     (mu: f64, alpha: &[f64], mhat: &[f64], p: &[f64], s: &mut [f64], g: &mut [f64])
 }
 
@@ -279,6 +293,88 @@ unsafe fn kl_group_wide(probs: &[f64], mu: &[f64], jobs: &[KlJob]) -> [f64; 8] {
     std::array::from_fn(|t| kl_from_sums(sv[t], gv[t]))
 }
 
+/// `kl[j]` = [`posterior_kl`] of job j, four jobs at a time with AVX2, as [`kl_jobs_wide`].
+///
+/// # Safety
+/// The CPU must support AVX2, and `(cell + 1) · K <= probs.len()` for every job.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn kl_jobs_x4(probs: &[f64], mu: &[f64], jobs: &[KlJob], kl: &mut [f64]) {
+    let n = jobs.len();
+    assert!(kl.len() >= n);
+    let whole = n / 4 * 4;
+    for j in (0..whole).step_by(4) {
+        let group = kl_group_x4(probs, mu, &jobs[j..j + 4]);
+        kl[j..j + 4].copy_from_slice(&group);
+    }
+    if whole < n {
+        let mut padded = [jobs[whole]; 4];
+        padded[..n - whole].copy_from_slice(&jobs[whole..]);
+        let group = kl_group_x4(probs, mu, &padded);
+        kl[whole..n].copy_from_slice(&group[..n - whole]);
+    }
+}
+
+/// [`posterior_kl`] of four jobs in the lanes of one AVX2 vector: the four 32-byte jobs are
+/// loaded as rows and transposed into fields.
+///
+/// # Safety
+/// As [`kl_jobs_x4`]; `jobs` holds four jobs.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn kl_group_x4(probs: &[f64], mu: &[f64], jobs: &[KlJob]) -> [f64; 4] {
+    use crate::info::fastlog::ln_normal_x4;
+    use std::arch::x86_64::*;
+    assert!(jobs.len() >= 4);
+    let (one, zero) = (_mm256_set1_pd(1.0), _mm256_setzero_pd());
+    let tiny = _mm256_set1_pd(f64::MIN_POSITIVE);
+    // Rows (α, m̂, weight, cell) of the four jobs, transposed.
+    let row = |t: usize| _mm256_loadu_pd(jobs.as_ptr().add(t) as *const f64);
+    let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
+    let (t0, t1) = (_mm256_unpacklo_pd(r0, r1), _mm256_unpackhi_pd(r0, r1));
+    let (t2, t3) = (_mm256_unpacklo_pd(r2, r3), _mm256_unpackhi_pd(r2, r3));
+    let a = _mm256_permute2f128_pd::<0x20>(t0, t2);
+    let m = _mm256_permute2f128_pd::<0x20>(t1, t3);
+    let cell = _mm256_castpd_si256(_mm256_permute2f128_pd::<0x31>(t1, t3));
+    // cell · K from 32-bit halves (cells and K are far below 2^32).
+    let k = mu.len();
+    let row = _mm256_mul_epu32(cell, _mm256_set1_epi64x(k as i64));
+    let rows: [*const f64; 4] = std::array::from_fn(|t| probs.as_ptr().add(jobs[t].cell * k));
+    let (mut s, mut g) = (zero, zero);
+    let mut step = |mu_i: f64, p: __m256d| {
+        // max(·, 0) and max(·, tiny) return the second operand for NaN, as f64::max does.
+        let d = _mm256_sub_pd(_mm256_set1_pd(mu_i), m);
+        let f = _mm256_max_pd(_mm256_add_pd(one, _mm256_mul_pd(a, d)), zero);
+        let w = _mm256_mul_pd(p, f);
+        s = _mm256_add_pd(s, w);
+        g = _mm256_add_pd(g, _mm256_mul_pd(w, ln_normal_x4(_mm256_max_pd(f, tiny))));
+    };
+    // Four levels at a time: the four pmf rows' entries i..i + 4 loaded and transposed (AVX2
+    // gathers are slow on many CPUs); the remaining levels gathered. In bounds: every
+    // row + i < (cell + 1) · K <= probs.len() (the caller's contract).
+    let whole = k / 4 * 4;
+    for i in (0..whole).step_by(4) {
+        let ld = |t: usize| _mm256_loadu_pd(rows[t].add(i));
+        let (r0, r1, r2, r3) = (ld(0), ld(1), ld(2), ld(3));
+        let (t0, t1) = (_mm256_unpacklo_pd(r0, r1), _mm256_unpackhi_pd(r0, r1));
+        let (t2, t3) = (_mm256_unpacklo_pd(r2, r3), _mm256_unpackhi_pd(r2, r3));
+        step(mu[i], _mm256_permute2f128_pd::<0x20>(t0, t2));
+        step(mu[i + 1], _mm256_permute2f128_pd::<0x20>(t1, t3));
+        step(mu[i + 2], _mm256_permute2f128_pd::<0x31>(t0, t2));
+        step(mu[i + 3], _mm256_permute2f128_pd::<0x31>(t1, t3));
+    }
+    for (i, &mu_i) in mu.iter().enumerate().skip(whole) {
+        let at = _mm256_add_epi64(row, _mm256_set1_epi64x(i as i64));
+        step(mu_i, _mm256_i64gather_pd::<8>(probs.as_ptr(), at));
+    }
+    let mut sv = [0.0; 4];
+    let mut gv = [0.0; 4];
+    _mm256_storeu_pd(sv.as_mut_ptr(), s);
+    _mm256_storeu_pd(gv.as_mut_ptr(), g);
+    std::array::from_fn(|t| kl_from_sums(sv[t], gv[t]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -339,23 +435,34 @@ mod tests {
             want[c] += weight * kl;
             batch.push(c, weight, alpha, mhat[c]);
         }
-        // The dispatched path (eight lanes where the CPU has AVX-512).
+        // The dispatched path.
         let mut got = vec![0.0; 7];
         batch.flush(&probs, &mu, &mut got);
         assert!(batch.jobs.is_empty());
-        // The level-by-level path, whatever the CPU.
-        for &(c, weight, alpha) in &jobs {
-            batch.push(c, weight, alpha, mhat[c]);
-        }
-        batch.kl.resize(jobs.len(), 0.0);
-        batch.level_by_level(&probs, &mu);
-        let mut level = [0.0; 7];
-        for (job, kl) in batch.jobs.iter().zip(&batch.kl) {
-            level[job.cell] += job.weight * kl;
-        }
         for c in 0..7 {
             assert_eq!(got[c].to_bits(), want[c].to_bits(), "cell {c}");
-            assert_eq!(level[c].to_bits(), want[c].to_bits(), "cell {c}");
+        }
+        // Every level (level by level at scalar), 45 jobs and a shorter batch (a partial group).
+        for level in crate::simd::SimdLevel::ALL {
+            if !level.supported() {
+                crate::simd::report_skip("batched_divergences_equal_the_scalar_ones", level);
+                continue;
+            }
+            for n in [jobs.len(), 6] {
+                for &(c, weight, alpha) in &jobs[..n] {
+                    batch.push(c, weight, alpha, mhat[c]);
+                }
+                batch.kl.clear();
+                batch.kl.resize(n, 0.0);
+                batch.evaluate(level, &probs, &mu);
+                for (job, (kl, &(c, _, alpha))) in batch.jobs.iter().zip(batch.kl.iter().zip(&jobs))
+                {
+                    let want = posterior_kl(&probs[c * k..(c + 1) * k], &mu, alpha, mhat[c]);
+                    assert_eq!(job.cell, c);
+                    assert_eq!(kl.to_bits(), want.to_bits(), "{level} cell {c}");
+                }
+                batch.jobs.clear();
+            }
         }
     }
 

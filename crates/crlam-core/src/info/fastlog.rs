@@ -1,7 +1,8 @@
 //! The natural logarithm of the CRMI and FSMI inner loops: a scalar, division-free, table-driven
 //! log ([`ln_normal`], a few ulp) and slice kernels that run it eight lanes wide with explicit
 //! AVX-512 (the tables held in registers and read with two-register permutes), four lanes wide
-//! with AVX2 (compiled from the scalar body) or scalar. Every path performs the scalar's
+//! with explicit AVX2 (the tables read with in-register permutes) or scalar, by
+//! [`crate::simd::level`]. Every path performs the scalar's
 //! operations in its order, without FMA, so results do not depend on the CPU (tested bit for bit).
 
 /// The nodes c_j (exact, as bits): 1 + j/16 for j < 8, (1 + j/16)/2 for the halved mantissas.
@@ -155,44 +156,105 @@ pub(crate) unsafe fn ln_normal_x8(x: std::arch::x86_64::__m512d) -> std::arch::x
     add(mul(e, c(LN_2)), add(node(&LN_NODE), add(r, mul(r2, q))))
 }
 
-/// Whether the eight-lane kernels can run on this CPU.
+/// [`ln_normal`] of four lanes with explicit AVX2: the scalar's operations in its order (the
+/// exponent read through the 2^52 trick, the node tables looked up with in-register permutes
+/// instead of gathers), so every lane equals the scalar bit for bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
 #[inline]
-pub(crate) fn has_avx512() -> bool {
-    #[cfg(target_arch = "x86_64")]
-    {
-        std::arch::is_x86_feature_detected!("avx512f")
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    {
-        false
-    }
+pub(crate) unsafe fn ln_normal_x4(x: std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d {
+    use std::arch::x86_64::*;
+    let c = |v: f64| _mm256_set1_pd(v);
+    let ci = |v: u64| _mm256_set1_epi64x(v as i64);
+    let bits = _mm256_castpd_si256(x);
+    let e = _mm256_sub_pd(
+        _mm256_castsi256_pd(_mm256_or_si256(
+            ci(TWO52.to_bits()),
+            _mm256_srli_epi64::<52>(bits),
+        )),
+        c(TWO52 + 1023.0),
+    );
+    let m = _mm256_castsi256_pd(_mm256_or_si256(
+        _mm256_and_si256(bits, ci(MANTISSA)),
+        ci(ONE),
+    ));
+    let big = _mm256_cmp_pd::<_CMP_GE_OQ>(m, c(HALVE_FROM));
+    let m = _mm256_blendv_pd(m, _mm256_mul_pd(c(0.5), m), big);
+    let e = _mm256_blendv_pd(e, _mm256_add_pd(e, c(1.0)), big);
+    let j = _mm256_and_si256(
+        _mm256_srli_epi64::<48>(_mm256_add_epi64(bits, ci(1 << 47))),
+        ci(15),
+    );
+    // Table entry j of each lane: the dword pair (2(j mod 4), 2(j mod 4) + 1) of each of the four
+    // quarters, then bits 2 and 3 of j (moved to the sign bit) choose the quarter.
+    let low2 = _mm256_slli_epi64::<1>(_mm256_and_si256(j, ci(3)));
+    let pair = _mm256_or_si256(low2, _mm256_slli_epi64::<32>(_mm256_add_epi64(low2, ci(1))));
+    let (bit2, bit3) = (
+        _mm256_castsi256_pd(_mm256_slli_epi64::<61>(j)),
+        _mm256_castsi256_pd(_mm256_slli_epi64::<60>(j)),
+    );
+    let node = |t: &[u64; 16]| {
+        let q = |k: usize| {
+            _mm256_castsi256_pd(_mm256_permutevar8x32_epi32(
+                _mm256_loadu_si256(t.as_ptr().add(4 * k) as *const __m256i),
+                pair,
+            ))
+        };
+        let lo = _mm256_blendv_pd(q(0), q(1), bit2);
+        let hi = _mm256_blendv_pd(q(2), q(3), bit2);
+        _mm256_blendv_pd(lo, hi, bit3)
+    };
+    let (mul, add) = (|a, b| _mm256_mul_pd(a, b), |a, b| _mm256_add_pd(a, b));
+    // The node c_j itself needs no table: (1 + j/16), halved from j = 8 on, every step exact.
+    let jf = _mm256_sub_pd(
+        _mm256_castsi256_pd(_mm256_or_si256(j, ci(TWO52.to_bits()))),
+        c(TWO52),
+    );
+    let c_node = mul(
+        add(c(1.0), mul(jf, c(1.0 / 16.0))),
+        _mm256_blendv_pd(c(1.0), c(0.5), bit3),
+    );
+    let r = mul(_mm256_sub_pd(m, c_node), node(&INV_NODE));
+    let r2 = mul(r, r);
+    let r4 = mul(r2, r2);
+    let q01 = add(c(Q[0]), mul(r, c(Q[1])));
+    let q23 = add(c(Q[2]), mul(r, c(Q[3])));
+    let q45 = add(c(Q[4]), mul(r, c(Q[5])));
+    let q67 = add(c(Q[6]), mul(r, c(Q[7])));
+    let q = add(add(q01, mul(r2, q23)), mul(r4, add(q45, mul(r2, q67))));
+    add(mul(e, c(LN_2)), add(node(&LN_NODE), add(r, mul(r2, q))))
 }
 
-/// `$vis fn $name(args)`: the explicit eight-lane `$wide(args)` where the CPU has AVX-512F, else
-/// `$portable(args)`, which is `$body(args)` compiled for AVX2 where the CPU has it (see
-/// [`crate::info::fastmath::simd_by_target`]). `$wide` must equal `$body` bit for bit.
+/// `$vis fn $name(args)` runs `$at(`[`crate::simd::level`]`(), args)`; `$vis fn $at(level, args)`
+/// runs the explicit eight-lane `$wide(args)` at AVX-512, the explicit four-lane `$avx(args)` at
+/// AVX2 and `$body(args)` otherwise (a level the CPU lacks is lowered to one it has). The vector
+/// versions must equal `$body` bit for bit.
 macro_rules! log_slice_kernel {
-    ($(#[$doc:meta])* $vis:vis $name:ident, $wide:ident, $portable:ident, $avx:ident, $body:ident,
+    ($(#[$doc:meta])* $vis:vis $name:ident, $at:ident, $wide:ident, $avx:ident, $body:ident,
      ($($arg:ident: $ty:ty),*)) => {
         $(#[$doc])*
         $vis fn $name($($arg: $ty),*) {
-            #[cfg(target_arch = "x86_64")]
-            if $crate::info::fastlog::has_avx512() {
-                // SAFETY: the CPU supports AVX-512F, checked just above.
-                unsafe { $wide($($arg),*) };
-                return;
-            }
-            $portable($($arg),*);
+            $at($crate::simd::level(), $($arg),*)
         }
 
-        $crate::info::fastmath::simd_by_target! { $portable, $avx, $body, ($($arg: $ty),*) }
+        #[doc = concat!("[`", stringify!($name), "`] at a given level (lowered to the best the CPU supports).")]
+        $vis fn $at(level: $crate::simd::SimdLevel, $($arg: $ty),*) {
+            match level.runnable() {
+                // SAFETY: `runnable` only returns levels the CPU supports.
+                #[cfg(target_arch = "x86_64")]
+                $crate::simd::SimdLevel::Avx512 => unsafe { $wide($($arg),*) },
+                #[cfg(target_arch = "x86_64")]
+                $crate::simd::SimdLevel::Avx2 => unsafe { $avx($($arg),*) },
+                _ => $body($($arg),*),
+            }
+        }
     };
 }
 
 log_slice_kernel! {
     /// `out[i] = ln_normal(max(xs[i], f64::MIN_POSITIVE))` over two equal-length slices, eight
     /// lanes wide with AVX-512F, four with AVX2, scalar elsewhere (the same results on every path).
-    pub ln_clamped_slice, ln_clamped_slice_wide, ln_clamped_slice_portable, ln_clamped_slice_avx2,
+    pub ln_clamped_slice, ln_clamped_slice_at, ln_clamped_slice_wide, ln_clamped_slice_avx2,
     ln_clamped_slice_body,
     (xs: &[f64], out: &mut [f64])
 }
@@ -219,11 +281,26 @@ unsafe fn ln_clamped_slice_wide(xs: &[f64], out: &mut [f64]) {
     ln_clamped_slice_body(&xs[whole..n], &mut out[whole..n]);
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn ln_clamped_slice_avx2(xs: &[f64], out: &mut [f64]) {
+    use std::arch::x86_64::*;
+    let n = xs.len().min(out.len());
+    let whole = n / 4 * 4;
+    let tiny = _mm256_set1_pd(f64::MIN_POSITIVE);
+    for i in (0..whole).step_by(4) {
+        // max(x, tiny) with tiny second returns tiny for NaN x, as f64::max does.
+        let x = _mm256_max_pd(_mm256_loadu_pd(xs.as_ptr().add(i)), tiny);
+        _mm256_storeu_pd(out.as_mut_ptr().add(i), ln_normal_x4(x));
+    }
+    ln_clamped_slice_body(&xs[whole..n], &mut out[whole..n]);
+}
+
 log_slice_kernel! {
     /// ln(1 + x) of every `xs[i]` into `out[i]` for x > −1 with 1 + x normal, to within a few ulp,
     /// in one pass that vectorises like [`ln_clamped_slice`]: u = 1 + x rounded, then
     /// ln(1 + x) = ln(u) · x/(u − 1), which cancels u's rounding error (x itself when u = 1).
-    pub ln_1p_slice, ln_1p_slice_wide, ln_1p_slice_portable, ln_1p_slice_avx2, ln_1p_slice_body,
+    pub ln_1p_slice, ln_1p_slice_at, ln_1p_slice_wide, ln_1p_slice_avx2, ln_1p_slice_body,
     (xs: &[f64], out: &mut [f64])
 }
 
@@ -259,9 +336,29 @@ unsafe fn ln_1p_slice_wide(xs: &[f64], out: &mut [f64]) {
     ln_1p_slice_body(&xs[whole..n], &mut out[whole..n]);
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn ln_1p_slice_avx2(xs: &[f64], out: &mut [f64]) {
+    use std::arch::x86_64::*;
+    let n = xs.len().min(out.len());
+    let whole = n / 4 * 4;
+    let (zero, one) = (_mm256_setzero_pd(), _mm256_set1_pd(1.0));
+    for i in (0..whole).step_by(4) {
+        let x = _mm256_loadu_pd(xs.as_ptr().add(i));
+        let u = _mm256_add_pd(one, x);
+        let d = _mm256_sub_pd(u, one);
+        let exact = _mm256_cmp_pd::<_CMP_EQ_OQ>(d, zero);
+        let ratio = _mm256_div_pd(x, _mm256_blendv_pd(d, one, exact));
+        let scaled = _mm256_mul_pd(ln_normal_x4(u), ratio);
+        _mm256_storeu_pd(out.as_mut_ptr().add(i), _mm256_blendv_pd(scaled, x, exact));
+    }
+    ln_1p_slice_body(&xs[whole..n], &mut out[whole..n]);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::SimdLevel;
 
     #[test]
     fn slice_ln_1p_matches_libm() {
@@ -291,24 +388,37 @@ mod tests {
     }
 
     #[test]
-    fn slice_log_equals_the_scalar_log_bit_for_bit() {
+    fn slice_log_equals_the_scalar_log_bit_for_bit_at_every_level() {
         let mut rng = crate::rng::Rng::new(3);
         let xs: Vec<f64> = (0..1003)
             .map(|i| match i % 7 {
                 0 => 0.0,
                 1 => -1.0,
+                2 => f64::NAN,
                 _ => (rng.uniform() * 60.0 - 30.0).exp2(),
             })
             .collect();
-        let mut out = vec![0.0; xs.len()];
-        ln_clamped_slice(&xs, &mut out);
-        // The portable path (four lanes with AVX2), which the dispatch skips with AVX-512.
-        let mut portable = vec![0.0; xs.len()];
-        ln_clamped_slice_portable(&xs, &mut portable);
-        for ((x, o), q) in xs.iter().zip(&out).zip(&portable) {
-            let want = ln_normal(x.max(f64::MIN_POSITIVE)).to_bits();
-            assert_eq!(o.to_bits(), want);
-            assert_eq!(q.to_bits(), want);
+        for level in SimdLevel::ALL {
+            if !level.supported() {
+                crate::simd::report_skip("slice_log_equals_the_scalar_log", level);
+                continue;
+            }
+            let mut out = vec![0.0; xs.len()];
+            ln_clamped_slice_at(level, &xs, &mut out);
+            for (x, o) in xs.iter().zip(&out) {
+                let want = ln_normal(x.max(f64::MIN_POSITIVE)).to_bits();
+                assert_eq!(o.to_bits(), want, "{level} {x}");
+            }
+            let ys: Vec<f64> = xs
+                .iter()
+                .map(|x| if x.is_nan() { 0.5 } else { x.clamp(-0.9, 1e6) })
+                .collect();
+            let (mut a, mut b) = (vec![0.0; ys.len()], vec![0.0; ys.len()]);
+            ln_1p_slice_at(level, &ys, &mut a);
+            ln_1p_slice_body(&ys, &mut b);
+            for (y, (p, q)) in ys.iter().zip(a.iter().zip(&b)) {
+                assert_eq!(p.to_bits(), q.to_bits(), "{level} {y}");
+            }
         }
     }
 
@@ -376,18 +486,24 @@ mod tests {
                 1.0 + j as f64 / 16.0,
             ]);
         }
-        let mut out = vec![0.0; xs.len()];
-        ln_clamped_slice(&xs, &mut out);
-        for (x, o) in xs.iter().zip(&out) {
-            assert_eq!(o.to_bits(), ln_normal(*x).to_bits(), "{x}");
-            assert!((o - x.ln()).abs() <= 2e-16 * x.ln().abs().max(1.0), "{x}");
-        }
         let ys: Vec<f64> = xs.iter().map(|x| (x - 1.0).max(-0.9)).collect();
-        let (mut a, mut b) = (vec![0.0; ys.len()], vec![0.0; ys.len()]);
-        ln_1p_slice(&ys, &mut a);
-        ln_1p_slice_body(&ys, &mut b);
-        for (x, y) in a.iter().zip(&b) {
-            assert_eq!(x.to_bits(), y.to_bits());
+        for level in SimdLevel::ALL {
+            if !level.supported() {
+                crate::simd::report_skip("slice_kernels_give_the_scalar_bits", level);
+                continue;
+            }
+            let mut out = vec![0.0; xs.len()];
+            ln_clamped_slice_at(level, &xs, &mut out);
+            for (x, o) in xs.iter().zip(&out) {
+                assert_eq!(o.to_bits(), ln_normal(*x).to_bits(), "{level} {x}");
+                assert!((o - x.ln()).abs() <= 2e-16 * x.ln().abs().max(1.0), "{x}");
+            }
+            let (mut a, mut b) = (vec![0.0; ys.len()], vec![0.0; ys.len()]);
+            ln_1p_slice_at(level, &ys, &mut a);
+            ln_1p_slice_body(&ys, &mut b);
+            for (x, y) in a.iter().zip(&b) {
+                assert_eq!(x.to_bits(), y.to_bits(), "{level}");
+            }
         }
     }
 }

@@ -7,21 +7,31 @@ pub use crate::info::fastlog::{ln_1p_slice, ln_clamped_slice, ln_normal};
 use std::sync::OnceLock;
 
 use crate::sensor::normal_cdf;
+use crate::simd::SimdLevel;
 
-/// `$vis fn $name(args)`: `$body(args)` compiled for AVX2 (as `$avx`) where the CPU has it, the
-/// baseline build of the same body otherwise (the same operations, hence the same results).
+/// `$vis fn $name(args)`: `$body(args)` compiled for AVX2 (as `$avx`) where
+/// [`crate::simd::level`] is AVX2 or above, the baseline build of the same body otherwise (the
+/// same operations, hence the same results); `$vis fn $at(level, args)` the same at a given level
+/// (lowered to the best the CPU supports).
 macro_rules! simd_by_target {
-    ($(#[$doc:meta])* $vis:vis $name:ident, $avx:ident, $body:ident, ($($arg:ident: $ty:ty),*)) => {
+    ($(#[$doc:meta])* $vis:vis $name:ident, $at:ident, $avx:ident, $body:ident, ($($arg:ident: $ty:ty),*)) => {
         $(#[$doc])*
+        #[allow(dead_code)]
         $vis fn $name($($arg: $ty),*) {
+            $at($crate::simd::level(), $($arg),*)
+        }
+
+        #[doc = concat!("[`", stringify!($name), "`] at a given level (lowered to the best the CPU supports).")]
+        #[allow(dead_code)]
+        $vis fn $at(level: $crate::simd::SimdLevel, $($arg: $ty),*) {
             #[cfg(target_arch = "x86_64")]
-            {
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    // SAFETY: the CPU supports AVX2, checked just above.
-                    unsafe { $avx($($arg),*) };
-                    return;
-                }
+            if level.runnable() >= $crate::simd::SimdLevel::Avx2 {
+                // SAFETY: `runnable` only returns levels the CPU supports, and every level from
+                // AVX2 up includes AVX2.
+                unsafe { $avx($($arg),*) };
+                return;
             }
+            let _ = level;
             $body($($arg),*);
         }
 
@@ -44,6 +54,7 @@ struct CdfTable {
     nodes: Vec<[f64; 3]>,
     /// Interval k's two nodes side by side, (nodes[k], nodes[k + 1], 0, 0): two aligned vector
     /// loads per lane for the AVX2 path.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     intervals: Vec<Interval>,
 }
 
@@ -164,13 +175,18 @@ fn lower_tail_with(nodes: &[[f64; 3]], u: f64) -> f64 {
 /// Φ(x) of every `xs[i]` into `out[i]`, equal to [`normal_cdf_fast`] bit for bit (0 and 1
 /// beyond ∓8.5), in one vectorising pass like [`lower_tail_abs_slice`]. Finite inputs only.
 pub fn normal_cdf_slice(xs: &[f64], out: &mut [f64]) {
+    normal_cdf_slice_at(crate::simd::level(), xs, out)
+}
+
+/// [`normal_cdf_slice`] at a given level (lowered to the best the CPU supports).
+pub fn normal_cdf_slice_at(level: SimdLevel, xs: &[f64], out: &mut [f64]) {
     #[cfg(target_arch = "x86_64")]
-    if crate::info::fastlog::has_avx512() {
-        // SAFETY: the CPU supports AVX-512F, checked just above.
+    if level.runnable() == SimdLevel::Avx512 {
+        // SAFETY: the CPU supports AVX-512F (`runnable`).
         unsafe { lower_tail_abs_slice_avx512::<true>(table(), xs, out) };
         return;
     }
-    lower_tail_abs_slice(xs, out);
+    lower_tail_abs_slice_at(level, xs, out);
     upper_to_cdf(xs, out);
 }
 
@@ -183,23 +199,24 @@ fn upper_to_cdf(xs: &[f64], out: &mut [f64]) {
 }
 
 /// `out[i] = Φ(−|xs[i]|)`: the value of [`normal_tail`]`(xs[i])` (whose flag is `xs[i] > 0`), bit
-/// for bit, in one pass that vectorises (AVX-512F or AVX2 where the CPU has them, with the same
-/// operations as the scalar function, so results do not depend on the CPU). Finite inputs only.
+/// for bit, in one pass that vectorises (AVX-512F or AVX2 by [`crate::simd::level`], with the
+/// same operations as the scalar function, so results do not depend on the level). Finite inputs
+/// only.
 pub fn lower_tail_abs_slice(xs: &[f64], out: &mut [f64]) {
+    lower_tail_abs_slice_at(crate::simd::level(), xs, out)
+}
+
+/// [`lower_tail_abs_slice`] at a given level (lowered to the best the CPU supports).
+pub fn lower_tail_abs_slice_at(level: SimdLevel, xs: &[f64], out: &mut [f64]) {
     let t = table();
-    #[cfg(target_arch = "x86_64")]
-    {
-        if crate::info::fastlog::has_avx512() {
-            // SAFETY: the CPU supports AVX-512F, checked just above.
-            unsafe { lower_tail_abs_slice_avx512::<false>(t, xs, out) };
-            return;
-        }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            unsafe { lower_tail_abs_slice_avx2(t, xs, out) };
-            return;
-        }
+    match level.runnable() {
+        // SAFETY: `runnable` only returns levels the CPU supports.
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx512 => unsafe { lower_tail_abs_slice_avx512::<false>(t, xs, out) },
+        #[cfg(target_arch = "x86_64")]
+        SimdLevel::Avx2 => unsafe { lower_tail_abs_slice_avx2(t, xs, out) },
+        _ => lower_tail_abs_slice_body(&t.nodes, xs, out),
     }
-    lower_tail_abs_slice_body(&t.nodes, xs, out);
 }
 
 /// Eight lanes at a time with explicit AVX-512F, with the scalar function's operations in its
@@ -555,6 +572,49 @@ pub(crate) unsafe fn exp_table_avx512(x: std::arch::x86_64::__m512d) -> std::arc
     mul(t, p)
 }
 
+/// Four lanes of [`exp_table`] with AVX2, as [`exp_table_avx512`]: x in [−708, 709] (checked by
+/// the caller), the scalar operations one for one, so each lane equals `exp_table` bit for bit.
+/// AVX2 has no 64-bit arithmetic shift; k = round(128x/ln 2) lies in ±2^17, so the 32-bit one
+/// on both halves of each lane is the same shift.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn exp_table_x4(x: std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d {
+    use std::arch::x86_64::*;
+    const INV_LN2_128: f64 = 184.664_965_233_787_3;
+    const LN2_128_HI: f64 = f64::from_bits(0x3f76_2e42_fef8_0000);
+    const LN2_128_LO: f64 = 1.265_508_608_332_543_8e-13;
+    const SHIFTER: f64 = 6_755_399_441_055_744.0;
+    let set = |v: f64| _mm256_set1_pd(v);
+    let (add, sub, mul) = (
+        |a, b| _mm256_add_pd(a, b),
+        |a, b| _mm256_sub_pd(a, b),
+        |a, b| _mm256_mul_pd(a, b),
+    );
+    let z = add(mul(x, set(INV_LN2_128)), set(SHIFTER));
+    let kf = sub(z, set(SHIFTER));
+    let k = _mm256_sub_epi64(
+        _mm256_castpd_si256(z),
+        _mm256_set1_epi64x(SHIFTER.to_bits() as i64),
+    );
+    let r = sub(sub(x, mul(kf, set(LN2_128_HI))), mul(kf, set(LN2_128_LO)));
+    let j = _mm256_and_si256(k, _mm256_set1_epi64x(127));
+    let entry = _mm256_i64gather_epi64::<8>(EXP2_TABLE.as_ptr() as *const i64, j);
+    let t = _mm256_castsi256_pd(_mm256_add_epi64(
+        entry,
+        _mm256_slli_epi64::<52>(_mm256_srai_epi32::<7>(k)),
+    ));
+    let r2 = mul(r, r);
+    let inner = add(
+        add(set(0.5), mul(r, set(1.0 / 6.0))),
+        mul(r2, add(set(1.0 / 24.0), mul(r, set(1.0 / 120.0)))),
+    );
+    let p = add(add(set(1.0), r), mul(r2, inner));
+    mul(t, p)
+}
+
 /// The range of [`exp_in_range`] (normal results, no overflow).
 const EXP_MIN: f64 = -708.3;
 const EXP_MAX: f64 = 709.7;
@@ -599,9 +659,9 @@ fn exp_in_range(x: f64) -> f64 {
 simd_by_target! {
     /// In place, x ← `exp_in_range(x)` for x ≥ −708.3 and 0 below (where e^x < 2.2e-308: the
     /// difference cannot show in a sum that has a term near 1, the use here). −∞ gives 0; inputs
-    /// must not be NaN. Branch-free, so it runs four lanes wide on CPUs with AVX2 (the operations,
-    /// hence the results, are those of the scalar `exp_in_range`).
-    pub exp_for_sums, exp_for_sums_avx2, exp_for_sums_body, (xs: &mut [f64])
+    /// must not be NaN. Branch-free, so it runs four lanes wide at the AVX2 and AVX-512 levels (the
+    /// operations, hence the results, are those of the scalar `exp_in_range`).
+    pub exp_for_sums, exp_for_sums_at, exp_for_sums_avx2, exp_for_sums_body, (xs: &mut [f64])
 }
 
 #[inline(always)]
@@ -667,6 +727,62 @@ pub(crate) unsafe fn exp_for_sums_avx512(
     _mm512_mask_blend_pd(below, e, _mm512_setzero_pd())
 }
 
+/// Four lanes of [`exp_for_sums`]'s map with AVX2, as [`exp_for_sums_avx512`]: each lane equals
+/// the scalar result bit for bit. Inputs must not be NaN. (n ∈ [−1022, 1024] fits 32 bits, so the
+/// 32-bit arithmetic shift is the 64-bit one.)
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub(crate) unsafe fn exp_for_sums_x4(x: std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d {
+    use std::arch::x86_64::*;
+    const LOG2E: f64 = std::f64::consts::LOG2_E;
+    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
+    const SHIFTER: f64 = 6_755_399_441_055_744.0;
+    let set = |v: f64| _mm256_set1_pd(v);
+    let (add, sub, mul) = (
+        |a, b| _mm256_add_pd(a, b),
+        |a, b| _mm256_sub_pd(a, b),
+        |a, b| _mm256_mul_pd(a, b),
+    );
+    // `clamp`: below the minimum the minimum, above the maximum the maximum.
+    let xc = _mm256_min_pd(_mm256_max_pd(x, set(EXP_MIN)), set(EXP_MAX));
+    let k = add(mul(xc, set(LOG2E)), set(SHIFTER));
+    let n = sub(k, set(SHIFTER));
+    let r = sub(sub(xc, mul(n, set(LN2_HI))), mul(n, set(LN2_LO)));
+    let r2 = mul(r, r);
+    let r4 = mul(r2, r2);
+    let r8 = mul(r4, r4);
+    let pair = |a: f64, b: f64| add(set(a), mul(r, set(b)));
+    let c01 = add(set(1.0), r);
+    let c23 = pair(1.0 / 2.0, 1.0 / 6.0);
+    let c45 = pair(1.0 / 24.0, 1.0 / 120.0);
+    let c67 = pair(1.0 / 720.0, 1.0 / 5_040.0);
+    let c89 = pair(1.0 / 40_320.0, 1.0 / 362_880.0);
+    let c1011 = pair(1.0 / 3_628_800.0, 1.0 / 39_916_800.0);
+    let c1213 = pair(1.0 / 479_001_600.0, 1.0 / 6_227_020_800.0);
+    let q0 = add(c01, mul(r2, c23));
+    let q1 = add(c45, mul(r2, c67));
+    let q2 = add(c89, mul(r2, c1011));
+    let poly = add(add(q0, mul(r4, q1)), mul(r8, add(q2, mul(r4, c1213))));
+    let ni = _mm256_sub_epi64(
+        _mm256_castpd_si256(k),
+        _mm256_set1_epi64x(SHIFTER.to_bits() as i64),
+    );
+    let half = _mm256_srai_epi32::<1>(ni);
+    let bias = _mm256_set1_epi64x(1023);
+    let s1 = _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(half, bias)));
+    let s2 = _mm256_castsi256_pd(_mm256_slli_epi64::<52>(_mm256_add_epi64(
+        _mm256_sub_epi64(ni, half),
+        bias,
+    )));
+    let e = mul(mul(poly, s1), s2);
+    let below = _mm256_cmp_pd::<_CMP_LT_OQ>(x, set(EXP_MIN));
+    _mm256_blendv_pd(e, _mm256_setzero_pd(), below)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -702,25 +818,23 @@ mod tests {
                 _ => 18.0 * (rng.uniform() - 0.5),
             })
             .collect();
-        let mut cdf = vec![0.0; xs.len()];
-        normal_cdf_slice(&xs, &mut cdf);
-        let mut tails = vec![0.0; xs.len()];
-        lower_tail_abs_slice(&xs, &mut tails);
-        for ((&x, c), t) in xs.iter().zip(&cdf).zip(&tails) {
-            assert_eq!(c.to_bits(), normal_cdf_fast(x).to_bits(), "{x}");
-            assert_eq!(t.to_bits(), normal_tail(x).1.to_bits(), "{x}");
-        }
         let mut scalar = vec![0.0; xs.len()];
         lower_tail_abs_slice_body(&table().nodes, &xs, &mut scalar);
-        assert_eq!(tails, scalar);
-        // The narrower path too, which the dispatch skips on CPUs with AVX-512.
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            let mut narrow = vec![0.0; xs.len()];
-            // SAFETY: the CPU supports AVX2, checked just above.
-            unsafe { lower_tail_abs_slice_avx2(table(), &xs, &mut narrow) };
-            for (a, b) in narrow.iter().zip(&scalar) {
-                assert_eq!(a.to_bits(), b.to_bits());
+        for level in SimdLevel::ALL {
+            if !level.supported() {
+                crate::simd::report_skip("slice_cdf_and_tails_equal_the_scalar_functions", level);
+                continue;
+            }
+            let mut cdf = vec![0.0; xs.len()];
+            normal_cdf_slice_at(level, &xs, &mut cdf);
+            let mut tails = vec![0.0; xs.len()];
+            lower_tail_abs_slice_at(level, &xs, &mut tails);
+            for ((&x, c), t) in xs.iter().zip(&cdf).zip(&tails) {
+                assert_eq!(c.to_bits(), normal_cdf_fast(x).to_bits(), "{level} {x}");
+                assert_eq!(t.to_bits(), normal_tail(x).1.to_bits(), "{level} {x}");
+            }
+            for (a, b) in tails.iter().zip(&scalar) {
+                assert_eq!(a.to_bits(), b.to_bits(), "{level}");
             }
         }
     }
@@ -736,78 +850,111 @@ mod tests {
                 _ => -rng.uniform() * 720.0,
             })
             .collect();
-        let mut out = xs.clone();
-        exp_for_sums(&mut out);
-        for (x, o) in xs.iter().zip(&out) {
-            let want = if *x < -708.3 { 0.0 } else { exp_in_range(*x) };
-            assert_eq!(o.to_bits(), want.to_bits(), "{x}");
+        for level in SimdLevel::ALL {
+            if !level.supported() {
+                crate::simd::report_skip("slice_exp_equals_the_scalar_exp_in_range", level);
+                continue;
+            }
+            let mut out = xs.clone();
+            exp_for_sums_at(level, &mut out);
+            for (x, o) in xs.iter().zip(&out) {
+                let want = if *x < -708.3 { 0.0 } else { exp_in_range(*x) };
+                assert_eq!(o.to_bits(), want.to_bits(), "{level} {x}");
+            }
         }
     }
 
+    /// The vector map of `level` (eight or four lanes) over `xs`, or None (reported as skipped)
+    /// where the CPU lacks the level.
+    #[cfg(target_arch = "x86_64")]
+    fn lanes_map(
+        test: &str,
+        level: SimdLevel,
+        xs: &[f64],
+        wide: unsafe fn(std::arch::x86_64::__m512d) -> std::arch::x86_64::__m512d,
+        narrow: unsafe fn(std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d,
+    ) -> Option<Vec<f64>> {
+        use std::arch::x86_64::*;
+        if !level.supported() {
+            crate::simd::report_skip(test, level);
+            return None;
+        }
+        let mut got = xs.to_vec();
+        match level {
+            // SAFETY: the CPU supports the level, checked above.
+            SimdLevel::Avx512 => {
+                for c in got.chunks_exact_mut(8) {
+                    unsafe { _mm512_storeu_pd(c.as_mut_ptr(), wide(_mm512_loadu_pd(c.as_ptr()))) };
+                }
+            }
+            SimdLevel::Avx2 => {
+                for c in got.chunks_exact_mut(4) {
+                    unsafe {
+                        _mm256_storeu_pd(c.as_mut_ptr(), narrow(_mm256_loadu_pd(c.as_ptr())))
+                    };
+                }
+            }
+            SimdLevel::Scalar => return None,
+        }
+        Some(got)
+    }
+
     #[test]
-    fn eight_lane_exp_equals_the_slice_exp_bit_for_bit() {
+    fn vector_exp_equals_the_scalar_exp_bit_for_bit_at_every_level() {
+        let mut rng = crate::rng::Rng::new(5);
+        let xs: Vec<f64> = (0..4096)
+            .map(|i| match i % 13 {
+                0 => f64::NEG_INFINITY,
+                1 => -708.4,
+                2 => -708.3,
+                3 => 0.0,
+                4 => -0.0,
+                5 => 709.7,
+                6 => -rng.uniform() * 720.0,
+                7 => (rng.uniform() - 0.5) * 1400.0,
+                _ => -rng.uniform() * 3.0,
+            })
+            .collect();
+        let mut want = xs.clone();
+        exp_for_sums_body(&mut want);
         #[cfg(target_arch = "x86_64")]
-        if crate::info::fastlog::has_avx512() {
-            let mut rng = crate::rng::Rng::new(5);
-            let xs: Vec<f64> = (0..4096)
-                .map(|i| match i % 13 {
-                    0 => f64::NEG_INFINITY,
-                    1 => -708.4,
-                    2 => -708.3,
-                    3 => 0.0,
-                    4 => -0.0,
-                    5 => 709.7,
-                    6 => -rng.uniform() * 720.0,
-                    7 => (rng.uniform() - 0.5) * 1400.0,
-                    _ => -rng.uniform() * 3.0,
-                })
-                .collect();
-            let mut want = xs.clone();
-            exp_for_sums(&mut want);
-            for (chunk, w) in xs.chunks(8).zip(want.chunks(8)) {
-                let mut got = [0.0; 8];
-                // SAFETY: the CPU supports AVX-512F, checked above.
-                unsafe {
-                    use std::arch::x86_64::*;
-                    let v = exp_for_sums_avx512(_mm512_loadu_pd(chunk.as_ptr()));
-                    _mm512_storeu_pd(got.as_mut_ptr(), v);
-                }
-                for (i, (g, w)) in got.iter().zip(w).enumerate() {
-                    assert_eq!(g.to_bits(), w.to_bits(), "{}", chunk[i]);
-                }
+        for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+            let test = "vector_exp_equals_the_scalar_exp";
+            let Some(got) = lanes_map(test, level, &xs, exp_for_sums_avx512, exp_for_sums_x4)
+            else {
+                continue;
+            };
+            for ((g, w), x) in got.iter().zip(&want).zip(&xs) {
+                assert_eq!(g.to_bits(), w.to_bits(), "{level} {x}");
             }
         }
     }
 
     #[test]
-    fn eight_lane_table_exp_equals_the_scalar_one_bit_for_bit() {
+    fn vector_table_exp_equals_the_scalar_one_bit_for_bit_at_every_level() {
+        let mut rng = crate::rng::Rng::new(8);
+        let xs: Vec<f64> = (0..8192)
+            .map(|i| match i % 11 {
+                0 => -708.0,
+                1 => 709.0,
+                2 => 0.0,
+                3 => -0.0,
+                4 => (rng.uniform() - 0.5) * 1e-9,
+                5 => rng.uniform() * 1417.0 - 708.0,
+                _ => -rng.uniform() * 40.0,
+            })
+            .collect();
         #[cfg(target_arch = "x86_64")]
-        if crate::info::fastlog::has_avx512() {
-            let mut rng = crate::rng::Rng::new(8);
-            let xs: Vec<f64> = (0..8192)
-                .map(|i| match i % 11 {
-                    0 => -708.0,
-                    1 => 709.0,
-                    2 => 0.0,
-                    3 => -0.0,
-                    4 => (rng.uniform() - 0.5) * 1e-9,
-                    5 => rng.uniform() * 1417.0 - 708.0,
-                    _ => -rng.uniform() * 40.0,
-                })
-                .collect();
-            for chunk in xs.chunks(8) {
-                let mut got = [0.0; 8];
-                // SAFETY: the CPU supports AVX-512F, checked above.
-                unsafe {
-                    use std::arch::x86_64::*;
-                    let v = exp_table_avx512(_mm512_loadu_pd(chunk.as_ptr()));
-                    _mm512_storeu_pd(got.as_mut_ptr(), v);
-                }
-                for (g, &x) in got.iter().zip(chunk) {
-                    assert_eq!(g.to_bits(), exp_table(x).to_bits(), "{x}");
-                }
+        for level in [SimdLevel::Avx2, SimdLevel::Avx512] {
+            let test = "vector_table_exp_equals_the_scalar_one";
+            let Some(got) = lanes_map(test, level, &xs, exp_table_avx512, exp_table_x4) else {
+                continue;
+            };
+            for (g, &x) in got.iter().zip(&xs) {
+                assert_eq!(g.to_bits(), exp_table(x).to_bits(), "{level} {x}");
             }
         }
+        let _ = &xs;
     }
 
     #[test]
