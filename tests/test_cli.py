@@ -96,6 +96,10 @@ def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.Capture
     assert figures["rbpf_clam_over_ogm_1079x100"] == pytest.approx(
         figures["rbpf_clam_scans_per_s_1079x100"] / figures["rbpf_ogm_scans_per_s_1079x100"], rel=0.02
     )
+    # The robust preset's filter against GMapping's setting of the baseline, in the same run.
+    assert figures["rbpf_clam_scan_match_over_ogm_gmapping_180x30"] == pytest.approx(
+        figures["rbpf_clam_scan_match_scans_per_s_180x30"] / figures["rbpf_ogm_gmapping_scans_per_s_180x30"], rel=0.02
+    )
     full = json.loads((tmp_path / "b.json").read_text())
     assert full["machine"]["cores"] >= 1 and full["threads"] == 1
 

@@ -206,6 +206,7 @@ class ClamFilter:
         weight_stride: int = 1,
         map_stride: int = 1,
         tempering: float = 1.0,
+        tempering_beams: float | None = None,
         resample_threshold: float = 0.5,
         init_sigma: tuple[float, float, float] = ...,
         motion: str = "gaussian",

@@ -52,6 +52,8 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
     # The likelihood-mode proposal on the same workload (the Table I setting with --proposal likelihood_mode).
     BenchSpec("rbpf_clam_likelihood_mode_scans_per_s_1079x100", size=4, quick_size=1),
     BenchSpec("rbpf_clam_scans_per_s_180x30", size=100, quick_size=5),
+    # The robust preset's filter (scan-match proposal), beside GMapping's setting of RBPF-OGM.
+    BenchSpec("rbpf_clam_scan_match_scans_per_s_180x30", size=100, quick_size=5),
     BenchSpec("rbpf_ogm_scans_per_s_180x30", size=100, quick_size=5),
     # The baseline with GMapping's cells in full (--ogm-map gmapping) and per-scan motion draws.
     BenchSpec("rbpf_ogm_gmapping_scans_per_s_180x30", size=100, quick_size=5),
@@ -158,6 +160,11 @@ def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repea
         # Speed of the default windowed batch kernel over the full sweep, measured in this run.
         figures["rbpf_clam_windowed_over_full_ray"] = round(
             figures["rbpf_clam_scans_per_s_1079x100"] / figures["rbpf_clam_scans_per_s_1079x100_full_ray"], 2
+        )
+    if "rbpf_clam_scan_match_scans_per_s_180x30" in figures and "rbpf_ogm_gmapping_scans_per_s_180x30" in figures:
+        # The robust preset against the GMapping-faithful baseline, measured in the same run.
+        figures["rbpf_clam_scan_match_over_ogm_gmapping_180x30"] = round(
+            figures["rbpf_clam_scan_match_scans_per_s_180x30"] / figures["rbpf_ogm_gmapping_scans_per_s_180x30"], 2
         )
     if "rbpf_clam_scans_per_s_1079x100" in figures and "rbpf_ogm_scans_per_s_1079x100" in figures:
         # RBPF-CLAM over the scan-matching baseline on the same workload (the paper's claim that

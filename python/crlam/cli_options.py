@@ -18,6 +18,7 @@ __all__ = [
     "OGM_MAPS",
     "OGM_MAP_HELP",
     "PROPOSALS",
+    "TEMPERING_BEAMS_HELP",
     "PROPOSAL_HELP",
     "PROPOSAL_POSE_HELP",
     "SIGMA_RANGE_HELP",
@@ -95,6 +96,10 @@ WEIGHT_SMOOTHING_HELP = (
     "resampling and the weighted mean (0 = plain weights; paper: 3, GMapping's; default: the preset's)"
 )
 CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec, paper) or spread along the chord (default: the preset's)"
+TEMPERING_BEAMS_HELP = (
+    "a scan whose weight uses n beams is tempered by tau * n / B, so a scan weighs the same whatever the laser's "
+    "beam count (paper: unset, tau for every scan; default: the preset's)"
+)
 PROPOSALS = ("odometry", "likelihood_mode", "scan_match")
 PROPOSAL_HELP = (
     "RBPF-CLAM: odometry (paper), the CRM improved proposal (likelihood_mode) or GMapping's endpoint scan match on the "

@@ -59,6 +59,10 @@ class SlamConfig:
     tempering : float
         Weight tempering τ_T (paper: 1): every log-weight increment is divided by it. The
         likelihood-mode proposal still targets the untempered likelihood × motion density.
+    tempering_beams : float or None
+        Beam count b at which ``tempering`` applies as given: a scan whose weight uses n beams
+        (its beams over ``weight_stride``) is tempered by τ_T·n/b, so a scan weighs the same
+        whatever the laser's beam count. ``None`` (paper): τ_T for every scan.
     resample_threshold : float
         Resample when N_eff < threshold · n_p (paper: 0.5).
     proposal : str
@@ -145,6 +149,7 @@ class SlamConfig:
     weight_stride: int = 1
     map_stride: int = 1
     tempering: float = 1.0
+    tempering_beams: float | None = None
     resample_threshold: float = 0.5
     proposal: str = "odometry"
     proposal_pose: str = "sample"
@@ -208,6 +213,10 @@ class SlamConfig:
             isinstance(self.smoothing_lag, int) and not isinstance(self.smoothing_lag, bool) and self.smoothing_lag >= 0
         ):
             raise bad("smoothing_lag", "must be None (full smoothing) or an integer >= 0")
+        if self.tempering_beams is not None and not (
+            isinstance(self.tempering_beams, (int, float)) and math.isfinite(self.tempering_beams) and self.tempering_beams >= 1
+        ):
+            raise bad("tempering_beams", "must be None or a finite number >= 1")
         if not (isinstance(self.motion_outlier, (int, float)) and 0.0 <= self.motion_outlier < 1.0):
             raise bad("motion_outlier", "must be in [0, 1)")
         if not 0.0 <= self.resample_threshold <= 1.0:
@@ -315,6 +324,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             weight_stride=config.weight_stride,
             map_stride=config.map_stride,
             tempering=config.tempering,
+            tempering_beams=None if config.tempering_beams is None else float(config.tempering_beams),
             resample_threshold=config.resample_threshold,
             init_sigma=config.init_sigma,
             motion=config.motion,

@@ -308,6 +308,36 @@ pub fn rbpf_clam_likelihood_mode_scans(
     ))
 }
 
+/// RBPF-CLAM as the `robust` preset runs it (the scan-match proposal, 0.1 m grid, 8 m, Thrun's
+/// odometry model with the preset's noise, tempering 40) on the 180-beam filter workload, every
+/// scan processed, one thread: the figure to set beside `rbpf_ogm_gmapping_scans_per_s_180x30`.
+pub fn rbpf_clam_scan_match_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
+    use crate::motion::MotionModel;
+    use crate::rbpf::{ClamConfig, ClamProposal, ScanMatchSettings};
+    let preset = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.1)?), 8.0);
+    let secs = time_clam(n_scans, n_particles, 180, |cfg| {
+        *cfg = ClamConfig {
+            n_particles: cfg.n_particles,
+            ..preset
+        };
+        cfg.motion = MotionModel::Thrun {
+            alpha: [0.1, 0.1, 0.002, 0.1],
+        };
+        cfg.tempering = 40.0;
+        cfg.proposal = ClamProposal::ScanMatch(ScanMatchSettings::default());
+    })?;
+    let name = match n_particles {
+        30 => "rbpf_clam_scan_match_scans_per_s_180x30",
+        _ => "rbpf_clam_scan_match_scans_per_s",
+    };
+    Ok(filter_figure(
+        name,
+        "processed scan (all particles: endpoint climb and lattice, one CRM weight, map update; 0.1 m grid, 8 m, one thread)",
+        n_scans,
+        secs,
+    ))
+}
+
 /// RBPF-OGM (GMapping-style) scans per second on one thread, 180 beams over 180°, 0.05 m grid.
 pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
     use crate::rbpf::{OgmFilterConfig, RbpfOgm};

@@ -250,6 +250,39 @@ fn tempering_divides_the_weights_and_leaves_the_proposal_alone() {
 }
 
 #[test]
+fn tempering_beams_scales_the_tempering_with_the_beam_count() {
+    let run = simulate(30);
+    let cfg = |tempering: f64, tempering_beams: Option<f64>| ClamConfig {
+        tempering,
+        tempering_beams,
+        ..config(ClamProposal::Odometry)
+    };
+    // The workload's scans have 180 beams: τ = 2 per 90 beams is τ = 4 for each of them.
+    assert_eq!(cfg(2.0, Some(90.0)).tempering_for(180), 4.0);
+    assert_eq!(
+        run_filter(&run, cfg(4.0, None)),
+        run_filter(&run, cfg(2.0, Some(90.0)))
+    );
+    assert_ne!(
+        run_filter(&run, cfg(4.0, None)),
+        run_filter(&run, cfg(2.0, None))
+    );
+    // The beams that weigh count: every second beam halves them.
+    let strided = ClamConfig {
+        weight_stride: 2,
+        ..cfg(2.0, Some(90.0))
+    };
+    assert_eq!(strided.tempering_for(180), 2.0);
+    assert_eq!(strided.tempering_for(181), 2.0 * 91.0 / 90.0);
+    for bad in [0.5, f64::NAN, f64::INFINITY] {
+        assert!(
+            RbpfClam::new(cfg(1.0, Some(bad)), [0.0; 3]).is_err(),
+            "{bad}"
+        );
+    }
+}
+
+#[test]
 fn same_seed_same_trajectory_with_one_and_two_threads() {
     let run = simulate(40);
     let (one, two) = (pool(1), pool(2));

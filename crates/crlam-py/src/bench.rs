@@ -50,6 +50,9 @@ pub fn run_benchmark<'py>(
                 crlam_core::crm::BatchKernel::FullRay,
             )),
             "rbpf_clam_scans_per_s_180x30" => Some(bench::rbpf_clam_scans(size, 30, 180)),
+            "rbpf_clam_scan_match_scans_per_s_180x30" => {
+                Some(bench::rbpf_clam_scan_match_scans(size, 30))
+            }
             "rbpf_ogm_scans_per_s_180x30" => Some(bench::rbpf_ogm_scans(size, 30)),
             "rbpf_ogm_gmapping_scans_per_s_180x30" => {
                 Some(bench::rbpf_ogm_gmapping_scans(size, 30))

@@ -304,7 +304,7 @@ filter_pymethods!(ClamFilter {
     #[new]
     #[pyo3(signature = (initial_pose, mapping_model, weight_model, *, n_particles=100, resolution=0.2, origin=(0.0, 0.0),
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
-        batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
+        batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
         proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, seed=0))]
     fn new(
@@ -324,6 +324,7 @@ filter_pymethods!(ClamFilter {
         weight_stride: usize,
         map_stride: usize,
         tempering: f64,
+        tempering_beams: Option<f64>,
         resample_threshold: f64,
         init_sigma: (f64, f64, f64),
         motion: &str,
@@ -414,6 +415,7 @@ filter_pymethods!(ClamFilter {
             weight_stride,
             map_stride,
             tempering,
+            tempering_beams,
             resample_threshold,
             init_sigma: [init_sigma.0, init_sigma.1, init_sigma.2],
             proposal,

@@ -107,6 +107,11 @@ pub struct ClamConfig {
     /// proposal it divides the log of the lattice normaliser; the proposal itself always targets
     /// the untempered likelihood × motion density.
     pub tempering: f64,
+    /// Beam count b at which `tempering` applies as given: a scan whose weight uses n beams is
+    /// tempered by τ_T·n/b, so every scan carries the same weight spread whatever the laser's
+    /// beam count (a 720-beam scan has about four times the log-likelihood range of a 180-beam
+    /// one). `None` (the paper): τ_T for every scan.
+    pub tempering_beams: Option<f64>,
     pub resample_threshold: f64,
     /// Standard deviations (m, m, rad) of the initial particle cloud around the first pose.
     pub init_sigma: [f64; 3],
@@ -147,11 +152,23 @@ impl ClamConfig {
             weight_stride: 1,
             map_stride: 1,
             tempering: 1.0,
+            tempering_beams: None,
             resample_threshold: 0.5,
             init_sigma: [0.0; 3],
             proposal: ClamProposal::Odometry,
             seed: 0,
             defer_map_updates: true,
+        }
+    }
+
+    /// The tempering of a scan of `n_beams` beams (see [`Self::tempering_beams`]).
+    pub fn tempering_for(&self, n_beams: usize) -> f64 {
+        match self.tempering_beams {
+            None => self.tempering,
+            Some(b) => {
+                let weighed = n_beams.div_ceil(self.weight_stride).max(1);
+                self.tempering * weighed as f64 / b
+            }
         }
     }
 
@@ -167,6 +184,14 @@ impl ClamConfig {
                 "tempering",
                 format!("must be finite and > 0, got {}", self.tempering),
             ));
+        }
+        if let Some(b) = self.tempering_beams {
+            if !(b.is_finite() && b >= 1.0) {
+                return Err(config_err(
+                    "tempering_beams",
+                    format!("must be finite and >= 1, got {b}"),
+                ));
+            }
         }
         if !(0.0..=1.0).contains(&self.resample_threshold) {
             return Err(config_err("resample_threshold", "must be in [0, 1]"));
@@ -411,7 +436,13 @@ impl RbpfClam {
             });
         }
         self.step += 1;
-        let cfg = &self.cfg;
+        // The scan's tempering (it depends on the beam count with `tempering_beams`); every
+        // weight below divides by `cfg.tempering`.
+        let scan_cfg = ClamConfig {
+            tempering: self.cfg.tempering_for(scan.angles.len()),
+            ..self.cfg.clone()
+        };
+        let cfg = &scan_cfg;
         let step = self.step;
         let pending = if cfg.defer_map_updates {
             PendingUpdate::Deferred
