@@ -160,7 +160,7 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(
 
     argv = ["experiment", "real-logs", "--out", str(tmp_path), "--datasets", "aces", "--methods", "ogm"]
     argv += ["--particles", "2", "--seeds", "1", "--ranges", "8", "--max-scans", "200", "--workers", "1"]
-    argv += ["--motion-params", "0.1", "0.1", "0.002", "0.1"]
+    argv += ["--motion", "thrun", "--motion-params", "0.1", "0.1", "0.002", "0.1"]
     assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet"]) == 0
     (run,) = (tmp_path / "runs").iterdir()
     metrics = json.loads((run / "metrics.json").read_text())

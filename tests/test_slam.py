@@ -274,6 +274,7 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("lattice_step", (0.01, 0.0)),
         ("lattice_step", (float("nan"), 0.005)),
         ("tempering_beams", 0.5),
+        ("scan_match_weight", "gmapping"),
         ("tempering_beams", float("inf")),
         ("motion_outlier", 1.0),
         ("motion_outlier", -0.1),
@@ -311,6 +312,8 @@ def test_the_native_filters_check_the_proposal_pose() -> None:
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="likelihood_mode", motion_outlier=1.0)
     with pytest.raises(ValueError, match="motion_outlier"):
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="scan_match", motion_outlier=0.1)
+    with pytest.raises(ValueError, match="scan_match_weight"):
+        _native.ClamFilter(pose, sensor, sensor, n_particles=2, proposal="scan_match", scan_match_weight="grid")
     with pytest.raises(ValueError, match="tempering_beams"):
         _native.ClamFilter(pose, sensor, sensor, n_particles=2, tempering_beams=0.0)
     with pytest.raises(ValueError, match="beam_stride"):

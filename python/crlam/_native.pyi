@@ -218,6 +218,7 @@ class ClamFilter:
         match_stride: int = 3,
         lattice_step: tuple[float, float] = ...,  # (0.05, 0.025)
         motion_outlier: float = 0.0,
+        scan_match_weight: str = "crm",
         seed: int = 0,
     ) -> ClamFilter: ...
     def process(

@@ -24,6 +24,7 @@ from crlam.cli_options import (
     PROPOSAL_HELP,
     PROPOSAL_POSE_HELP,
     PROPOSALS,
+    SCAN_MATCH_WEIGHT_HELP,
     SIGMA_RANGE_HELP,
     TEMPERING_BEAMS_HELP,
     WEIGHT_SMOOTHING_HELP,
@@ -378,6 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering tau (paper: 1; {FROM_PRESET})")
     p.add_argument("--tempering-beams", type=positive_float, default=None, metavar="B", help=TEMPERING_BEAMS_HELP)
+    p.add_argument("--scan-match-weight", choices=("crm", "endpoint"), default=None, help=SCAN_MATCH_WEIGHT_HELP)
     p.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
     p.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)
     p.add_argument("--batch-kernel", choices=BATCH_KERNELS, default=None, help=f"{BATCH_KERNEL_HELP} ({FROM_PRESET})")
@@ -538,6 +540,7 @@ def build_parser() -> argparse.ArgumentParser:
         )
         q.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering (paper: 1; {FROM_PRESET})")
         q.add_argument("--tempering-beams", type=positive_float, default=None, metavar="B", help=TEMPERING_BEAMS_HELP)
+        q.add_argument("--scan-match-weight", choices=("crm", "endpoint"), default=None, help=SCAN_MATCH_WEIGHT_HELP)
         q.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
         q.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)
         q.add_argument("--proposal", choices=PROPOSALS, default=None, help=PROPOSAL_HELP)

@@ -19,6 +19,7 @@ __all__ = [
     "OGM_MAP_HELP",
     "PROPOSALS",
     "TEMPERING_BEAMS_HELP",
+    "SCAN_MATCH_WEIGHT_HELP",
     "PROPOSAL_HELP",
     "PROPOSAL_POSE_HELP",
     "SIGMA_RANGE_HELP",
@@ -96,6 +97,10 @@ WEIGHT_SMOOTHING_HELP = (
     "resampling and the weighted mean (0 = plain weights; paper: 3, GMapping's; default: the preset's)"
 )
 CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec, paper) or spread along the chord (default: the preset's)"
+SCAN_MATCH_WEIGHT_HELP = (
+    "RBPF-CLAM scan_match: weigh by the CRM predictive likelihood (crm, the paper's model) or by GMapping's endpoint "
+    "lattice normaliser (endpoint) (default: the preset's)"
+)
 TEMPERING_BEAMS_HELP = (
     "a scan whose weight uses n beams is tempered by tau * n / B, so a scan weighs the same whatever the laser's "
     "beam count (paper: unset, tau for every scan; default: the preset's)"

@@ -88,6 +88,11 @@ class SlamConfig:
         per m²·rad: the motion model near the odometry guess and a floor of log ε farther away,
         so a tight motion model still lets a scan with a larger likelihood gain move the pose
         (a loop closure, a wheel slip).
+    scan_match_weight : str
+        RBPF-CLAM's ``scan_match`` proposal: the weights' measurement model, ``crm`` (the
+        paper's CRM predictive likelihood as the importance weight of the drawn pose) or
+        ``endpoint`` (GMapping's: the lattice normaliser of the endpoint likelihood × motion
+        density the proposal was fitted to; the CRM is then the map only).
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step), ``thrun``
         (``motion_params`` = alpha1..alpha4, variance coefficients) or ``gmapping`` (GMapping's own
@@ -156,6 +161,7 @@ class SlamConfig:
     match_stride: int = 3
     lattice_step: tuple[float, float] = (0.05, 0.025)
     motion_outlier: float = 0.0
+    scan_match_weight: str = "crm"
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
     linear_update: float = 0.0
@@ -227,6 +233,8 @@ class SlamConfig:
             raise bad("proposal_pose", "must be 'sample' or 'match'")
         if self.method == "clam" and self.proposal == "odometry" and self.proposal_pose != "sample":
             raise bad("proposal_pose", "'match' needs an improved proposal: proposal='likelihood_mode' (RBPF-CLAM)")
+        if self.scan_match_weight not in ("crm", "endpoint"):
+            raise bad("scan_match_weight", "must be 'crm' or 'endpoint'")
         if self.ogm_map not in ("log_odds", "hit_rate", "gmapping"):
             raise bad("ogm_map", "must be 'log_odds', 'hit_rate' or 'gmapping'")
         if self.ogm_motion_draws not in ("per_update", "per_scan"):
@@ -336,6 +344,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             match_stride=config.match_stride,
             lattice_step=(float(config.lattice_step[0]), float(config.lattice_step[1])),
             motion_outlier=float(config.motion_outlier),
+            scan_match_weight=config.scan_match_weight,
             seed=config.seed,
         )
     except ValueError as e:

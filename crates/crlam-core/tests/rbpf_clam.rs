@@ -6,7 +6,7 @@ use crlam_core::grid::GridGeometry;
 use crlam_core::motion::MotionModel;
 use crlam_core::pose::{between, compose, wrap, Pose};
 use crlam_core::rbpf::{
-    ClamConfig, ClamProposal, ProposalPose, RbpfClam, ScanInput, ScanMatchSettings,
+    ClamConfig, ClamProposal, ProposalPose, RbpfClam, ScanInput, ScanMatchSettings, ScanMatchWeight,
 };
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
@@ -142,6 +142,7 @@ fn clam_beats_raw_odometry_with_every_proposal() {
         (ClamProposal::likelihood_mode_with(ProposalPose::Match), 8),
         (scan_match(ProposalPose::Sample), 8),
         (scan_match(ProposalPose::Match), 8),
+        (endpoint_weighed(scan_match(ProposalPose::Sample)), 8),
     ] {
         let t = std::time::Instant::now();
         let est = run_filter(
@@ -160,6 +161,17 @@ fn clam_beats_raw_odometry_with_every_proposal() {
             err < 0.5 * odo_err,
             "{proposal:?}: filter {err:.3} m vs odometry {odo_err:.3} m"
         );
+    }
+}
+
+/// `proposal` (a scan match) weighed by GMapping's endpoint model instead of the CRM likelihood.
+fn endpoint_weighed(proposal: ClamProposal) -> ClamProposal {
+    match proposal {
+        ClamProposal::ScanMatch(s) => ClamProposal::ScanMatch(ScanMatchSettings {
+            weight: ScanMatchWeight::Endpoint,
+            ..s
+        }),
+        other => other,
     }
 }
 

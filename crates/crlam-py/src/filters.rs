@@ -7,7 +7,7 @@ use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
     mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamProposal, FilterStep,
     MatcherParams, ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams,
-    ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings, UpdateTrigger,
+    ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -306,7 +306,7 @@ filter_pymethods!(ClamFilter {
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
         batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
-        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, seed=0))]
+        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm", seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -336,6 +336,7 @@ filter_pymethods!(ClamFilter {
         match_stride: usize,
         lattice_step: (f64, f64),
         motion_outlier: f64,
+        scan_match_weight: &str,
         seed: u64,
     ) -> PyResult<Self> {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
@@ -354,6 +355,7 @@ filter_pymethods!(ClamFilter {
             extent,
         };
         let pose_rule = ProposalPose::parse(proposal_pose).py_err()?;
+        let scan_match_weight = ScanMatchWeight::parse(scan_match_weight).py_err()?;
         let proposal = match (proposal, pose_rule) {
             ("odometry", ProposalPose::Sample) => ClamProposal::Odometry,
             ("odometry", ProposalPose::Match) => {
@@ -391,6 +393,7 @@ filter_pymethods!(ClamFilter {
                         range: [lattice_step.0, lattice_step.0, lattice_step.1],
                         ..defaults.lattice
                     },
+                    weight: scan_match_weight,
                     ..defaults
                 })
             }

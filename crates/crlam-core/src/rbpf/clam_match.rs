@@ -19,6 +19,10 @@
 //!
 //! A scan with no matching beam (score ≤ `min_score`, e.g. the first scans in a new room) falls
 //! back to the paper's proposal: a motion-model sample weighed by the CRM likelihood there.
+//!
+//! With [`ScanMatchWeight::Endpoint`] the weight is instead GMapping's: the log of the lattice
+//! normaliser of the endpoint likelihood × motion density (the endpoint log-likelihood at the
+//! motion-model pose when nothing matched), divided by τ; no CRM likelihood is evaluated.
 
 use crate::crm::{CrmMap, CrmScratch};
 use crate::error::Result;
@@ -34,6 +38,32 @@ use crate::rng::Rng;
 /// so that a robot standing still (zero variance under Thrun's model) still has a proper prior.
 const MOTION_FLOOR: [f64; 3] = [0.01, 0.01, 0.01];
 
+/// The measurement model of the scan-match proposal's weights.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ScanMatchWeight {
+    /// The paper's: the CRM predictive likelihood of the scan, as the importance weight of the
+    /// drawn pose (see the module documentation).
+    #[default]
+    Crm,
+    /// GMapping's: the log of the lattice normaliser of the endpoint likelihood × motion
+    /// density (Grisetti et al. 2007, Eq. 12), the same model the proposal was fitted to, so the
+    /// weight does not depend on the draw. The CRM is then the map, not the weight's model.
+    Endpoint,
+}
+
+impl ScanMatchWeight {
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "crm" => Ok(Self::Crm),
+            "endpoint" => Ok(Self::Endpoint),
+            _ => Err(crate::error::config_err(
+                "scan_match_weight",
+                format!("must be 'crm' or 'endpoint', got {s:?}"),
+            )),
+        }
+    }
+}
+
 /// Settings of the scan-match proposal.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ScanMatchSettings {
@@ -44,6 +74,8 @@ pub struct ScanMatchSettings {
     /// Expected occupancy above which the matcher reads a cell as occupied (0.5: the uniform
     /// prior's mean, so "more evidence of a wall than of free space").
     pub occupied_above: f64,
+    /// The weights' measurement model.
+    pub weight: ScanMatchWeight,
 }
 
 impl Default for ScanMatchSettings {
@@ -52,6 +84,7 @@ impl Default for ScanMatchSettings {
             matcher: MatcherParams::default(),
             lattice: ProposalParams::default(),
             occupied_above: 0.5,
+            weight: ScanMatchWeight::Crm,
         }
     }
 }
@@ -133,7 +166,8 @@ pub(crate) fn propose_by_scan_match(
         ProposalPose::Match => cfg.motion.sample(prev, u, n_steps, rng),
     };
     let prior = MotionPrior::new(&cfg.motion, prev, u, n_steps, MOTION_FLOOR);
-    let matched = {
+    // What the endpoint model says, read while the surface borrows the map.
+    let outcome = {
         let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
             map,
             prepared,
@@ -152,34 +186,83 @@ pub(crate) fn propose_by_scan_match(
                 params,
                 rng,
             )?;
-            Some(match params.pose {
+            let (pose, mean, log_q) = match params.pose {
                 ProposalPose::Sample => (
                     draw.pose,
                     draw.mean,
                     gaussian_log_density(draw.pose, draw.mean, &draw.covariance),
                 ),
                 ProposalPose::Match => (matched, matched, 0.0),
-            })
+            };
+            Outcome::Matched {
+                pose,
+                mean,
+                log_q,
+                log_eta: draw.log_normalizer,
+            }
         } else {
-            None
+            // Nothing to match against: the paper's proposal.
+            let pose = match params.pose {
+                ProposalPose::Sample => cfg.motion.sample(prev, u, n_steps, rng),
+                ProposalPose::Match => start,
+            };
+            let endpoint_ll = matcher.evaluate(&surface, prepared, pose)?.log_likelihood;
+            Outcome::Unmatched { pose, endpoint_ll }
         }
     };
-    let Some((pose, mean, log_q)) = matched else {
-        // Nothing to match against: the paper's proposal.
-        let pose = match params.pose {
-            ProposalPose::Sample => cfg.motion.sample(prev, u, n_steps, rng),
-            ProposalPose::Match => start,
-        };
-        let ll = crm_log_likelihood(cfg, map, pose, scan, sc)?;
-        return Ok(Proposed {
+    let tau = cfg.tempering;
+    Ok(match (outcome, settings.weight) {
+        (Outcome::Unmatched { pose, .. }, ScanMatchWeight::Crm) => Proposed {
             pose,
             mean: pose,
-            dlogw: ll / cfg.tempering,
-        });
-    };
-    let ll = crm_log_likelihood(cfg, map, pose, scan, sc)?;
-    let dlogw = (ll + prior.log_density(pose) - log_q) / cfg.tempering;
-    Ok(Proposed { pose, mean, dlogw })
+            dlogw: crm_log_likelihood(cfg, map, pose, scan, sc)? / tau,
+        },
+        (Outcome::Unmatched { pose, endpoint_ll }, ScanMatchWeight::Endpoint) => Proposed {
+            pose,
+            mean: pose,
+            dlogw: endpoint_ll / tau,
+        },
+        (
+            Outcome::Matched {
+                pose, mean, log_q, ..
+            },
+            ScanMatchWeight::Crm,
+        ) => {
+            let ll = crm_log_likelihood(cfg, map, pose, scan, sc)?;
+            Proposed {
+                pose,
+                mean,
+                dlogw: (ll + prior.log_density(pose) - log_q) / tau,
+            }
+        }
+        (
+            Outcome::Matched {
+                pose,
+                mean,
+                log_eta,
+                ..
+            },
+            ScanMatchWeight::Endpoint,
+        ) => Proposed {
+            pose,
+            mean,
+            dlogw: log_eta / tau,
+        },
+    })
+}
+
+/// What the endpoint search gave one particle.
+enum Outcome {
+    /// A match: the new pose, the proposal's mean, log q(pose) (0 when the match is kept) and
+    /// the log of the lattice normaliser.
+    Matched {
+        pose: Pose,
+        mean: Pose,
+        log_q: f64,
+        log_eta: f64,
+    },
+    /// No beam matched: a motion-model pose and the endpoint log-likelihood there.
+    Unmatched { pose: Pose, endpoint_ll: f64 },
 }
 
 /// log N(x; mean, cov) over (x, y, θ), the heading residual wrapped to (−π, π]; −∞ would need a

@@ -19,7 +19,7 @@ pub mod scanmatch;
 mod scanmatch_params;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
-pub use clam_match::ScanMatchSettings;
+pub use clam_match::{ScanMatchSettings, ScanMatchWeight};
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,
     UpdateTrigger,
