@@ -2,12 +2,12 @@
 //! endpoints against the particle's confidence-rich map, and the paper's closed-form CRM
 //! predictive likelihood as the weight, once per particle.
 //!
-//! The likelihood-mode proposal ([`super::proposal`]) climbs and samples the CRM likelihood
+//! The likelihood-mode proposal ([`super::ClamProposal::LikelihoodMode`]) climbs and samples the CRM likelihood
 //! itself: some 40-60 full scan likelihoods per particle, each walking every cell of every
 //! beam. Here the search reads only a window of cells around each beam's endpoint:
 //! 1. start from the odometry guess (`Sample`) or a motion-model sample (`Match`);
 //! 2. hill-climb GMapping's endpoint score on the map's expected occupancy (a cell is occupied
-//!    when m̂ > `occupied_above`, see [`MatchSurface::around_crm`]);
+//!    when m̂ > `occupied_above`, see [`super::MatchSurface::around_crm`]);
 //! 3. evaluate GMapping's endpoint likelihood × the motion density on the 3×3×3 lattice around
 //!    the match, fit a Gaussian, draw the new pose from it (or keep the match);
 //! 4. weight: the importance weight of the new pose x under the paper's target, with the CRM
