@@ -532,3 +532,16 @@ def test_crlam_slam_runs_on_the_recorded_bags(data_dir: Path, tmp_path: Path, na
     cfg = tomllib.loads((out / "config.toml").read_text())
     assert cfg["input"]["format"] == "rosbag" and cfg["input"]["scan_topic"] == "/scan"
     assert (out / "map.pgm").stat().st_size > 0
+
+
+def test_eval_fills_a_trajectory_from_a_bag_and_diagnose_reads_one(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "bag", BagSpec(n_scans=10))
+    run = tmp_path / "run"
+    assert main(["slam", str(bag), "--out", str(run), "--particles", "3", "--max-scans", "4", "--quiet"]) == 0
+    report = tmp_path / "eval.json"
+    args = ["eval", str(run / "trajectory.tum"), "--reference", str(run / "trajectory.tum"), "--raw-log", str(bag)]
+    assert main([*args, "--json", str(report)]) == 0
+    fill = json.loads(report.read_text())["fill"]
+    assert fill["n_scans"] == 10 and fill["n_processed"] == 4
+    out = tmp_path / "diag"
+    assert main(["diagnose", "likelihood-bias", str(bag), "--log-poses", "--out", str(out), "--warmup", "2"]) == 0

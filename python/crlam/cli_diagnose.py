@@ -118,7 +118,7 @@ def add_diagnose_parser(sub: argparse._SubParsersAction) -> None:
         "before it. A consistent offset is a drift every filter weighting by this likelihood inherits. Writes "
         "summary.json, samples.csv and histograms.png.",
     )
-    lb.add_argument("log", help="CARMEN log (plain, .gz or .bz2)")
+    lb.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (topics and mount detected)")
     lb.add_argument("--out", required=True, help="output folder")
     lb.add_argument("--reference", default=None, help="TUM trajectory of the robot, matched to the scans by stamp")
     lb.add_argument("--log-poses", action="store_true", help="use the log's own pose fields (e.g. a corrected log)")
