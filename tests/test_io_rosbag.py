@@ -75,6 +75,7 @@ class BagSpec:
     range_max: float = 10.0
     n_scans: int = 10
     first_scan: float = 100.11
+    odom_clock_offset: float = 0.0
 
 
 def odom_pose(t: float) -> np.ndarray:
@@ -115,6 +116,7 @@ def _messages(spec: BagSpec, ts: Any) -> list[tuple[str, str, float, Any]]:
     for k in range(41):
         t = 100.0 + 0.05 * k
         x, y, th = odom_pose(t)
+        t += spec.odom_clock_offset  # the stamp (a clock other than the scans' when nonzero)
         if spec.odom_in_tf:
             tfs = [
                 _transform_stamped(ts, t, "odom", spec.base_frame, (x, y, 0.0), (0.0, 0.0, th)),
@@ -241,6 +243,12 @@ def test_scans_beyond_the_odometry_are_skipped_and_counted(tmp_path: Path) -> No
     assert [round(s.timestamp, 1) for s in scans][:2] == [99.9, 100.1]
     np.testing.assert_allclose(scans[0].odom, odom_pose(100.0), atol=1e-9)
     np.testing.assert_allclose(scans[-1].odom, odom_pose(102.0), atol=1e-9)
+
+
+def test_odometry_on_another_clock_is_an_error_that_says_so(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "bag", BagSpec(odom_clock_offset=-1000.0))
+    with pytest.raises(DataFormatError, match=r"10 after the odometry.*same clock"):
+        list(open_log(bag))
 
 
 def test_odometry_only_in_tf(tmp_path: Path) -> None:

@@ -44,7 +44,9 @@ pose field of a CARMEN FLASER line; ``kind`` is the message type (``"LaserScan"`
 topic and ``line`` the 1-based index of the scan message in its topic.
 
 Streaming: the bag is read message by message in time order; only the scans waiting for the
-next odometry reading and a short odometry history are held. ``/tf_static`` is read first in a
+next odometry reading (at most 5 s of bag time each, then they are skipped as after the
+odometry) and a short odometry history are held. A bag whose scans and odometry are stamped on
+different clocks gives no scan: the error says so, with both stamp spans. ``/tf_static`` is read first in a
 separate pass (a few messages).
 """
 
@@ -82,6 +84,8 @@ TF_TYPE = "tf2_msgs/msg/TFMessage"
 
 #: Odometry readings kept to interpolate scans that arrive late.
 _ODOM_HISTORY = 4096
+#: Bag time (s) a scan waits for the odometry reading after its stamp before it is given up.
+_MAX_WAIT = 5.0
 
 
 def is_bag(path: str | os.PathLike[str]) -> bool:
@@ -290,6 +294,8 @@ class RosbagReader:
         self.upside_down = bool(upside_down)
         self.odom_tolerance = float(odom_tolerance)
         self.stats = BagStats()
+        self._scan_span = (math.nan, math.nan)
+        self._odom_span: tuple[float, float] | None = None
 
     # -- opening and detection ---------------------------------------------------------------
 
@@ -383,6 +389,7 @@ class RosbagReader:
 
     def _records(self) -> Iterator[CarmenRecord]:
         self.stats = stats = BagStats()
+        self._scan_span, self._odom_span = (math.nan, math.nan), None
         with self._open() as reader:
             conns = reader.connections
             scan_conns = self._pick_scan(conns)
@@ -409,9 +416,12 @@ class RosbagReader:
             stats.upside_down = mirrored
             yield from self._stream(reader, scan_conns, odom_conns, from_tf, base, offset, mirrored)
         if stats.n_scans == 0:
+            odom = self._odom_span
+            span = "no odometry readings" if odom is None else f"odometry stamped {odom[0]:.3f}..{odom[1]:.3f} s"
             raise DataFormatError(
                 f"no laser scans with odometry found ({stats.skipped_before_odometry} scans before and "
-                f"{stats.skipped_after_odometry} after the odometry)",
+                f"{stats.skipped_after_odometry} after the odometry; scans stamped {self._scan_span[0]:.3f}.."
+                f"{self._scan_span[1]:.3f} s, {span}): are the scans and the odometry stamped on the same clock?",
                 path=str(self.path),
             )
 
@@ -493,17 +503,21 @@ class RosbagReader:
             scan.pose = np.asarray(compose(scan.odom, offset), dtype=np.float64)
             return True
 
-        def flush(final: bool) -> Iterator[LaserScan]:
+        def flush(final: bool, now: float = math.inf) -> Iterator[LaserScan]:
+            """Yield the pending scans that can be resolved. Without ``final``, a scan waits for
+            the odometry after it for at most ``_MAX_WAIT`` s of bag time (``now``), so that a bag
+            whose odometry stops (or runs on another clock) holds few scans in memory."""
             while pending:
                 scan = pending[0]
+                waited = now - scan.logger_timestamp > _MAX_WAIT
                 if not hist_t:
-                    if not final:
+                    if not (final or waited):
                         return
                     st.skipped_before_odometry += 1
                     pending.popleft()
                     continue
                 if scan.timestamp > hist_t[-1]:
-                    if not final:
+                    if not (final or waited):
                         return
                     if scan.timestamp - hist_t[-1] > tol:
                         st.skipped_after_odometry += 1
@@ -525,6 +539,8 @@ class RosbagReader:
                 hist_t.append(t)
                 hist_p.append(pose)
             st.records["ODOM"] = st.records.get("ODOM", 0) + 1
+            span = self._odom_span
+            self._odom_span = (t, t) if span is None else (min(span[0], t), max(span[1], t))
             return OdometryReading(pose=pose, tv=tv, rv=rv, timestamp=t, host=st.odom_topic, logger_timestamp=recv)
 
         for conn, bag_t, raw in reader.messages(connections=[*scan_conns, *odom_conns]):
@@ -533,6 +549,8 @@ class RosbagReader:
             if conn.id in scan_ids:
                 n_scan_msgs += 1
                 t = _stamp(msg.header) or recv
+                lo, hi = self._scan_span
+                self._scan_span = (t, t) if n_scan_msgs == 1 else (min(lo, t), max(hi, t))
                 ranges = self._scan_ranges(msg)
                 amin, inc = float(msg.angle_min), float(msg.angle_increment)
                 if mirrored:
@@ -557,7 +575,7 @@ class RosbagReader:
                         kind=kind,
                     )
                 )
-                yield from flush(final=False)
+                yield from flush(final=False, now=recv)
                 continue
             if from_tf:
                 for tr in msg.transforms:
@@ -573,7 +591,7 @@ class RosbagReader:
                 yield add_odom(_stamp(msg.header) or recv, pose, float(tw.linear.x), float(tw.angular.z), recv)
                 if not st.odom_frame or st.odom_frame == self.odom_frame:
                     st.odom_frame = msg.header.frame_id.lstrip("/") or self.odom_frame
-            yield from flush(final=False)
+            yield from flush(final=False, now=recv)
         yield from flush(final=True)
 
 
