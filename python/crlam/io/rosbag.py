@@ -35,7 +35,8 @@ Laser mount
     ``child_frame_id``) to the scan's ``frame_id``, composed in 3D and projected to the plane. A
     laser whose z axis points down (a roll or pitch of pi: mounted upside down) sees the world
     mirrored: its beam bearings are negated. ``laser_mount=(x, y, yaw)`` replaces the mount
-    found in ``/tf_static`` and ``upside_down=True`` mirrors the bearings. Without either and
+    found in ``/tf_static`` and ``upside_down=True`` mirrors the bearings (once: a mount that
+    ``/tf_static`` already shows upside down is not mirrored twice). Without either and
     without a ``/tf_static`` path, the laser is taken to sit at the base frame's origin
     (``BagStats.mount_source`` says which rule was used).
 
