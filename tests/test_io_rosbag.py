@@ -76,6 +76,7 @@ class BagSpec:
     n_scans: int = 10
     first_scan: float = 100.11
     odom_clock_offset: float = 0.0
+    swap_odom_pairs: bool = False
 
 
 def odom_pose(t: float) -> np.ndarray:
@@ -114,15 +115,18 @@ def _messages(spec: BagSpec, ts: Any) -> list[tuple[str, str, float, Any]]:
         tfs = [_transform_stamped(ts, 99.0, p, c, xyz, rpy) for p, c, xyz, rpy in spec.static]
         out.append(("/tf_static", TF, 99.0, T[TF](transforms=tfs)))
     for k in range(41):
-        t = 100.0 + 0.05 * k
+        t = t_recv = 100.0 + 0.05 * k
+        if spec.swap_odom_pairs and k < 40:  # stamps of readings 0 and 1, 2 and 3, ... arrive swapped
+            t += 0.05 if k % 2 == 0 else -0.05
         x, y, th = odom_pose(t)
         t += spec.odom_clock_offset  # the stamp (a clock other than the scans' when nonzero)
+        t = round(t, 6)
         if spec.odom_in_tf:
             tfs = [
                 _transform_stamped(ts, t, "odom", spec.base_frame, (x, y, 0.0), (0.0, 0.0, th)),
                 _transform_stamped(ts, t, "odom", "base_footprint", (x + 5, y, 0.0), (0.0, 0.0, th)),
             ]
-            out.append(("/tf", TF, t, T[TF](transforms=tfs)))
+            out.append(("/tf", TF, t_recv, T[TF](transforms=tfs)))
         if spec.odom_topic is not None:
             q = _quat(yaw=th)
             pose = T["geometry_msgs/msg/Pose"](
@@ -139,7 +143,7 @@ def _messages(spec: BagSpec, ts: Any) -> list[tuple[str, str, float, Any]]:
                     covariance=np.zeros(36),
                 ),
             )
-            out.append((spec.odom_topic, ODOM, t, msg))
+            out.append((spec.odom_topic, ODOM, t_recv, msg))
     ranges = spec.ranges if spec.ranges is not None else np.linspace(1.0, 3.0, spec.n_beams)
     for k in range(spec.n_scans):
         t = spec.first_scan + 0.2 * k
@@ -243,6 +247,18 @@ def test_scans_beyond_the_odometry_are_skipped_and_counted(tmp_path: Path) -> No
     assert [round(s.timestamp, 1) for s in scans][:2] == [99.9, 100.1]
     np.testing.assert_allclose(scans[0].odom, odom_pose(100.0), atol=1e-9)
     np.testing.assert_allclose(scans[-1].odom, odom_pose(102.0), atol=1e-9)
+
+
+@pytest.mark.parametrize("history", [4096, 8])
+def test_odometry_out_of_stamp_order_is_sorted(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, history: int) -> None:
+    import crlam.io.rosbag as rb
+
+    monkeypatch.setattr(rb, "_ODOM_HISTORY", history)  # 8: the history is full when readings come out of order
+    bag = write_bag(tmp_path / "bag", BagSpec(swap_odom_pairs=True))
+    scans, reader = scans_of(bag)
+    assert len(scans) == 10 and reader.stats.n_odometry == 41
+    for s in scans:
+        np.testing.assert_allclose(s.odom, odom_pose(s.timestamp), atol=2e-3)
 
 
 def test_odometry_on_another_clock_is_an_error_that_says_so(tmp_path: Path) -> None:

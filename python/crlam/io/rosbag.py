@@ -534,6 +534,10 @@ class RosbagReader:
                 # Out-of-order odometry: insert in place (rare; keeps the history sorted).
                 ts = list(hist_t)
                 k = bisect_left(ts, t)
+                if len(hist_t) == hist_t.maxlen:  # a full bounded deque refuses insert()
+                    hist_t.popleft()
+                    hist_p.popleft()
+                    k = max(k - 1, 0)
                 hist_t.insert(k, t)
                 hist_p.insert(k, pose)
             else:
