@@ -284,6 +284,14 @@ def test_odometry_only_in_tf(tmp_path: Path) -> None:
     assert scans[0].odom[0] == pytest.approx(odom_pose(scans[0].timestamp)[0] + 5, abs=2e-3)
 
 
+def test_a_base_frame_other_than_the_odometry_child_is_refused(tmp_path: Path) -> None:
+    bag = write_bag(tmp_path / "bag", BagSpec())
+    with pytest.raises(ConfigError, match="child frame of /odom, base_link"):
+        list(open_log(bag, base_frame="base_footprint"))
+    _, reader = scans_of(bag, base_frame="base_link")
+    assert reader.stats.base_frame == "base_link"
+
+
 def test_odom_topic_tf_forces_tf_odometry(tmp_path: Path) -> None:
     bag = write_bag(tmp_path / "bag", BagSpec(odom_in_tf=True))
     _, reader = scans_of(bag, odom_topic="/tf")

@@ -245,7 +245,12 @@ def add_bag_options(p: argparse.ArgumentParser) -> None:
         help="nav_msgs/Odometry topic, or /tf for the odom -> base transforms (default: the only Odometry topic, "
         "/odom among several, else /tf)",
     )
-    g.add_argument("--base-frame", default=None, help="the robot's base frame (default: the odometry's child frame)")
+    g.add_argument(
+        "--base-frame",
+        default=None,
+        help="the robot's base frame, whose pose the odometry gives: with odometry from /tf, the child of odom to "
+        "follow (default: the odometry's child frame)",
+    )
     g.add_argument(
         "--laser-mount",
         type=float,

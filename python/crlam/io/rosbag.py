@@ -251,7 +251,9 @@ class RosbagReader:
         Topics to read (default: detected, see the module docstring). ``odom_topic="/tf"`` takes
         odometry from TF even when the bag has an odometry topic.
     base_frame : str, optional
-        The robot's base frame (default: the odometry's ``child_frame_id``).
+        The robot's base frame, whose pose the odometry gives: with odometry from ``/tf`` the
+        child of ``odom_frame`` to follow (default: one from which ``/tf_static`` reaches the
+        laser); with an Odometry topic it must be the messages' ``child_frame_id`` (the default).
     odom_frame : str
         The odometry frame, the parent of the base frame in ``/tf`` (used without an odometry topic).
     laser_mount : (x, y, yaw), optional
@@ -402,14 +404,19 @@ class RosbagReader:
             if not first_scan:
                 raise self._error(f"scan topic {stats.scan_topic} holds no messages", conns)
             laser_frame = first_scan[0].header.frame_id.lstrip("/")
-            if self.base_frame is not None:
-                base = self.base_frame.lstrip("/")
-            elif from_tf:
-                base = self._tf_base_frame(reader, odom_conns, tree, laser_frame)
+            given = None if self.base_frame is None else self.base_frame.lstrip("/")
+            if from_tf:
+                base = given or self._tf_base_frame(reader, odom_conns, tree, laser_frame)
             else:
+                # The odometry gives the pose of its child frame: that is the base frame.
                 first_odom = self._first(reader, odom_conns)
-                base = first_odom[0].child_frame_id.lstrip("/") if first_odom else ""
-                base = base or "base_link"
+                child = first_odom[0].child_frame_id.lstrip("/") if first_odom else ""
+                if given is not None and child and given != child:
+                    raise ConfigError(
+                        f"--base-frame {given} differs from the child frame of {stats.odom_topic}, {child}, whose pose "
+                        "the odometry gives: leave --base-frame out, or take odometry from /tf with --odom-topic /tf"
+                    )
+                base = given or child or "base_link"
             stats.base_frame, stats.laser_frame = base, laser_frame
             stats.odom_frame = self.odom_frame
             offset, mirrored = self._mount(tree, base, laser_frame)
