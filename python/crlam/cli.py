@@ -28,10 +28,12 @@ from crlam.cli_options import (
     SIGMA_RANGE_HELP,
     TEMPERING_BEAMS_HELP,
     WEIGHT_SMOOTHING_HELP,
+    add_bag_options,
     add_estimate_options,
     add_likelihood_mode_options,
     add_map_options,
     add_preset_option,
+    bag_options,
     nonnegative_float,
     nonnegative_int,
     positive_float,
@@ -76,6 +78,7 @@ def cmd_map(args: argparse.Namespace) -> int:
         on_error="skip" if args.skip_malformed else "raise",
         max_scans=args.max_scans,
         progress=not args.quiet,
+        bag_options=bag_options(args),
     )
     print(f"mapped {run.n_scans} scans in {run.wall_time_s:.1f} s ({run.n_scans / max(run.wall_time_s, 1e-9):.0f} scans/s)")
     for name, path in files.items():
@@ -141,6 +144,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         relations=args.relations,
         max_scans=max_scans,
         progress=not args.quiet,
+        bag_options=bag_options(args),
     )
     m = res.metrics
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
@@ -309,11 +313,16 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser(
         "map",
-        help="build a confidence-rich map from a log with trusted poses",
-        description="Maps a CARMEN log (plain, .gz or .bz2) whose poses are trusted and writes map.pgm/yaml, "
+        help="build a confidence-rich map from a log or a ROS bag with trusted poses",
+        description="Maps a CARMEN log (plain, .gz or .bz2) or a ROS bag (odometry poses) whose poses are trusted and "
+        "writes map.pgm/yaml, "
         "belief.npz, ogm.pgm/yaml, map.png and mapping.json.",
     )
-    p.add_argument("log", help="CARMEN log, e.g. ../shared/data/corrected/intel-corrected.log.gz")
+    p.add_argument(
+        "log",
+        help="CARMEN log, e.g. ../shared/data/corrected/intel-corrected.log.gz, or a ROS bag (folder with "
+        "metadata.yaml, .bag or .mcap)",
+    )
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument(
         "--poses",
@@ -325,17 +334,18 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--skip-malformed", action="store_true", help="skip (and count) malformed lines instead of stopping")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_map_options(p)
+    add_bag_options(p)
     p.set_defaults(func=cmd_map)
 
     p = sub.add_parser(
         "slam",
-        help="run RBPF-CLAM (or RBPF-OGM) on a CARMEN log and write a run folder",
+        help="run RBPF-CLAM (or RBPF-OGM) on a CARMEN log or a ROS bag and write a run folder",
         description="Runs a Rao-Blackwellized particle filter on a log and writes config.toml, trajectory.tum "
         "(one pose per scan, file order), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
         "named preset (--preset, default robust) or a run folder's config.toml (--config); every SLAM flag given "
         "overrides them.",
     )
-    p.add_argument("log", help="CARMEN log (plain, .gz or .bz2)")
+    p.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (folder with metadata.yaml, .bag or .mcap)")
     p.add_argument("--out", required=True, help="run folder")
     source = p.add_mutually_exclusive_group()
     add_preset_option(source, DEFAULT_PRESET)
@@ -402,6 +412,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--max-scans", type=positive_int, default=None, help="stop after this many scans (with --config: the file's, if any)"
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_bag_options(p)
     p.set_defaults(func=cmd_slam)
 
     from crlam.cli_eval import add_data_parser, add_eval_parser

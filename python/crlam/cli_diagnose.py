@@ -25,7 +25,7 @@ def reference_pose_scans(
     counted. Returns ``(scans, n_without_reference)``."""
     from crlam.eval.trajectory import _StampIndex
     from crlam.experiments.known_poses import KnownPoseScan, mapping_ranges
-    from crlam.io.carmen import read_scans
+    from crlam.io.logs import read_scans_any
     from crlam.io.tum import read_tum
     from crlam.pose import compose
 
@@ -33,7 +33,7 @@ def reference_pose_scans(
     index = _StampIndex(ref.timestamps, ref.poses, tolerance)
     scans: list[KnownPoseScan] = []
     missing = 0
-    for n, rec in enumerate(read_scans(log)):
+    for n, rec in enumerate(read_scans_any(log)):
         if max_scans is not None and n >= max_scans:
             break
         i = index.find(rec.timestamp)
@@ -52,14 +52,14 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
     from crlam.errors import ConfigError
     from crlam.eval.likelihood_bias import LineSearchGrid, likelihood_bias, save_likelihood_bias
     from crlam.experiments.known_poses import known_pose_scans
-    from crlam.io.carmen import CarmenReader
+    from crlam.io.logs import open_log
     from crlam.mapping import MappingConfig
 
     if (args.reference is None) == (not args.log_poses):
         raise ConfigError("give either --reference TRAJ.tum or --log-poses")
     missing = 0
     if args.log_poses:
-        scans = list(itertools.islice(known_pose_scans(CarmenReader(args.log), "log"), args.max_scans))
+        scans = list(itertools.islice(known_pose_scans(open_log(args.log), "log"), args.max_scans))
     else:
         scans, missing = reference_pose_scans(args.log, args.reference, tolerance=args.tolerance, max_scans=args.max_scans)
     if len(scans) <= args.warmup:
@@ -118,7 +118,7 @@ def add_diagnose_parser(sub: argparse._SubParsersAction) -> None:
         "before it. A consistent offset is a drift every filter weighting by this likelihood inherits. Writes "
         "summary.json, samples.csv and histograms.png.",
     )
-    lb.add_argument("log", help="CARMEN log (plain, .gz or .bz2)")
+    lb.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (topics and mount detected)")
     lb.add_argument("--out", required=True, help="output folder")
     lb.add_argument("--reference", default=None, help="TUM trajectory of the robot, matched to the scans by stamp")
     lb.add_argument("--log-poses", action="store_true", help="use the log's own pose fields (e.g. a corrected log)")

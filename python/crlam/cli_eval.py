@@ -193,7 +193,7 @@ def add_eval_parser(subparsers: Any) -> argparse.ArgumentParser:
     g = p.add_mutually_exclusive_group(required=True)
     g.add_argument("--relations", help=".relations file (t1 t2 x y z roll pitch yaw)")
     g.add_argument("--reference", help="reference trajectory (TUM or CARMEN) in the same frame, matched by stamp")
-    p.add_argument("--raw-log", help="raw CARMEN log whose scans' odom fields fill the scans the trajectory lacks")
+    p.add_argument("--raw-log", help="raw CARMEN log or ROS bag whose scans' odometry fills the scans the trajectory lacks")
     p.add_argument(
         "--no-backfill",
         action="store_true",

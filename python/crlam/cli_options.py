@@ -24,10 +24,12 @@ __all__ = [
     "PROPOSAL_POSE_HELP",
     "SIGMA_RANGE_HELP",
     "WEIGHT_SMOOTHING_HELP",
+    "add_bag_options",
     "add_estimate_options",
     "add_likelihood_mode_options",
     "add_map_options",
     "add_preset_option",
+    "bag_options",
     "slam_overrides",
     "nonnegative_float",
     "nonnegative_int",
@@ -226,3 +228,47 @@ def add_map_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument("--batch-kernel", choices=BATCH_KERNELS, default="windowed", help=BATCH_KERNEL_HELP)
     g.add_argument("--beam-stride", type=positive_int, default=1, help="use every n-th beam (default: 1)")
+
+
+def add_bag_options(p: argparse.ArgumentParser) -> None:
+    """The ROS bag options of the commands that read a log (``crlam map``, ``crlam slam``)."""
+    g = p.add_argument_group(
+        "ROS bag input",
+        "used when LOG is a ROS bag (a folder with metadata.yaml, a .bag or a .mcap file); by default the "
+        "topics and the laser mount are detected (the single LaserScan topic, the Odometry topic or /tf, "
+        "the base -> laser transform of /tf_static)",
+    )
+    g.add_argument("--scan-topic", default=None, help="LaserScan (or MultiEchoLaserScan) topic (default: the only one)")
+    g.add_argument(
+        "--odom-topic",
+        default=None,
+        help="nav_msgs/Odometry topic, or /tf for the odom -> base transforms (default: the only Odometry topic, "
+        "/odom among several, else /tf)",
+    )
+    g.add_argument(
+        "--base-frame",
+        default=None,
+        help="the robot's base frame, whose pose the odometry gives: with odometry from /tf, the child of odom to "
+        "follow (default: the odometry's child frame)",
+    )
+    g.add_argument(
+        "--laser-mount",
+        type=float,
+        nargs=3,
+        default=None,
+        metavar=("X", "Y", "YAW"),
+        help="laser pose in the base frame (m, m, rad); replaces the one of /tf_static",
+    )
+    g.add_argument("--upside-down", action="store_true", help="the laser is mounted upside down: mirror its bearings")
+
+
+def bag_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The bag options given on the command line (only those given, so a CARMEN log takes none)."""
+    out: dict[str, Any] = {}
+    for name in ("scan_topic", "odom_topic", "base_frame", "laser_mount"):
+        value = getattr(args, name, None)
+        if value is not None:
+            out[name] = value
+    if getattr(args, "upside_down", False):
+        out["upside_down"] = True
+    return out

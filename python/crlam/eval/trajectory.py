@@ -21,7 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import DataFormatError
-from crlam.io.carmen import read_scans
+from crlam.io.logs import read_scans_any
 from crlam.io.relations import Relations
 from crlam.pose import between, compose, wrap_angle
 
@@ -127,7 +127,7 @@ def index_scans(path: str | os.PathLike[str], *, on_error: Literal["raise", "ski
     """
     rows = [
         (s.timestamp, s.pose, s.odom, s.line, hashlib.blake2b(s.ranges.tobytes(), digest_size=16).digest())
-        for s in read_scans(path, on_error=on_error)
+        for s in read_scans_any(path, on_error=on_error)
     ]
     if not rows:
         raise DataFormatError("no laser scans (FLASER, ROBOTLASER1, ...) in the log", path=str(path))

@@ -1,4 +1,4 @@
-"""Mapping with known poses: a CARMEN log in, a self-describing map folder out (``crlam map``).
+"""Mapping with known poses: a CARMEN log or a ROS bag in, a self-describing map folder out (``crlam map``).
 
 The folder holds ``map.pgm``/``map.yaml`` (the CRM's expected occupancy as a Nav2 map),
 ``belief.npz`` (lossless beliefs), ``ogm.pgm``/``ogm.yaml`` (the log-odds baseline), ``map.png``
@@ -15,7 +15,7 @@ import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -23,7 +23,8 @@ from tqdm import tqdm
 
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import save_belief
-from crlam.io.carmen import CarmenReader, LaserScan
+from crlam.io.carmen import LaserScan
+from crlam.io.logs import input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MapLayer, MappingConfig, ScanUpdateStats
 from crlam.pose import compose
@@ -210,14 +211,19 @@ def map_log(
     on_error: Literal["raise", "skip"] = "raise",
     max_scans: int | None = None,
     progress: bool = True,
+    bag_options: dict[str, Any] | None = None,
 ) -> tuple[MappingRun, dict[str, Path]]:
-    """``crlam map``: maps a CARMEN log with trusted poses and writes the map folder."""
-    reader = CarmenReader(log_path, on_error=on_error)
+    """``crlam map``: maps a CARMEN log or a ROS bag with trusted poses and writes the map folder.
+
+    A bag's scans carry the odometry pose (composed with the laser mount) in both pose fields, so
+    ``poses`` makes no difference there; ``bag_options`` go to :func:`crlam.io.logs.open_log`."""
+    reader = open_log(log_path, on_error=on_error, **(bag_options or {}))
     run = map_scans(known_pose_scans(reader, poses), config, max_scans=max_scans, progress=progress, desc=Path(log_path).name)
     st = reader.stats
     extra: dict[str, object] = {
         "log": str(log_path),
         "pose_source": poses,
+        "input": input_description(reader),
         "reader": {
             "records": st.records,
             "ignored": st.ignored,

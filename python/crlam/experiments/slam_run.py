@@ -1,6 +1,7 @@
-"""``crlam slam``: run a particle filter on a CARMEN log and write a self-describing run folder.
+"""``crlam slam``: run a particle filter on a CARMEN log or a ROS bag and write a self-describing run folder.
 
-The folder holds ``config.toml`` (every resolved setting: the ``[slam]`` table has every
+The folder holds ``config.toml`` (every resolved setting: the ``[input]`` table says how the log
+was read (for a bag: the topics, frames and laser mount used), the ``[slam]`` table has every
 :class:`crlam.slam.SlamConfig` field and the preset they were resolved from, so
 ``crlam slam --config DIR/config.toml`` runs the same configuration again), ``trajectory.tum`` (one pose per laser
 scan of the log, in file order, stamped with the scan's ipc timestamp), ``metrics.json``,
@@ -42,7 +43,8 @@ from crlam import __version__
 from crlam.errors import DataFormatError
 from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
 from crlam.io.belief import save_belief
-from crlam.io.carmen import CarmenReader, LaserScan
+from crlam.io.carmen import LaserScan
+from crlam.io.logs import input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
@@ -129,15 +131,18 @@ def run_slam_log(
     max_scans: int | None = None,
     progress: bool = True,
     figures: bool = True,
+    bag_options: dict[str, Any] | None = None,
 ) -> SlamResult:
-    """Runs ``config`` on a CARMEN log and writes the run folder (see the module docstring).
+    """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
-    Without a ``config`` the run uses the default preset (``SlamConfig.from_preset()``, ``robust``)."""
+    Without a ``config`` the run uses the default preset (``SlamConfig.from_preset()``, ``robust``).
+    ``bag_options`` go to the bag reader (:func:`crlam.io.logs.open_log`: ``scan_topic``,
+    ``odom_topic``, ``base_frame``, ``laser_mount``, ``upside_down``)."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    reader = CarmenReader(log_path)
+    reader = open_log(log_path, **(bag_options or {}))
     run = SlamRun(config)
     t0 = time.perf_counter()
     bar = tqdm(
@@ -222,6 +227,7 @@ def run_slam_log(
         "fill_rule": FILL_RULE,
         "preset": config.preset,
         "deviations_from_paper": config.deviations(),
+        "input": input_description(reader),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
@@ -286,6 +292,7 @@ def run_slam_log(
                 "max_scans": max_scans,
                 "crlam_version": __version__,
             },
+            "input": input_description(reader),
             "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
         },
     )

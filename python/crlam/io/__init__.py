@@ -1,4 +1,4 @@
-"""File formats of crlam: CARMEN logs, TUM trajectories, Nav2 maps, relations, belief archives.
+"""File formats of crlam: CARMEN logs, ROS bags, TUM trajectories, Nav2 maps, relations, belief archives.
 
 Pure Python + numpy. Readers raise :class:`crlam.errors.DataFormatError` naming the file, the
 line and the field of malformed input. Grids follow the project convention: ``[iy, ix]`` with
@@ -30,6 +30,7 @@ from crlam.io.datasets import (
     data_root,
     dataset_path,
 )
+from crlam.io.logs import open_log, read_records, read_scans_any
 from crlam.io.nav2 import (
     Nav2Map,
     read_image,
@@ -39,11 +40,13 @@ from crlam.io.nav2 import (
     write_pgm,
 )
 from crlam.io.relations import Relations, read_relations, write_relations
+from crlam.io.rosbag import BagStats, RosbagReader, is_bag, read_bag
 from crlam.io.tum import Trajectory, read_tum, write_tum
 
 __all__ = [
     "DATASETS",
     "DEFAULT_FLASER_MAX_RANGE",
+    "BagStats",
     "BeliefArchive",
     "CarmenLog",
     "CarmenReader",
@@ -56,19 +59,25 @@ __all__ = [
     "Nav2Map",
     "OdometryReading",
     "Relations",
+    "RosbagReader",
     "Trajectory",
     "data_root",
     "dataset_path",
     "flaser_geometry",
+    "is_bag",
     "load_belief",
     "load_log",
     "open_binary",
+    "open_log",
+    "read_bag",
     "read_carmen",
     "read_image",
     "read_nav2_map",
     "read_pgm",
+    "read_records",
     "read_relations",
     "read_scans",
+    "read_scans_any",
     "read_tum",
     "save_belief",
     "write_carmen",

@@ -54,7 +54,8 @@ class LaserScan:
         Sensor maximum range (m).
     pose : ndarray, shape (3,)
         Pose field as logged (x, y in m, theta in rad): the laser pose for FLASER/RLASER, the
-        robot pose for ROBOTLASER1; NaN for RAWLASER.
+        robot pose for ROBOTLASER1; NaN for RAWLASER; for a ROS bag scan the laser pose from
+        odometry (``odom`` composed with ``laser_offset``, see :mod:`crlam.io.rosbag`).
     odom : ndarray, shape (3,)
         Odometry pose field (the robot pose again for ROBOTLASER1).
     laser_offset : ndarray, shape (3,)
@@ -68,7 +69,8 @@ class LaserScan:
     line : int
         1-based line number in the source file (0 for records built in memory).
     kind : str
-        Message type the scan came from (``"FLASER"``, ``"RLASER"``, ``"ROBOTLASER1"``, ...).
+        Message type the scan came from (``"FLASER"``, ``"RLASER"``, ``"ROBOTLASER1"``, ...;
+        ``"LaserScan"`` or ``"MultiEchoLaserScan"`` for a ROS bag).
     """
 
     ranges: FloatArray
