@@ -495,6 +495,20 @@ def test_crlam_slam_takes_a_bag_and_writes_the_topics_to_config(tmp_path: Path) 
     assert len((out / "trajectory.tum").read_text().strip().splitlines()) >= 10
 
 
+def test_crlam_slam_keeps_z_max_within_the_sensors_range(tmp_path: Path) -> None:
+    # A 3.5 m laser under the robust preset's 8 m: no-returns must not clear cells the laser
+    # cannot see, so the run's z_max is the sensor's (recorded, so --config repeats it).
+    bag = write_bag(tmp_path / "bag", BagSpec(n_scans=6, range_max=3.5), "mcap")
+    out = tmp_path / "run"
+    assert main(["slam", str(bag), "--out", str(out), "--particles", "3", "--quiet"]) == 0
+    cfg = tomllib.loads((out / "config.toml").read_text())
+    assert cfg["slam"]["max_range"] == 3.5
+    # A sensor that sees farther than the preset's z_max leaves it alone.
+    bag = write_bag(tmp_path / "bag12", BagSpec(n_scans=6, range_max=12.0), "mcap")
+    assert main(["slam", str(bag), "--out", str(tmp_path / "run12"), "--particles", "3", "--quiet"]) == 0
+    assert tomllib.loads((tmp_path / "run12" / "config.toml").read_text())["slam"]["max_range"] == 8.0
+
+
 def test_crlam_slam_reports_a_missing_topic(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     bag = write_bag(tmp_path / "bag", BagSpec())
     rc = main(["slam", str(bag), "--out", str(tmp_path / "run"), "--quiet", "--scan-topic", "/nope"])

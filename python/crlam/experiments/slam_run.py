@@ -121,6 +121,20 @@ def _scan_inputs(scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float
     return scan.angles, ranges
 
 
+def within_sensor_range(config: SlamConfig, sensor_max_range: float) -> SlamConfig:
+    """``config`` with z_max no longer than the sensor's own maximum range (m).
+
+    A no-return clears the cells along its beam up to z_max; beyond what the sensor can see
+    (a 3.5 m laser under an 8 m preset) that would map unseen space as free. The run's
+    config.toml holds the z_max used, so ``--config`` repeats it.
+    """
+    if math.isfinite(sensor_max_range) and 0 < sensor_max_range < config.max_range:
+        from dataclasses import replace
+
+        return replace(config, max_range=float(sensor_max_range))
+    return config
+
+
 def run_slam_log(
     log_path: str | os.PathLike[str],
     out_dir: str | os.PathLike[str],
@@ -143,7 +157,7 @@ def run_slam_log(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     reader = open_log(log_path, **(bag_options or {}))
-    run = SlamRun(config)
+    run: SlamRun | None = None
     t0 = time.perf_counter()
     bar = tqdm(
         desc=f"{config.method} x{config.particles} {Path(log_path).name}", unit="scan", disable=not progress, mininterval=1.0
@@ -151,6 +165,9 @@ def run_slam_log(
     for rec in reader:
         if not isinstance(rec, LaserScan):
             continue
+        if run is None:
+            config = within_sensor_range(config, rec.max_range)
+            run = SlamRun(config)
         if max_scans is not None and run.n_scans >= max_scans:
             break
         angles, ranges = _scan_inputs(rec)
@@ -158,7 +175,7 @@ def run_slam_log(
         bar.update(1)
     bar.close()
     wall = time.perf_counter() - t0
-    if run.n_scans == 0:
+    if run is None or run.n_scans == 0:
         raise DataFormatError("the log holds no laser scans", path=str(log_path))
     stamps, poses = run.trajectory()
     write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam {config.method} trajectory of {Path(log_path).name}")
