@@ -19,6 +19,7 @@ from crlam.cli_options import (
     MATCH_STRIDE_HELP,
     MOTION_DRAWS,
     MOTION_DRAWS_HELP,
+    MOTION_NOISE_HELP,
     OGM_MAP_HELP,
     OGM_MAPS,
     PROPOSAL_HELP,
@@ -390,6 +391,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering tau (paper: 1; {FROM_PRESET})")
     p.add_argument("--tempering-beams", type=positive_float, default=None, metavar="B", help=TEMPERING_BEAMS_HELP)
     p.add_argument("--scan-match-weight", choices=("crm", "endpoint"), default=None, help=SCAN_MATCH_WEIGHT_HELP)
+    p.add_argument("--motion-noise", choices=("model", "estimate"), default=None, help=MOTION_NOISE_HELP)
     p.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
     p.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)
     p.add_argument("--batch-kernel", choices=BATCH_KERNELS, default=None, help=f"{BATCH_KERNEL_HELP} ({FROM_PRESET})")
@@ -552,6 +554,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering (paper: 1; {FROM_PRESET})")
         q.add_argument("--tempering-beams", type=positive_float, default=None, metavar="B", help=TEMPERING_BEAMS_HELP)
         q.add_argument("--scan-match-weight", choices=("crm", "endpoint"), default=None, help=SCAN_MATCH_WEIGHT_HELP)
+        q.add_argument("--motion-noise", choices=("model", "estimate"), default=None, help=MOTION_NOISE_HELP)
         q.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
         q.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)
         q.add_argument("--proposal", choices=PROPOSALS, default=None, help=PROPOSAL_HELP)

@@ -20,6 +20,7 @@ __all__ = [
     "PROPOSALS",
     "TEMPERING_BEAMS_HELP",
     "SCAN_MATCH_WEIGHT_HELP",
+    "MOTION_NOISE_HELP",
     "PROPOSAL_HELP",
     "PROPOSAL_POSE_HELP",
     "SIGMA_RANGE_HELP",
@@ -99,6 +100,10 @@ WEIGHT_SMOOTHING_HELP = (
     "resampling and the weighted mean (0 = plain weights; paper: 3, GMapping's; default: the preset's)"
 )
 CAUSE_KERNEL_HELP = "RBPF-CLAM: a cause at its chord midpoint (spec, paper) or spread along the chord (default: the preset's)"
+MOTION_NOISE_HELP = (
+    "the odometry model's parameters as given (model) or GMapping's fitted to the log's own odometry and scans before "
+    "the run (estimate; needs --motion gmapping; --motion-params overrides it) (default: the preset's)"
+)
 SCAN_MATCH_WEIGHT_HELP = (
     "RBPF-CLAM scan_match: weigh by the CRM predictive likelihood (crm, the paper's model) or by GMapping's endpoint "
     "lattice normaliser (endpoint) (default: the preset's)"

@@ -98,6 +98,11 @@ class SlamConfig:
         (``motion_params`` = alpha1..alpha4, variance coefficients) or ``gmapping`` (GMapping's own
         model: ``motion_params`` = srr, srt, str, stt, standard deviations per m or rad that add
         linearly; default 0.1 0.2 0.1 0.2).
+    motion_noise : str
+        ``model`` (default): the motion model's parameters as given (``motion_params``, else the
+        model's own). ``estimate``: GMapping's parameters fitted to the log's own odometry and
+        scans before the run (:mod:`crlam.motion_noise`; needs ``motion="gmapping"``), unless
+        ``motion_params`` are given; ``crlam slam`` records the fitted values in config.toml.
     linear_update, angular_update : float
         Process a scan after this much travel (m) or rotation (rad) since the last processed one;
         0 and 0 process every scan (paper).
@@ -164,6 +169,7 @@ class SlamConfig:
     scan_match_weight: str = "crm"
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
+    motion_noise: str = "model"
     linear_update: float = 0.0
     angular_update: float = 0.0
     init_sigma: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -245,6 +251,10 @@ class SlamConfig:
             raise bad("batch_kernel", "must be 'windowed' or 'full_ray'")
         if self.motion not in ("gaussian", "thrun", "gmapping"):
             raise bad("motion", "must be 'gaussian', 'thrun' or 'gmapping'")
+        if self.motion_noise not in ("model", "estimate"):
+            raise bad("motion_noise", "must be 'model' or 'estimate'")
+        if self.motion_noise == "estimate" and self.motion != "gmapping":
+            raise bad("motion_noise", "'estimate' fits GMapping's parameters: needs motion='gmapping'")
         if self.motion_params is not None and len(self.motion_params) != (3 if self.motion == "gaussian" else 4):
             raise bad("motion_params", "needs 3 sigmas (gaussian), 4 alphas (thrun) or srr srt str stt (gmapping)")
         for name in ("linear_update", "angular_update", "sigma_range", "ogm_weight_smoothing"):
