@@ -420,6 +420,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_eval_parser(sub)
     add_data_parser(sub)
 
+    from crlam.cli_convert import add_convert_parser
     from crlam.cli_diagnose import add_diagnose_parser
     from crlam.cli_explore import add_explore_parser
     from crlam.cli_info import add_info_parser
@@ -427,6 +428,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_info_parser(sub)
     add_explore_parser(sub)
     add_diagnose_parser(sub)
+    add_convert_parser(sub)
 
     p = sub.add_parser(
         "experiment",
