@@ -145,6 +145,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         max_scans=max_scans,
         progress=not args.quiet,
         bag_options=bag_options(args),
+        mcap=args.mcap,
     )
     m = res.metrics
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
@@ -410,6 +411,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--max-scans", type=positive_int, default=None, help="stop after this many scans (with --config: the file's, if any)"
+    )
+    p.add_argument(
+        "--mcap",
+        action="store_true",
+        help="also write run.mcap (ROS 2 messages for Foxglove or ros2 bag play): /scan, /tf (map -> odom -> "
+        "base_link), /tf_static, /particles (PoseArray), /path, /map and /map_confidence (OccupancyGrid)",
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_bag_options(p)
