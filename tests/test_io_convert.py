@@ -128,3 +128,42 @@ def test_stamps_and_yaw_read_back_exactly() -> None:
         assert got == pytest.approx(th, abs=1e-15)
         exact += got == th
     assert exact >= 0.99 * len(yaws)
+
+
+def test_flaser_log_round_trips_as_flaser(tmp_path: Path) -> None:
+    """FLASER scans (implicit 180-deg geometry, forward laser offset) come back as FLASER lines
+    with the same ranges, poses, odometry and stamps; ODOM records between scans stay."""
+    from crlam.io.carmen import flaser_geometry
+    from crlam.pose import compose
+
+    amin, inc = flaser_geometry(180, math.pi)
+    records: list[LaserScan | OdometryReading] = []
+    for k in range(20):
+        odom = np.array([0.1 * k, 0.01 * k, 0.05 * k])
+        offset = np.array([0.2, 0.0, 0.0])
+        t = 1_000_000_000.0 + 0.05 * k
+        ranges = np.linspace(1.0, 80.0, 180)
+        ranges[::7] = 81.0  # no-returns
+        records.append(LaserScan(ranges, amin, inc, 81.0, compose(odom, offset), odom, offset, timestamp=t))
+        records.append(OdometryReading(odom + 0.01, tv=0.5, rv=0.1, timestamp=t + 0.02))
+    log = tmp_path / "flaser.clf"
+    write_carmen(log, records)
+    summary = convert(log, tmp_path / "flaser.mcap")
+    assert summary.n_scans == 20 and summary.n_odometry == 40 and summary.laser_offset == (0.2, 0.0, 0.0)
+    back = tmp_path / "back.clf.gz"
+    convert(tmp_path / "flaser.mcap", back)
+    original = list(CarmenReader(log))
+    again = list(CarmenReader(back))
+    a = [r for r in original if isinstance(r, LaserScan)]
+    b = [r for r in again if isinstance(r, LaserScan)]
+    assert len(a) == len(b) == 20 and {s.kind for s in b} == {"FLASER"}
+    for x, y in zip(a, b):
+        assert x.timestamp == y.timestamp
+        for name in ("ranges", "angles", "pose", "odom", "laser_offset"):
+            np.testing.assert_array_equal(getattr(x, name), getattr(y, name), err_msg=name)
+    odom_a = {r.timestamp: r for r in original if isinstance(r, OdometryReading)}
+    odom_b = {r.timestamp: r for r in again if isinstance(r, OdometryReading)}
+    assert set(odom_a) <= set(odom_b)  # plus one reading per scan (its own odometry)
+    for t, r in odom_a.items():
+        np.testing.assert_array_equal(r.pose, odom_b[t].pose)
+        assert (r.tv, r.rv) == (odom_b[t].tv, odom_b[t].rv)

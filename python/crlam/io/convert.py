@@ -15,8 +15,10 @@ CARMEN log -> ROS 2 bag (:func:`carmen_to_bag`)
 ROS bag -> CARMEN log (:func:`bag_to_carmen`)
     The records of :class:`~crlam.io.rosbag.RosbagReader` (scans with their interpolated
     odometry, and every odometry reading as an ``ODOM`` line) written by
-    :class:`~crlam.io.carmen_writer.CarmenWriter`; scans whose geometry is not FLASER's become
-    ``ROBOTLASER1`` lines, whose robot pose is the scan's odometry.
+    :class:`~crlam.io.carmen_writer.CarmenWriter`. A scan whose float32 bearings and maximum
+    range are those of a FLASER line (a bag converted from a CARMEN log) is written as
+    ``FLASER`` with the exact FLASER geometry; any other becomes ``ROBOTLASER1``, whose robot pose
+    is the scan's odometry.
 
 What survives a CARMEN -> bag -> CARMEN round trip: the stamps (nanoseconds), the odometry
 (float64 in the message), the ranges to the log's 0.1 mm (the message stores float32) and the
@@ -28,6 +30,7 @@ values; otherwise they differ by what a 1e-7 change in each reading does to the 
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,7 +40,7 @@ import numpy as np
 
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.carmen import CarmenReader
-from crlam.io.carmen_types import LaserScan, OdometryReading
+from crlam.io.carmen_types import DEFAULT_FLASER_MAX_RANGE, LaserScan, OdometryReading, flaser_geometry
 from crlam.io.carmen_writer import CarmenWriter
 from crlam.io.logs import open_log
 from crlam.io.rosbag import RosbagReader, is_bag
@@ -137,6 +140,19 @@ def carmen_to_bag(source: str | os.PathLike[str], target: str | os.PathLike[str]
     return summary
 
 
+def _snap_flaser(scan: LaserScan) -> None:
+    """Give a scan whose float32 geometry is that of a FLASER line (a bag made from a CARMEN log)
+    the exact FLASER geometry, so that it is written back as FLASER."""
+    amin, inc = flaser_geometry(scan.n_beams, math.pi)
+    f32 = np.float32
+    if (
+        f32(scan.angle_min) == f32(amin)
+        and f32(scan.angle_increment) == f32(inc)
+        and f32(scan.max_range) == f32(DEFAULT_FLASER_MAX_RANGE)
+    ):
+        scan.angle_min, scan.angle_increment, scan.max_range = amin, inc, DEFAULT_FLASER_MAX_RANGE
+
+
 def bag_to_carmen(source: str | os.PathLike[str], target: str | os.PathLike[str], **bag_options: Any) -> ConversionSummary:
     """Write the ROS bag ``source`` as a CARMEN log ``target`` (plain, ``.gz`` or ``.bz2``);
     ``bag_options`` go to :class:`~crlam.io.rosbag.RosbagReader`."""
@@ -146,6 +162,8 @@ def bag_to_carmen(source: str | os.PathLike[str], target: str | os.PathLike[str]
     assert isinstance(reader, RosbagReader)
     with CarmenWriter(dst, header=f"converted from the ROS bag {src.name} by crlam convert", robotlaser_pose="odom") as out:
         for rec in reader:
+            if isinstance(rec, LaserScan):
+                _snap_flaser(rec)
             out.write(rec)
             if isinstance(rec, LaserScan):
                 summary.n_scans += 1
