@@ -146,6 +146,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         max_scans=max_scans,
         progress=not args.quiet,
         bag_options=bag_options(args),
+        mcap=args.mcap,
     )
     m = res.metrics
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
@@ -413,6 +414,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument(
         "--max-scans", type=positive_int, default=None, help="stop after this many scans (with --config: the file's, if any)"
     )
+    p.add_argument(
+        "--mcap",
+        action="store_true",
+        help="also write run.mcap (ROS 2 messages for Foxglove or ros2 bag play): /scan, /tf (map -> odom -> "
+        "base_link), /tf_static, /particles (PoseArray), /path, /map and /map_confidence (OccupancyGrid)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_bag_options(p)
     p.set_defaults(func=cmd_slam)
@@ -422,6 +429,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_eval_parser(sub)
     add_data_parser(sub)
 
+    from crlam.cli_convert import add_convert_parser
     from crlam.cli_diagnose import add_diagnose_parser
     from crlam.cli_explore import add_explore_parser
     from crlam.cli_info import add_info_parser
@@ -429,6 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_info_parser(sub)
     add_explore_parser(sub)
     add_diagnose_parser(sub)
+    add_convert_parser(sub)
 
     p = sub.add_parser(
         "experiment",

@@ -146,12 +146,15 @@ def run_slam_log(
     progress: bool = True,
     figures: bool = True,
     bag_options: dict[str, Any] | None = None,
+    mcap: bool = False,
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
     Without a ``config`` the run uses the default preset (``SlamConfig.from_preset()``, ``robust``).
     ``bag_options`` go to the bag reader (:func:`crlam.io.logs.open_log`: ``scan_topic``,
-    ``odom_topic``, ``base_frame``, ``laser_mount``, ``upside_down``)."""
+    ``odom_topic``, ``base_frame``, ``laser_mount``, ``upside_down``). ``mcap`` also writes
+    ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: scans, TF, particles, path and map as
+    standard ROS 2 messages)."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
@@ -174,6 +177,23 @@ def run_slam_log(
         )
         config = replace(config, motion_params=noise_estimate.params)
     reader = open_log(log_path, **(bag_options or {}))
+    recorder = None
+    if mcap:
+        from crlam.experiments.slam_mcap import SlamMcapRecorder
+
+        recorder = SlamMcapRecorder(out / "run.mcap")
+    try:
+        run_wall = _run_filter(reader, config, log_path, max_scans, progress, recorder)
+    except BaseException:
+        if recorder is not None:
+            recorder.close()
+        raise
+    return _write_outputs(run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder)
+
+
+def _run_filter(
+    reader: Any, config: SlamConfig, log_path: str | os.PathLike[str], max_scans: int | None, progress: bool, recorder: Any
+) -> tuple[SlamRun, float]:
     run: SlamRun | None = None
     bar = tqdm(
         desc=f"{config.method} x{config.particles} {Path(log_path).name}", unit="scan", disable=not progress, mininterval=1.0
@@ -187,12 +207,32 @@ def run_slam_log(
         if max_scans is not None and run.n_scans >= max_scans:
             break
         angles, ranges = _scan_inputs(rec)
-        run.step(rec.odom, angles, ranges, rec.laser_offset, rec.timestamp)
+        step = run.step(rec.odom, angles, ranges, rec.laser_offset, rec.timestamp)
+        if recorder is not None:
+            assert run.filter is not None
+            particles = np.asarray(run.filter.particle_poses(), dtype=np.float64) if step.processed else None
+            recorder.scan(rec, step.processed, step.estimate, particles)
         bar.update(1)
     bar.close()
     wall = time.perf_counter() - t0
     if run is None or run.n_scans == 0:
         raise DataFormatError("the log holds no laser scans", path=str(log_path))
+    return run, wall
+
+
+def _write_outputs(
+    run_wall: tuple[SlamRun, float],
+    reader: Any,
+    log_path: str | os.PathLike[str],
+    out: Path,
+    reference: str | os.PathLike[str] | None,
+    relations: str | os.PathLike[str] | None,
+    max_scans: int | None,
+    figures: bool,
+    recorder: Any,
+) -> SlamResult:
+    run, wall = run_wall
+    config = run.config
     stamps, poses = run.trajectory()
     write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam {config.method} trajectory of {Path(log_path).name}")
     _, path_poses = run.best_path_trajectory()
@@ -303,16 +343,24 @@ def run_slam_log(
             metrics["relations_best_path_means"] = rel_means.summary()
             rel_figure["best path's proposal means"] = rel_means
     from crlam.experiments.known_poses import unknown_mask
-    from crlam.mapping import ConfidenceRichMap
+    from crlam.mapping import ConfidenceRichMap, MapLayer
 
     best = run.best_map()
+    std = None
     if isinstance(best, ConfidenceRichMap):
-        mean, _, ent = best.layers()
+        mean, var, ent = best.layers()
         save_belief(out / "belief.npz", best.to_archive())
         unknown = unknown_mask(best, ent)
+        std = MapLayer(np.sqrt(np.maximum(var.values, 0.0)), var.origin, var.resolution, "standard deviation")
     else:
         mean = best.probability()
         unknown = best.native.log_odds(best.region()) == 0.0
+    if recorder is not None:
+        try:
+            metrics["mcap"] = {"path": str(recorder.path), "topics": recorder.finish(stamps, poses, mean, unknown, std)}
+        except BaseException:
+            recorder.close()
+            raise
     write_nav2_map(
         out / "map.pgm", np.where(unknown, np.nan, mean.values), resolution=mean.resolution, origin=(*mean.origin, 0.0)
     )

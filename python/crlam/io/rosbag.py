@@ -149,7 +149,9 @@ class BagStats(CarmenStats):
 
 
 def _stamp(header: Any) -> float:
-    return float(header.stamp.sec) + 1e-9 * float(header.stamp.nanosec)
+    # Integer nanoseconds divided exactly (Python's int / int is correctly rounded): the float
+    # nearest the stamp, so a stamp written from a float with up to 9 decimals reads back equal.
+    return (int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)) / 1_000_000_000
 
 
 def _quat_matrix(q: Any) -> NDArray[np.float64]:
