@@ -48,6 +48,7 @@ from crlam.io.logs import input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
+from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
 
 __all__ = ["SlamResult", "run_slam_log", "write_toml", "FILL_RULE"]
@@ -183,17 +184,24 @@ def run_slam_log(
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(reader, config, log_path, max_scans, progress, recorder)
+        run_wall = _run_filter(reader, config, log_path, max_scans, progress, recorder, t0)
     except BaseException:
         if recorder is not None:
             recorder.close()
         raise
-    return _write_outputs(run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder)
+    return _write_outputs(run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder, noise_estimate)
 
 
 def _run_filter(
-    reader: Any, config: SlamConfig, log_path: str | os.PathLike[str], max_scans: int | None, progress: bool, recorder: Any
+    reader: Any,
+    config: SlamConfig,
+    log_path: str | os.PathLike[str],
+    max_scans: int | None,
+    progress: bool,
+    recorder: Any,
+    t0: float,
 ) -> tuple[SlamRun, float]:
+    """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s)."""
     run: SlamRun | None = None
     bar = tqdm(
         desc=f"{config.method} x{config.particles} {Path(log_path).name}", unit="scan", disable=not progress, mininterval=1.0
@@ -230,6 +238,7 @@ def _write_outputs(
     max_scans: int | None,
     figures: bool,
     recorder: Any,
+    noise_estimate: MotionNoiseEstimate | None = None,
 ) -> SlamResult:
     run, wall = run_wall
     config = run.config
