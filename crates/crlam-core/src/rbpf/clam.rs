@@ -462,27 +462,15 @@ impl RbpfClam {
             .map(|(j, p)| {
                 with_thread_scratch(|sc| {
                     let mut rng = Rng::stream(cfg.seed, step, j as u64);
-                    let opts = scan_opts(cfg, cfg.map_stride);
                     if cfg.proposal == ClamProposal::Odometry {
                         // Weight and map update share one walk of every beam (same pre-scan
                         // beliefs); a deferred update weighs alone, with the same weight.
                         let mean = compose(p.pose, u);
                         let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
-                        let sensor = compose(pose, scan.laser_offset);
                         let ll = if pending == PendingUpdate::Deferred {
-                            p.map
-                                .weigh_scan(
-                                    sensor,
-                                    scan.angles,
-                                    scan.ranges,
-                                    &cfg.weight_model,
-                                    cfg.weight_stride,
-                                    &cfg.mapping_model,
-                                    &opts,
-                                    sc,
-                                )?
-                                .0
+                            weigh_at_pose(cfg, &mut p.map, pose, scan, sc)?
                         } else {
+                            let sensor = compose(pose, scan.laser_offset);
                             fused_update(cfg, &mut p.map, sensor, scan, sc)?
                         };
                         p.pose = pose;
@@ -628,6 +616,28 @@ impl RbpfClam {
             resampled,
         })
     }
+}
+
+/// The CRM predictive log-likelihood Σ log η of the scan taken at robot pose `pose` (every
+/// `weight_stride`-th beam), without updating the map: the update waits for resampling.
+pub(crate) fn weigh_at_pose(
+    cfg: &ClamConfig,
+    map: &mut CrmMap,
+    pose: Pose,
+    scan: &ScanInput,
+    sc: &mut CrmScratch,
+) -> Result<f64> {
+    let (ll, _) = map.weigh_scan(
+        compose(pose, scan.laser_offset),
+        scan.angles,
+        scan.ranges,
+        &cfg.weight_model,
+        cfg.weight_stride,
+        &cfg.mapping_model,
+        &scan_opts(cfg, cfg.map_stride),
+        sc,
+    )?;
+    Ok(ll)
 }
 
 /// The odometry proposal's weight and map update in one walk; returns Σ log η.

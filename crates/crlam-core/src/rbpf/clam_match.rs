@@ -27,7 +27,7 @@
 use crate::crm::{CrmMap, CrmScratch};
 use crate::error::Result;
 use crate::pose::{compose, wrap, Pose};
-use crate::rbpf::clam::{scan_opts, ClamConfig};
+use crate::rbpf::clam::{weigh_at_pose, ClamConfig};
 use crate::rbpf::common::{ProposalPose, ScanInput};
 use crate::rbpf::motion_prior::MotionPrior;
 use crate::rbpf::proposal::Proposed;
@@ -119,28 +119,6 @@ pub(crate) fn prepare_scan(
     )
 }
 
-/// The CRM predictive log-likelihood Σ log η of the scan taken at robot pose `pose`.
-fn crm_log_likelihood(
-    cfg: &ClamConfig,
-    map: &mut CrmMap,
-    pose: Pose,
-    scan: &ScanInput,
-    sc: &mut CrmScratch,
-) -> Result<f64> {
-    let sensor = compose(pose, scan.laser_offset);
-    let (ll, _) = map.weigh_scan(
-        sensor,
-        scan.angles,
-        scan.ranges,
-        &cfg.weight_model,
-        cfg.weight_stride,
-        &cfg.mapping_model,
-        &scan_opts(cfg, cfg.map_stride),
-        sc,
-    )?;
-    Ok(ll)
-}
-
 /// Proposes a particle's new pose by scan matching and weighs it (see the module documentation).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn propose_by_scan_match(
@@ -215,7 +193,7 @@ pub(crate) fn propose_by_scan_match(
         (Outcome::Unmatched { pose, .. }, ScanMatchWeight::Crm) => Proposed {
             pose,
             mean: pose,
-            dlogw: crm_log_likelihood(cfg, map, pose, scan, sc)? / tau,
+            dlogw: weigh_at_pose(cfg, map, pose, scan, sc)? / tau,
         },
         (Outcome::Unmatched { pose, endpoint_ll }, ScanMatchWeight::Endpoint) => Proposed {
             pose,
@@ -228,7 +206,7 @@ pub(crate) fn propose_by_scan_match(
             },
             ScanMatchWeight::Crm,
         ) => {
-            let ll = crm_log_likelihood(cfg, map, pose, scan, sc)?;
+            let ll = weigh_at_pose(cfg, map, pose, scan, sc)?;
             Proposed {
                 pose,
                 mean,
