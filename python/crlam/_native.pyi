@@ -14,6 +14,7 @@ __all__ = [
     "GpVarianceMap",
     "InfoFunction",
     "InfoUpdate",
+    "LocalMapMatcher",
     "LogOddsMap",
     "OccupancyLattice",
     "OgmFilter",
@@ -307,6 +308,38 @@ class OgmFilter:
     def n_particles(self) -> int: ...
     def best_map(self) -> LogOddsMap: ...
     def map_memory(self) -> tuple[int, int, int]: ...
+
+@final
+class LocalMapMatcher:
+    def __new__(
+        cls,
+        *,
+        resolution: float = 0.05,
+        usable_range: float = 8.0,
+        lstep: float = 0.05,
+        astep: float = 0.05,
+        iterations: int = 5,
+        kernel_size: int = 1,
+        beam_stride: int = 1,
+    ) -> LocalMapMatcher: ...
+    def match_scan(
+        self,
+        start: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> tuple[tuple[float, float, float], float, int, int]: ...
+    def insert(
+        self,
+        pose: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> None: ...
+    def clear(self) -> None: ...
+    @property
+    def n_inserted(self) -> int: ...
+    def map(self) -> LogOddsMap: ...
 
 def mode_seeking_pose(
     poses: NDArray[np.float64], weights: NDArray[np.float64], bandwidth: tuple[float, float]

@@ -8,7 +8,7 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from crlam import __version__
 from crlam.cli_options import (
@@ -33,6 +33,7 @@ from crlam.cli_options import (
     add_estimate_options,
     add_likelihood_mode_options,
     add_map_options,
+    add_odometry_options,
     add_preset_option,
     bag_options,
     nonnegative_float,
@@ -40,6 +41,7 @@ from crlam.cli_options import (
     positive_float,
     positive_int,
     slam_overrides,
+    stored_input_options,
 )
 from crlam.errors import CrlamError
 from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
@@ -133,10 +135,27 @@ def slam_config_of(args: argparse.Namespace) -> tuple[SlamConfig, int | None]:
     return resolve(preset, settings | slam_overrides(args)), max_scans
 
 
+def slam_input_of(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    """``crlam slam``'s bag options and odometry choice: those of ``--config FILE``'s ``[input]``
+    table (how that run read its log), with every bag flag given on top."""
+    from crlam.presets import load_config_file
+
+    options: dict[str, Any] = {}
+    odometry = None
+    if args.config is not None:
+        options, odometry = stored_input_options(load_config_file(args.config).input)
+    given = bag_options(args)
+    if "laser_mount" in given or "upside_down" in given:
+        options.pop("laser_mount", None)
+        options.pop("upside_down", None)
+    return options | given, args.odometry or odometry or "auto"
+
+
 def cmd_slam(args: argparse.Namespace) -> int:
     from crlam.experiments.slam_run import run_slam_log
 
     config, max_scans = slam_config_of(args)
+    input_options, odometry = slam_input_of(args)
     res = run_slam_log(
         args.log,
         args.out,
@@ -145,10 +164,12 @@ def cmd_slam(args: argparse.Namespace) -> int:
         relations=args.relations,
         max_scans=max_scans,
         progress=not args.quiet,
-        bag_options=bag_options(args),
+        bag_options=input_options,
         mcap=args.mcap,
+        odometry=odometry,
     )
     m = res.metrics
+    print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
     print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
     print(
@@ -422,6 +443,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_bag_options(p)
+    add_odometry_options(p)
     p.set_defaults(func=cmd_slam)
 
     from crlam.cli_eval import add_data_parser, add_eval_parser

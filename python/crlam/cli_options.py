@@ -26,12 +26,14 @@ __all__ = [
     "SIGMA_RANGE_HELP",
     "WEIGHT_SMOOTHING_HELP",
     "add_bag_options",
+    "add_odometry_options",
     "add_estimate_options",
     "add_likelihood_mode_options",
     "add_map_options",
     "add_preset_option",
     "bag_options",
     "slam_overrides",
+    "stored_input_options",
     "nonnegative_float",
     "nonnegative_int",
     "positive_float",
@@ -265,15 +267,61 @@ def add_bag_options(p: argparse.ArgumentParser) -> None:
         help="laser pose in the base frame (m, m, rad); replaces the one of /tf_static",
     )
     g.add_argument("--upside-down", action="store_true", help="the laser is mounted upside down: mirror its bearings")
+    g.add_argument("--odom-frame", default=None, help="the odometry frame, parent of the base frame in /tf (default: odom)")
+    g.add_argument(
+        "--echo",
+        choices=("first", "last", "strongest"),
+        default=None,
+        help="which return of a MultiEchoLaserScan beam is its range (default: first)",
+    )
+
+
+#: The bag options of :func:`add_bag_options` and :func:`add_odometry_options` (argparse names).
+_BAG_OPTION_NAMES = ("scan_topic", "odom_topic", "base_frame", "odom_frame", "laser_mount", "echo", "imu_topic")
+
+
+def add_odometry_options(p: argparse.ArgumentParser) -> None:
+    """``--odometry`` and ``--imu-topic`` of ``crlam slam``: the motion input."""
+    g = p.add_argument_group("motion input")
+    g.add_argument(
+        "--odometry",
+        choices=("auto", "wheel", "scan_match"),
+        default=None,
+        help="the motion input: the log's odometry (wheel), scan-matching odometry from the scans themselves, with "
+        "a bag's IMU yaw rate where it has one (scan_match; the log's odometry is not read), or scan_match when the "
+        "input has no odometry, else wheel (auto, the default); config.toml records which was used",
+    )
+    g.add_argument("--imu-topic", default=None, help="sensor_msgs/Imu topic for scan-matching odometry (default: the only one)")
 
 
 def bag_options(args: argparse.Namespace) -> dict[str, Any]:
     """The bag options given on the command line (only those given, so a CARMEN log takes none)."""
     out: dict[str, Any] = {}
-    for name in ("scan_topic", "odom_topic", "base_frame", "laser_mount"):
+    for name in _BAG_OPTION_NAMES:
         value = getattr(args, name, None)
         if value is not None:
             out[name] = value
     if getattr(args, "upside_down", False):
         out["upside_down"] = True
     return out
+
+
+def stored_input_options(table: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
+    """The bag options and the odometry choice that a run folder's ``config.toml`` ``[input]``
+    table records, for ``crlam slam --config``: the topics, frames and echo that were used, the
+    IMU topic, and the laser mount when it was given (a mount found in the bag is found again).
+    An empty value (no odometry topic with scan-matching odometry) is left out."""
+    out: dict[str, Any] = {}
+    if table.get("format") == "rosbag":
+        for name in ("scan_topic", "odom_topic", "base_frame", "odom_frame", "echo", "imu_topic"):
+            value = table.get(name)
+            if isinstance(value, str) and value:
+                out[name] = value
+        if table.get("mount_source") == "user":
+            out["laser_mount"] = [float(v) for v in table.get("laser_mount", [])]
+            if table.get("upside_down"):
+                out["upside_down"] = True
+        if table.get("odometry") == "scan_match":
+            out.pop("odom_topic", None)
+    odometry = table.get("odometry")
+    return out, odometry if isinstance(odometry, str) else None

@@ -24,6 +24,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::LogOddsMap>()?;
     m.add_class::<filters::ClamFilter>()?;
     m.add_class::<filters::OgmFilter>()?;
+    m.add_class::<filters::LocalMapMatcher>()?;
     m.add_class::<info_state::OccupancyLattice>()?;
     m.add_class::<info_state::GpVarianceMap>()?;
     m.add_class::<info_state::ParticleBelief>()?;

@@ -148,6 +148,7 @@ def run_slam_log(
     figures: bool = True,
     bag_options: dict[str, Any] | None = None,
     mcap: bool = False,
+    odometry: str = "auto",
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
@@ -155,13 +156,22 @@ def run_slam_log(
     ``bag_options`` go to the bag reader (:func:`crlam.io.logs.open_log`: ``scan_topic``,
     ``odom_topic``, ``base_frame``, ``laser_mount``, ``upside_down``). ``mcap`` also writes
     ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: scans, TF, particles, path and map as
-    standard ROS 2 messages)."""
+    standard ROS 2 messages). ``odometry`` is the motion input (:mod:`crlam.scan_odometry`):
+    ``wheel`` (the log's odometry), ``scan_match`` (scan-matching odometry; the log's odometry is
+    not read, and the filter takes :func:`~crlam.scan_odometry.scan_match_filter_config`'s motion
+    noise) or ``auto`` (``scan_match`` when the input has no odometry); ``config.toml`` and
+    ``metrics.json`` record which was used and why."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     # The wall time includes the odometry-noise pre-pass, which is part of the run.
     t0 = time.perf_counter()
+    from crlam.scan_odometry import resolve_odometry, scan_match_filter_config
+
+    source = resolve_odometry(log_path, odometry, bag_options)
+    if source[0] == "scan_match":
+        config = scan_match_filter_config(config)
     noise_estimate = None
     if config.motion_noise == "estimate" and config.motion_params is None:
         from dataclasses import replace
@@ -177,19 +187,47 @@ def run_slam_log(
             seed=config.seed,
         )
         config = replace(config, motion_params=noise_estimate.params)
-    reader = open_log(log_path, **(bag_options or {}))
+    reader = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
+    records: Any = reader
+    front_end = None
+    if source[0] == "scan_match":
+        from crlam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig, scan_match_odometry
+
+        front_end = ScanMatchOdometry(ScanOdometryConfig(usable_range=config.max_range))
+        records = scan_match_odometry(reader, front_end=front_end)
     recorder = None
     if mcap:
         from crlam.experiments.slam_mcap import SlamMcapRecorder
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(reader, config, log_path, max_scans, progress, recorder, t0)
+        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0)
     except BaseException:
         if recorder is not None:
             recorder.close()
         raise
-    return _write_outputs(run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder, noise_estimate)
+    odometry_info = {"odometry": source[0], "odometry_choice": source[1]}
+    return _write_outputs(
+        run_wall,
+        reader,
+        log_path,
+        out,
+        reference,
+        relations,
+        max_scans,
+        figures,
+        recorder,
+        noise_estimate,
+        odometry_info,
+        front_end,
+    )
+
+
+def _scan_match_reading(log_path: str | os.PathLike[str], source: str) -> dict[str, Any]:
+    """The reader options of scan-matching odometry: a bag's odometry is not read, its IMU is."""
+    from crlam.io.rosbag import is_bag
+
+    return {"odometry": False, "imu": True} if source == "scan_match" and is_bag(log_path) else {}
 
 
 def _run_filter(
@@ -239,8 +277,11 @@ def _write_outputs(
     figures: bool,
     recorder: Any,
     noise_estimate: MotionNoiseEstimate | None = None,
+    odometry_info: dict[str, str] | None = None,
+    front_end: Any = None,
 ) -> SlamResult:
     run, wall = run_wall
+    input_info = input_description(reader) | (odometry_info or {})
     config = run.config
     stamps, poses = run.trajectory()
     write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam {config.method} trajectory of {Path(log_path).name}")
@@ -310,7 +351,8 @@ def _write_outputs(
         "preset": config.preset,
         "deviations_from_paper": config.deviations(),
         "motion_noise_estimate": None if noise_estimate is None else noise_estimate.to_dict(),
-        "input": input_description(reader),
+        "input": input_info,
+        "scan_odometry": None if front_end is None else front_end.config.to_dict() | front_end.stats.to_dict(),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
@@ -383,9 +425,10 @@ def _write_outputs(
                 "max_scans": max_scans,
                 "crlam_version": __version__,
             },
-            "input": input_description(reader),
+            "input": input_info,
             "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
-        },
+        }
+        | ({} if front_end is None else {"scan_odometry": front_end.config.to_dict()}),
     )
 
     if figures:

@@ -10,6 +10,7 @@ pub mod clam_match;
 pub mod common;
 pub mod estimate;
 pub mod lineage;
+pub mod local_match;
 pub mod match_surface;
 mod motion_prior;
 pub mod ogm;
@@ -26,6 +27,7 @@ pub use common::{
 };
 pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
 pub use lineage::{NodeId, PathTree, NO_NODE};
+pub use local_match::{LocalMapMatcher, LocalMatch};
 pub use match_surface::MatchSurface;
 pub use ogm::{MotionDraws, OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
 pub use scanmatch::{FreeTest, MatcherParams, PreparedScan, ProposalParams, ScanFit, ScanMatcher};
