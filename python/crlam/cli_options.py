@@ -309,7 +309,8 @@ def bag_options(args: argparse.Namespace) -> dict[str, Any]:
 def stored_input_options(table: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
     """The bag options and the odometry choice that a run folder's ``config.toml`` ``[input]``
     table records, for ``crlam slam --config``: the topics, frames and echo that were used, the
-    IMU topic, and the laser mount when it was given (a mount found in the bag is found again).
+    IMU topic, and the laser mount when it was given (a mount found in the bag is found again);
+    the odometry as given, or ``auto`` again when it was chosen from the input.
     An empty value (no odometry topic with scan-matching odometry) is left out."""
     out: dict[str, Any] = {}
     if table.get("format") == "rosbag":
@@ -324,4 +325,6 @@ def stored_input_options(table: dict[str, Any]) -> tuple[dict[str, Any], str | N
         if table.get("odometry") == "scan_match":
             out.pop("odom_topic", None)
     odometry = table.get("odometry")
+    if str(table.get("odometry_choice", "")).startswith("auto"):
+        odometry = "auto"  # chosen from the input: chosen again the same way
     return out, odometry if isinstance(odometry, str) else None

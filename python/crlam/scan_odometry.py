@@ -78,7 +78,11 @@ class ScanOdometryConfig:
     Attributes
     ----------
     resolution : float
-        Cell size of the local map (m).
+        Cell size of the local map the match is refined on (m).
+    coarse_resolution : float or None
+        Cell size of a second local map of the same key scans that each match climbs on first
+        (m; None: none). Its cells widen the matcher's reach (a beam matches within one cell of
+        an occupied cell), the fine map then sets the pose.
     usable_range : float
         Readings are matched and mapped up to this range (m); longer ones only clear free space.
     keyframe_distance, keyframe_angle : float
@@ -89,7 +93,8 @@ class ScanOdometryConfig:
         A match is accepted when at least this fraction of the usable beams match.
     """
 
-    resolution: float = 0.05
+    resolution: float = 0.025
+    coarse_resolution: float | None = 0.05
     usable_range: float = 8.0
     keyframe_distance: float = 0.2
     keyframe_angle: float = 0.1
@@ -101,6 +106,9 @@ class ScanOdometryConfig:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"ScanOdometryConfig.{name}: must be a finite number > 0 (got {v!r})")
+        c = self.coarse_resolution
+        if c is not None and not (isinstance(c, (int, float)) and math.isfinite(c) and c > self.resolution):
+            raise ConfigError(f"ScanOdometryConfig.coarse_resolution: must be None or finite and > resolution (got {c!r})")
         if not (isinstance(self.window, int) and self.window >= 1):
             raise ConfigError(f"ScanOdometryConfig.window: must be an integer >= 1 (got {self.window!r})")
         if not 0.0 <= self.min_match_fraction <= 1.0:
@@ -165,7 +173,10 @@ class ScanMatchOdometry:
     def __init__(self, config: ScanOdometryConfig | None = None, initial_pose: ArrayLike | None = None) -> None:
         self.config = config or ScanOdometryConfig()
         self.stats = ScanOdometryStats()
-        self._matcher = _native.LocalMapMatcher(resolution=self.config.resolution, usable_range=self.config.usable_range)
+        cfg = self.config
+        # Coarse first, the fine map last: each match climbs on every map in turn.
+        resolutions = ([] if cfg.coarse_resolution is None else [cfg.coarse_resolution]) + [cfg.resolution]
+        self._matchers = [_native.LocalMapMatcher(resolution=r, usable_range=cfg.usable_range) for r in resolutions]
         self._keys: deque[_KeyScan] = deque(maxlen=2 * self.config.window)
         self._pose: NDArray[np.float64] | None = None
         self._initial = np.zeros(3) if initial_pose is None else np.asarray(initial_pose, dtype=np.float64).reshape(3)
@@ -228,15 +239,13 @@ class ScanMatchOdometry:
                 if yaw_change is not None:
                     still[2] = _wrap(still[2] + yaw_change)
                 starts.append(still)
-            best: tuple[float, NDArray[np.float64], int, int] | None = None
+            best: tuple[float, NDArray[np.float64]] | None = None
             for start in starts:
-                p, score, matched, used = self._matcher.match_scan(start, angles, ranges, offset)
-                if best is None or score > best[0]:
-                    best = (score, np.array(p), matched, used)
-            assert best is not None
-            _, matched_pose, n_matched, n_used = best
-            if n_used > 0 and n_matched >= self.config.min_match_fraction * n_used:
-                pose = matched_pose
+                candidate = self._match(start, angles, ranges, offset)
+                if candidate is not None and (best is None or candidate[0] > best[0]):
+                    best = candidate
+            if best is not None:
+                pose = best[1]
                 st.n_matched += 1
             else:
                 pose = predicted
@@ -250,6 +259,18 @@ class ScanMatchOdometry:
         self._maybe_insert(pose, angles, ranges, offset)
         return pose.copy()
 
+    def _match(
+        self, start: NDArray[np.float64], angles: NDArray[np.float64], ranges: NDArray[np.float64], offset: NDArray[np.float64]
+    ) -> tuple[float, NDArray[np.float64]] | None:
+        """(fine score, pose) of a climb over the maps in turn from ``start``; the pose of the
+        finest map on which enough beams matched, None when none had enough."""
+        pose, accepted = start, None
+        for matcher in self._matchers:
+            p, score, matched, used = matcher.match_scan(pose, angles, ranges, offset)
+            if used > 0 and matched >= self.config.min_match_fraction * used:
+                pose, accepted = np.array(p), (score, np.array(p))
+        return accepted
+
     def _maybe_insert(
         self, pose: NDArray[np.float64], angles: NDArray[np.float64], ranges: NDArray[np.float64], offset: NDArray[np.float64]
     ) -> None:
@@ -261,13 +282,20 @@ class ScanMatchOdometry:
         key = _KeyScan(pose.copy(), angles.copy(), ranges.copy(), offset.copy())
         self._keys.append(key)
         self.stats.n_keyframes += 1
-        if self._matcher.n_inserted >= 2 * cfg.window:
-            self._matcher.clear()
-            for k in list(self._keys)[-cfg.window :]:
-                self._matcher.insert(k.pose, k.angles, k.ranges, k.laser_offset)
-            self.stats.n_rebuilds += 1
-        else:
-            self._matcher.insert(key.pose, key.angles, key.ranges, key.laser_offset)
+        rebuild = self._matchers[0].n_inserted >= 2 * cfg.window
+        for matcher in self._matchers:
+            if rebuild:
+                matcher.clear()
+                for k in list(self._keys)[-cfg.window :]:
+                    matcher.insert(k.pose, k.angles, k.ranges, k.laser_offset)
+            else:
+                matcher.insert(key.pose, key.angles, key.ranges, key.laser_offset)
+        self.stats.n_rebuilds += int(rebuild)
+
+    @property
+    def n_key_scans_mapped(self) -> int:
+        """Key scans the local map holds now."""
+        return self._matchers[0].n_inserted
 
 
 class ImuYaw:

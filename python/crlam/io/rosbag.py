@@ -318,7 +318,11 @@ class RosbagReader:
             return [c for c in conns if c.topic == topics[0]], False
         if tf:
             return tf, True
-        raise self._error("no odometry: neither a nav_msgs/msg/Odometry topic nor /tf (give --odom-topic)", conns)
+        raise self._error(
+            "no odometry: neither a nav_msgs/msg/Odometry topic nor /tf (give --odom-topic, or take scan-matching "
+            "odometry: crlam slam --odometry scan_match)",
+            conns,
+        )
 
     def _pick_imu(self, conns: Sequence[Any]) -> list[Any]:
         """The IMU connections: the given topic, else the only Imu topic, else none."""
