@@ -10,12 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from test_io_rosbag import MULTI, BagSpec, odom_pose, scans_of, write_bag
 
 from crlam.cli import main
 from crlam.errors import ConfigError
 from crlam.io import RosbagReader, open_log
 from crlam.pose import compose
+from test_io_rosbag import MULTI, BagSpec, odom_pose, scans_of, write_bag
 
 if sys.version_info >= (3, 11):
     import tomllib
