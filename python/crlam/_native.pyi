@@ -316,6 +316,7 @@ class LocalMapMatcher:
         *,
         resolution: float = 0.05,
         usable_range: float = 8.0,
+        score_sigma: float = 0.05,
         lstep: float = 0.05,
         astep: float = 0.05,
         iterations: int = 5,

@@ -531,10 +531,11 @@ pub struct LocalMapMatcher {
 #[pymethods]
 impl LocalMapMatcher {
     #[new]
-    #[pyo3(signature = (*, resolution=0.05, usable_range=8.0, lstep=0.05, astep=0.05, iterations=5, kernel_size=1, beam_stride=1))]
+    #[pyo3(signature = (*, resolution=0.05, usable_range=8.0, score_sigma=0.05, lstep=0.05, astep=0.05, iterations=5, kernel_size=1, beam_stride=1))]
     fn new(
         resolution: f64,
         usable_range: f64,
+        score_sigma: f64,
         lstep: f64,
         astep: f64,
         iterations: usize,
@@ -542,6 +543,7 @@ impl LocalMapMatcher {
         beam_stride: usize,
     ) -> PyResult<Self> {
         let params = MatcherParams {
+            score_sigma,
             lstep,
             astep,
             iterations,
