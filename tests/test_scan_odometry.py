@@ -38,6 +38,8 @@ else:  # pragma: no cover
     import tomli as tomllib
 
 N_SCANS = 200
+#: Bag stamps are the log's plus this (a header stamp of 0 reads as "no stamp").
+BAG_T0 = 1000.0
 
 
 @pytest.fixture(scope="module")
@@ -49,9 +51,12 @@ def sim(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def _truth(sim: Path, stamps: list[float]) -> np.ndarray:
+def _truth(sim: Path, stamps: list[float], t0: float = 0.0) -> np.ndarray:
+    """The ground-truth poses at the log's scan stamps (``stamps - t0``)."""
     ref = read_tum(sim / "groundtruth.tum")
-    return ref.poses[np.searchsorted(ref.timestamps, stamps)]
+    k = np.searchsorted(ref.timestamps, np.asarray(stamps) - t0 - 1e-6)
+    assert np.allclose(ref.timestamps[k], np.asarray(stamps) - t0, atol=1e-6)
+    return ref.poses[k]
 
 
 def _errors(poses: np.ndarray, truth: np.ndarray) -> tuple[float, float]:
@@ -168,8 +173,8 @@ def _imu_message(w: McapBagWriter, t: float, rate_xyz: tuple[float, float, float
 def write_scan_bag(sim: Path, path: Path, *, imu: bool = False) -> tuple[Path, list[float], np.ndarray]:
     """The simulated log's scans as a ROS 2 bag with no odometry (/scan, /tf_static
     base_link -> laser, and with ``imu`` an IMU mounted upside down on /imu at twice the scan
-    rate, its yaw rates from the ground truth). Returns the path, the IMU stamps and the base
-    frame's yaw rates written."""
+    rate, its yaw rates from the ground truth; stamps shifted by ``BAG_T0``). Returns the path,
+    the IMU stamps and the base frame's yaw rates written."""
     scans = list(read_scans_any(sim / "log.clf"))
     ref = read_tum(sim / "groundtruth.tum")
     t_imu = np.arange(ref.timestamps[0], ref.timestamps[-1], 0.05)
@@ -190,16 +195,15 @@ def write_scan_bag(sim: Path, path: Path, *, imu: bool = False) -> tuple[Path, l
         w.write("/tf_static", "tf2_msgs/msg/TFMessage", 0, w.tf([mount, imu_mount]), latched=True)
         events: list[tuple[float, str, Any]] = []
         for s in scans:
-            events.append(
-                (s.timestamp, "/scan", w.laser_scan(s.timestamp, "laser", s.ranges, s.angle_min, s.angle_increment, s.max_range))
-            )
+            t = s.timestamp + BAG_T0
+            events.append((t, "/scan", w.laser_scan(t, "laser", s.ranges, s.angle_min, s.angle_increment, s.max_range)))
         if imu:
-            for t, r in zip(t_imu, rates):
+            for t, r in zip(t_imu + BAG_T0, rates):
                 events.append((float(t), "/imu", _imu_message(w, float(t), (0.0, 0.0, -float(r)))))
         for t, topic, msg in sorted(events, key=lambda e: e[0]):
             kind = "sensor_msgs/msg/Imu" if topic == "/imu" else "sensor_msgs/msg/LaserScan"
             w.write(topic, kind, round(t * 1e9) + 1, msg)
-    return path, [float(t) for t in t_imu], rates
+    return path, [float(t) + BAG_T0 for t in t_imu], rates
 
 
 def test_bag_without_odometry_selects_scan_matching(sim: Path, tmp_path: Path) -> None:
@@ -215,7 +219,7 @@ def test_bag_without_odometry_selects_scan_matching(sim: Path, tmp_path: Path) -
     assert cfg["input"]["base_frame"] == "base_link" and cfg["input"]["mount_source"] == "tf_static"
     est = read_tum(run / "trajectory.tum")
     np.testing.assert_array_equal(est.poses[0], np.zeros(3))  # no odometry: starts at the origin
-    pos_err, _ = _errors(est.poses, _truth(sim, list(est.timestamps)))
+    pos_err, _ = _errors(est.poses, _truth(sim, list(est.timestamps), BAG_T0))
     assert pos_err < 0.15
     assert main(["slam", str(bag), "--out", str(tmp_path / "wheel"), "--odometry", "wheel", "--quiet"]) == 2  # no odometry
 
@@ -232,7 +236,7 @@ def test_bag_with_an_imu(sim: Path, tmp_path: Path) -> None:
     fe = ScanMatchOdometry()
     poses = np.array([s.odom for s in scan_match_odometry(records, front_end=fe)])
     assert fe.stats.n_imu_readings == len(imu) and fe.stats.n_imu_scans == N_SCANS - 1
-    pos_err, head_err = _errors(poses, _truth(sim, [s.timestamp for s in scans]))
+    pos_err, head_err = _errors(poses, _truth(sim, [s.timestamp for s in scans], BAG_T0))
     assert pos_err < 0.1 and head_err < math.radians(1.5)
     run = tmp_path / "run"
     assert main(["slam", str(bag), "--out", str(run), "--particles", "5", "--max-scans", "50", "--quiet"]) == 0

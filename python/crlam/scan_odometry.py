@@ -189,7 +189,9 @@ class ScanMatchOdometry:
         resolutions = ([] if cfg.coarse_resolution is None else [cfg.coarse_resolution]) + [cfg.resolution]
         self._matchers = [
             _native.LocalMapMatcher(
-                resolution=r, usable_range=cfg.usable_range, score_sigma=0.05 if cfg.score_cells is None else (cfg.score_cells * r) ** 2
+                resolution=r,
+                usable_range=cfg.usable_range,
+                score_sigma=0.05 if cfg.score_cells is None else (cfg.score_cells * r) ** 2,
             )
             for r in resolutions
         ]

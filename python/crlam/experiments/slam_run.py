@@ -259,6 +259,8 @@ def _run_filter(
             particles = np.asarray(run.filter.particle_poses(), dtype=np.float64) if step.processed else None
             recorder.scan(rec, step.processed, step.estimate, particles)
         bar.update(1)
+        if max_scans is not None and run.n_scans >= max_scans:
+            break  # before the next record is read (a front end would match one scan more)
     bar.close()
     wall = time.perf_counter() - t0
     if run is None or run.n_scans == 0:
