@@ -1,7 +1,7 @@
 """Figures of results/bags/README.md: a crlam slam run folder's confidence-rich map (expected
 occupancy and confidence, with the trajectory) and a Nav2 floor map, at the same scale.
 
-    python results/bags/figures.py RUN_DIR OUT.png [--floor-map MAP.yaml FLOOR.png] [--title TEXT]
+    python results/bags/figures.py RUN_DIR OUT.png [--floor-map MAP.yaml FLOOR.png [--overlay OVERLAY.png]] [--title TEXT]
 """
 
 from __future__ import annotations
@@ -51,16 +51,44 @@ def floor_figure(map_yaml: Path, out: Path, title: str, window: list[float] | No
     save_figure(fig, out, 150)
 
 
+def overlay_figure(run: Path, map_yaml: Path, out: Path, window: list[float]) -> None:
+    """The run's cells of expected occupancy above 0.6 (red) drawn on the floor map's image, both
+    in their own frames (not aligned): how far apart the two frames put the walls."""
+    crm = ConfidenceRichMap.from_archive(load_belief(run / "belief.npz"))
+    mean, _, _ = crm.layers()
+    m = read_nav2_map(map_yaml)
+    image = read_pgm(m.image_path)
+    ny, nx = image.shape
+    x0, y0, res = float(m.origin[0]), float(m.origin[1]), m.resolution
+    w, h = window[1] - window[0], window[3] - window[2]
+    fig, ax = plt.subplots(figsize=(6.5, 6.5 * h / w + 0.6), constrained_layout=True)
+    ax.imshow(image, cmap="gray", vmin=0, vmax=255, extent=[x0, x0 + nx * res, y0, y0 + ny * res], interpolation="nearest")
+    iy, ix = (mean.values > 0.6).nonzero()
+    ex = mean.extent
+    ax.plot(ex[0] + (ix + 0.5) * mean.resolution, ex[2] + (iy + 0.5) * mean.resolution, "r.", ms=2, label="run: m > 0.6")
+    ax.set_xlim(window[0], window[1])
+    ax.set_ylim(window[2], window[3])
+    ax.grid(True, linewidth=0.3)
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper right", fontsize=8)
+    ax.set_title("run's occupied cells on the floor map (frames not aligned)")
+    save_figure(fig, out, 150)
+
+
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("run", type=Path)
     p.add_argument("out", type=Path)
     p.add_argument("--floor-map", nargs=2, type=Path, metavar=("MAP_YAML", "OUT_PNG"))
+    p.add_argument("--overlay", type=Path, metavar="OUT_PNG", help="with --floor-map: the run's walls drawn on the floor map")
     p.add_argument("--title", default="")
     a = p.parse_args()
     window = crm_figure(a.run, a.out, a.title)
     if a.floor_map:
         floor_figure(a.floor_map[0], a.floor_map[1], f"floor map {a.floor_map[0].name}, the same window", window)
+        if a.overlay:
+            overlay_figure(a.run, a.floor_map[0], a.overlay, window)
 
 
 if __name__ == "__main__":

@@ -5,9 +5,10 @@ use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
-    mode_seeking_pose as core_mode_seeking_pose, ClamConfig, LocalMapMatcher as CoreLocalMapMatcher, ClamProposal, FilterStep,
-    MatcherParams, ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams,
-    ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
+    mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamProposal, FilterStep,
+    LocalMapMatcher as CoreLocalMapMatcher, MatcherParams, ModeBandwidth, MotionDraws,
+    OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput,
+    ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -572,10 +573,13 @@ impl LocalMapMatcher {
             pose3(&laser_offset)?,
         );
         let inner = &self.inner;
-        let m = py
-            .allow_threads(|| inner.match_scan(s, a, r, o))
-            .py_err()?;
-        Ok(((m.pose[0], m.pose[1], m.pose[2]), m.score, m.matched, m.used))
+        let m = py.allow_threads(|| inner.match_scan(s, a, r, o)).py_err()?;
+        Ok((
+            (m.pose[0], m.pose[1], m.pose[2]),
+            m.score,
+            m.matched,
+            m.used,
+        ))
     }
 
     /// Integrates the scan with the robot at `pose`.

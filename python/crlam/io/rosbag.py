@@ -8,8 +8,8 @@ experiments take a bag wherever they take a CARMEN log.
 What is read
 ------------
 Scans
-    ``sensor_msgs/msg/LaserScan`` (or ``MultiEchoLaserScan``: the first echo of every beam) of the
-    scan topic: the only laser topic of the bag unless ``scan_topic`` names one. The stamp is the
+    ``sensor_msgs/msg/LaserScan`` (or ``MultiEchoLaserScan``: the first echo of every beam, or
+    the last or the strongest with ``echo``) of the scan topic: the only laser topic of the bag unless ``scan_topic`` names one. The stamp is the
     message header's (the bag's receive time when the header stamp is zero). Beam ``i`` has the
     bearing ``angle_min + i * angle_increment``; any layout works (0..360 deg, -180..180 deg, a
     negative increment: such a scan is reversed so that its increment is positive).
@@ -28,11 +28,21 @@ Odometry
     :class:`OdometryReading` (pose projected to the plane: x, y, yaw), and each scan's ``odom``
     field is the odometry interpolated to the scan's stamp (linear in x and y, shortest arc in
     yaw). A scan stamped up to ``odom_tolerance`` seconds before the first or after the last
-    odometry reading takes that reading; scans further out are skipped and counted.
+    odometry reading takes that reading; scans further out are skipped and counted. With
+    ``odometry=False`` none is read: every scan is yielded as it comes, ``odom`` and ``pose`` NaN
+    (for scan-matching odometry, :mod:`crlam.scan_odometry`).
+IMU
+    With ``imu=True``, the yaw rate of each ``sensor_msgs/msg/Imu`` message of the IMU topic (the
+    only one unless ``imu_topic`` names one) as an :class:`~crlam.io.carmen_types.ImuReading`:
+    the angular velocity rotated into the base frame by the IMU's mount, z component.
 Laser mount
     ``laser_offset`` (the laser pose in the base frame, x, y, yaw) comes from ``/tf_static``: the
     chain of static transforms from the base frame (``base_frame``, by default the odometry's
-    ``child_frame_id``) to the scan's ``frame_id``, composed in 3D and projected to the plane. A
+    ``child_frame_id``) to the scan's ``frame_id``, composed in 3D and projected to the plane.
+    When ``/tf_static`` links neither ``base_link`` nor ``base_footprint`` to the laser, the
+    transforms of the first 500 ``/tf`` messages that never change (the odometry's and the map's
+    left out: :class:`~crlam.io.rosbag_tf.FixedTransforms`) join the chain: some bags publish
+    the mount on ``/tf`` (``mount_source = "tf"``). A
     laser whose z axis points down (a roll or pitch of pi: mounted upside down) sees the world
     mirrored: its beam bearings are negated. ``laser_mount=(x, y, yaw)`` replaces the mount
     found in ``/tf_static`` and ``upside_down=True`` mirrors the bearings (once: a mount that
@@ -47,8 +57,8 @@ topic and ``line`` the 1-based index of the scan message in its topic.
 Streaming: the bag is read message by message in time order; only the scans waiting for the
 next odometry reading (at most 5 s of bag time each, then they are skipped as after the
 odometry) and a short odometry history are held. A bag whose scans and odometry are stamped on
-different clocks gives no scan: the error says so, with both stamp spans. ``/tf_static`` is read first in a
-separate pass (a few messages).
+different clocks gives no scan: the error says so, with both stamp spans. ``/tf_static`` (and,
+when it lacks the mount, the first ``/tf`` messages) is read first in a separate pass.
 """
 
 from __future__ import annotations
@@ -183,7 +193,7 @@ def _topics_text(connections: Sequence[Any]) -> str:
 
 
 class RosbagReader:
-    """Streaming ROS bag reader; iterate it to get :data:`~crlam.io.carmen_types.CarmenRecord` s.
+    """Streaming ROS bag reader; iterate it to get :data:`~crlam.io.carmen_types.LogRecord` s.
 
     Parameters
     ----------

@@ -200,7 +200,9 @@ mod tests {
         assert!(m
             .insert([f64::NAN, 0.0, 0.0], &[0.0], &[1.0], [0.0; 3])
             .is_err());
-        assert!(m.match_scan([0.0; 3], &[0.0], &[1.0, 2.0], [0.0; 3]).is_err());
+        assert!(m
+            .match_scan([0.0; 3], &[0.0], &[1.0, 2.0], [0.0; 3])
+            .is_err());
         assert!(LocalMapMatcher::new(0.0, 8.0, MatcherParams::default()).is_err());
         assert!(LocalMapMatcher::new(0.05, f64::NAN, MatcherParams::default()).is_err());
     }
