@@ -101,6 +101,10 @@ class ScanOdometryConfig:
         The local map holds the last ``window`` to ``2 * window`` key scans.
     min_match_fraction : float
         A match is accepted when at least this fraction of the usable beams match.
+    carry : float
+        The prediction repeats this fraction of the last increment (1: constant velocity). Below
+        1, a motion that the scans do not confirm (along a corridor, where a climb stays where it
+        starts) dies away instead of carrying itself on.
     """
 
     resolution: float = 0.025
@@ -111,6 +115,7 @@ class ScanOdometryConfig:
     keyframe_angle: float = 0.1
     window: int = 20
     min_match_fraction: float = 0.25
+    carry: float = 0.5
 
     def __post_init__(self) -> None:
         for name in ("resolution", "usable_range", "keyframe_distance", "keyframe_angle"):
@@ -122,6 +127,8 @@ class ScanOdometryConfig:
             raise ConfigError(f"ScanOdometryConfig.coarse_resolution: must be None or finite and > resolution (got {c!r})")
         if not (isinstance(self.window, int) and self.window >= 1):
             raise ConfigError(f"ScanOdometryConfig.window: must be an integer >= 1 (got {self.window!r})")
+        if not (isinstance(self.carry, (int, float)) and 0.0 <= self.carry <= 1.0):
+            raise ConfigError(f"ScanOdometryConfig.carry: must be in [0, 1] (got {self.carry!r})")
         if not 0.0 <= self.min_match_fraction <= 1.0:
             raise ConfigError(f"ScanOdometryConfig.min_match_fraction: must be in [0, 1] (got {self.min_match_fraction!r})")
 
@@ -210,7 +217,7 @@ class ScanMatchOdometry:
 
     def _predict(self, stamp: float, yaw_change: float | None) -> NDArray[np.float64]:
         """The increment (robot frame) expected from the last scan to this one."""
-        u = self._last_increment.copy()
+        u = self.config.carry * self._last_increment
         dt, dt0 = stamp - self._last_stamp, self._last_dt
         if dt > 0 and dt0 > 0 and 0.5 <= dt / dt0 <= 2.0:
             u *= dt / dt0
