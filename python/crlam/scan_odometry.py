@@ -90,6 +90,8 @@ class ScanOdometryConfig:
         an occupied cell), the fine map then sets the pose.
     usable_range : float
         Readings are matched and mapped up to this range (m); longer ones only clear free space.
+        Longer than a filter's z_max: along a corridor only the far walls fix the position, and
+        the local map is small.
     score_cells : float or None
         Width of the matcher's score kernel in cells of each map: a beam at distance d from its
         match scores exp(-d² / (score_cells x cell)²). GMapping's kernel (None: 0.05 m², a
@@ -109,7 +111,7 @@ class ScanOdometryConfig:
 
     resolution: float = 0.025
     coarse_resolution: float | None = 0.05
-    usable_range: float = 8.0
+    usable_range: float = 20.0
     score_cells: float | None = 1.5
     keyframe_distance: float = 0.2
     keyframe_angle: float = 0.1

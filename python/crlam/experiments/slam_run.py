@@ -193,7 +193,7 @@ def run_slam_log(
     if source[0] == "scan_match":
         from crlam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig, scan_match_odometry
 
-        front_end = ScanMatchOdometry(ScanOdometryConfig(usable_range=config.max_range))
+        front_end = ScanMatchOdometry(ScanOdometryConfig())
         records = scan_match_odometry(reader, front_end=front_end)
     recorder = None
     if mcap:

@@ -9,8 +9,9 @@ What is read
 ------------
 Scans
     ``sensor_msgs/msg/LaserScan`` (or ``MultiEchoLaserScan``: the first echo of every beam, or
-    the last or the strongest with ``echo``) of the scan topic: the only laser topic of the bag unless ``scan_topic`` names one. The stamp is the
-    message header's (the bag's receive time when the header stamp is zero). Beam ``i`` has the
+    the last or the strongest with ``echo``) of the scan topic: the only laser topic of the bag
+    unless ``scan_topic`` names one. The stamp is the message header's (the bag's receive time
+    when the header stamp is zero). Beam ``i`` has the
     bearing ``angle_min + i * angle_increment``; any layout works (0..360 deg, -180..180 deg, a
     negative increment: such a scan is reversed so that its increment is positive).
 Invalid readings
