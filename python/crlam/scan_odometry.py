@@ -10,23 +10,36 @@ processed scans as its motion input, as it does with wheel odometry.
 The front end (:class:`ScanMatchOdometry`)
 ------------------------------------------
 Local map
-    A GMapping-style grid (:class:`crlam._native.LocalMapMatcher`: 0.05 m counting cells with
-    the mean of their hits, GMapping's matcher) holding the last ``window`` to ``2 * window``
-    key scans. A scan becomes a key scan when the matched pose has moved ``keyframe_distance``
-    or turned ``keyframe_angle`` since the last one (the first scan is one). When the grid holds
-    ``2 * window`` key scans it is rebuilt from the last ``window``: the map never holds the
-    drift of a whole loop, and a revisit cannot snap the odometry onto an old, drifted copy of a
-    place (closing loops is the filter's job).
+    Two GMapping-style grids of the same key scans (:class:`crlam._native.LocalMapMatcher`:
+    counting cells with the mean of their hits, GMapping's matcher), 0.05 m and 0.025 m, with
+    readings used up to ``usable_range`` (20 m: along a corridor only the far walls fix the
+    position), holding the last ``window`` to ``2 * window`` key scans. A scan becomes a key
+    scan when the matched pose has moved ``keyframe_distance`` or turned ``keyframe_angle``
+    since the last one (the first scan is one). When the grids hold ``2 * window`` key scans
+    they are rebuilt from the last ``window``: the map never holds the drift of a whole loop,
+    and a revisit cannot snap the odometry onto an old, drifted copy of a place (closing loops
+    is the filter's job).
 Prediction
-    The start of each match: the last pose composed with the last increment (constant velocity,
-    scaled by the ratio of the scan intervals when both are positive and within a factor two;
-    CARMEN logs are not always time-sorted). With an IMU (``sensor_msgs/msg/Imu`` in a bag), the
-    heading change is the yaw rate integrated between the two scans' stamps instead.
+    The start of each match: the last pose composed with ``carry`` (one half) of the last
+    increment, scaled by the ratio of the scan intervals when both are positive and within a
+    factor two (CARMEN logs are not always time-sorted). Carrying all of it (constant velocity)
+    lets a motion that the scans do not confirm run on by itself along a corridor; carrying half
+    lets it die away. With an IMU (``sensor_msgs/msg/Imu`` in a bag), the heading change is the
+    yaw rate integrated between the two scans' stamps instead.
 Match
-    GMapping's hill climbing from the prediction and from the last pose (no motion), keeping the
-    higher score. A match is accepted when at least ``min_match_fraction`` of the scan's usable
-    beams match; otherwise the prediction is kept (counted in :class:`ScanOdometryStats`), and a
-    scan with no usable beam keeps it too.
+    GMapping's hill climbing on the coarse grid and then on the fine one, with a score kernel
+    ``score_cells`` (1.5) cells wide on each (GMapping's own kernel is nearly flat over a cell,
+    so its climb counts matched beams more than it measures their distances: twice the step
+    error on the simulated logs). A match is accepted when at least ``min_match_fraction`` of the
+    scan's usable beams match on a grid; the pose is that of the finest such grid. Only when the
+    climb from the prediction is not accepted does it start again from the last pose (no
+    motion): along a corridor both starts would be kept where they are, and the better score of
+    the two a coin toss between moving on and stopping. When neither is accepted the prediction
+    is kept (counted in :class:`ScanOdometryStats`).
+
+The settings were chosen on the simulated development logs (``crlam simulate --sensor sick``,
+museum and office worlds, seeds 0 and 1), by the error of the front end's increments over 10
+and 100 scans against the ground truth.
 
 The poses are the robot's base frame (the scans' laser offset is applied when matching and
 mapping). They start at the first scan's odometry pose when the log has one (so that a
