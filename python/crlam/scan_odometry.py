@@ -29,8 +29,8 @@ Prediction
 Match
     GMapping's hill climbing on the coarse grid and then on the fine one, with a score kernel
     ``score_cells`` (1.5) cells wide on each (GMapping's own kernel is nearly flat over a cell,
-    so its climb counts matched beams more than it measures their distances: twice the step
-    error on the simulated logs). A match is accepted when at least ``min_match_fraction`` of the
+    so its climb counts matched beams more than it measures their distances: 1.5 to 2 times
+    the step error on the simulated logs). A match is accepted when at least ``min_match_fraction`` of the
     scan's usable beams match on a grid; the pose is that of the finest such grid. Only when the
     climb from the prediction is not accepted does it start again from the last pose (no
     motion): along a corridor both starts would be kept where they are, and the better score of
