@@ -87,30 +87,37 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        return repr(f) if math.isfinite(f) else ("nan" if math.isnan(f) else ("inf" if f > 0 else "-inf"))
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+def _toml_plain(v: Any) -> Any:
+    """``v`` with numpy scalars as Python numbers and tuples as lists (what tomli-w writes)."""
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_toml_plain(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _toml_plain(x) for k, x in v.items() if x is not None}
+    return v
 
 
 def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
-    """A flat TOML file of ``[section]`` tables (None values are written as comments)."""
-    lines = []
+    """A TOML file of ``[section]`` tables written with tomli-w.
+
+    A None value cannot be a TOML value: it is written as the comment line ``# name = (unset)``
+    at the end of its table, which :mod:`crlam.presets` and the sweeps read back as None (a key
+    that is absent altogether means "the preset's value", which is not the same).
+    """
+    import tomli_w
+
+    parts = []
     for name, table in sections.items():
-        lines.append(f"[{name}]")
-        for k, v in table.items():
-            lines.append(f"# {k} = (unset)" if v is None else f"{k} = {_toml_value(v)}")
-        lines.append("")
-    path.write_text("\n".join(lines))
+        values = {k: _toml_plain(v) for k, v in table.items() if v is not None}
+        unset = [f"# {k} = (unset)\n" for k, v in table.items() if v is None]
+        text = tomli_w.dumps({name: values}) if values else f"[{name}]\n"
+        parts.append(text + "".join(unset))
+    path.write_text("\n".join(parts))
 
 
 def _scan_inputs(scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
