@@ -177,9 +177,9 @@ def _write_table(out: Path, rows: list[dict[str, Any]], datasets: Sequence[str])
         "(`estimates/max_weight.tum`), 'mode' the mode-seeking estimate (`estimates/mode.tum`, the weighted mean "
         "of the densest group of particles), 'smoothed' the lineage smoother (`estimates/smoothed.tum`, each scan's "
         "ancestors of the final particles under the final weights, or those of the particles L scans later with "
-        "`--smoothing-lag L`; both '-' for runs made before they existed), and 'particle spread' the weighted "
-        "RMS distance of the particles from their mean, averaged over the processed scans (`steps.csv`; '-' for runs "
-        "from before 2026-11-26).",
+        "`--smoothing-lag L`; '-' where the run did not record them), and 'particle spread' the weighted "
+        "RMS distance of the particles from their mean, averaged over the processed scans (`steps.csv`; '-' where "
+        "the run did not record it).",
         "",
         "## Published (absolute translational error, m)",
         "",
