@@ -142,6 +142,9 @@ def save_relations_error_figure(
 ) -> Path:
     """Translational and rotational error of every relation against the time of its first pose.
 
+    Each relation is a dot at its first stamp ``t1``; the dashed lines are the means the
+    metric reports, so a few large errors and where in the log they arise can be told apart.
+
     Parameters
     ----------
     errors : RelationsErrors or mapping of name to RelationsErrors
@@ -149,9 +152,6 @@ def save_relations_error_figure(
         (e.g. the weighted mean and the best particle's path), one colour each.
     t0 : float, optional
         Time (s) shown as 0, e.g. the log's first scan; default: the earliest relation stamp.
-
-    Each relation is a dot at its first stamp ``t1``; the dashed lines are the means the
-    metric reports, so a few large errors and where in the log they arise can be told apart.
     """
     runs = {"estimate": errors} if isinstance(errors, RelationsErrors) else dict(errors)
     fig, axes = _error_axes()
