@@ -6,6 +6,9 @@
 - The figures of the experiment folders under ``results/`` are published with the site as
   ``figures/<folder>/<name>.png`` (:func:`on_files`), so the results pages show the committed
   figures themselves rather than copies.
+- Equations (``pymdownx.arithmatex``, generic mode) are turned into MathML when the site is
+  built (:func:`on_page_content`, with ``latex2mathml``), so pages show them without loading a
+  script from the network.
 - Pages that other work adds later are listed in the navigation only when their file exists
   (:data:`OPTIONAL_PAGES`), so the site builds with ``--strict`` either way.
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import html
+import re
 from pathlib import Path
 from typing import Any
 
@@ -55,6 +59,19 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
     from crlam.cli import build_parser
 
     return markdown.replace(MARKER, cli_reference(build_parser()))
+
+
+_MATH = re.compile(r'<(span|div) class="arithmatex">\\[(\[](.*?)\\[)\]]</\1>', re.S)
+
+
+def on_page_content(content: str, page: Any, config: Any, files: Any) -> str:
+    from latex2mathml.converter import convert
+
+    def mathml(m: re.Match[str]) -> str:
+        tex = html.unescape(m.group(2))
+        return convert(tex, display="block" if m.group(1) == "div" else "inline")
+
+    return _MATH.sub(mathml, content)
 
 
 def _cell(text: str) -> str:
