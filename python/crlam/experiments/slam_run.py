@@ -353,7 +353,7 @@ def _write_outputs(
         for suffix, sm_poses in smoothed.items():
             metrics[f"relations_smoothed{suffix}"] = relations_error(stamps, sm_poses, rels, on_missing=on_missing).summary()
         rel_figure = {
-            "weighted mean": rel_errors,
+            f"RBPF-{config.method.upper()}, weighted mean": rel_errors,
             "mode-seeking": rel_mode,
             "best particle's path": rel_path,
             "highest-weight particle": rel_max_weight,
@@ -409,6 +409,7 @@ def _write_outputs(
             poses,
             reference=None if ref_poses is None else ref_poses[1],
             title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, {config.particles} particles",
+            label=f"RBPF-{config.method.upper()}",
         )
         if ref_poses is not None:
             save_error_figure(out / "errors.png", ref_poses[2], title=f"{Path(log_path).name}: error against the reference")

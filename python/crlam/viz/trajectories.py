@@ -62,11 +62,13 @@ def save_trajectory_figure(
     *,
     reference: NDArray[np.float64] | None = None,
     title: str = "",
+    label: str = "estimate",
 ) -> Path:
-    """The estimated trajectory (and the reference, if given) over the best particle's map."""
-    traj = {"estimate": estimate}
+    """The estimated trajectory (and the reference, if given) over the best particle's map;
+    ``label`` names the estimate in the legend and picks its colour (:mod:`crlam.viz.palette`)."""
+    traj = {label: estimate}
     if reference is not None:
-        traj = {"reference": reference, "estimate": estimate}
+        traj = {"reference": reference, label: estimate}
     return save_trajectories_on_map(path, mean, unknown, traj, title=title)
 
 
