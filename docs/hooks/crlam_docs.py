@@ -9,6 +9,8 @@
 - Equations (``pymdownx.arithmatex``, generic mode) are turned into MathML when the site is
   built (:func:`on_page_content`, with ``latex2mathml``), so pages show them without loading a
   script from the network.
+- The docstrings' Sphinx roles (``:class:`X```, ``:func:`~a.b```) are shown as plain code in
+  the API reference (:func:`on_page_content`).
 - Pages that other work adds later are listed in the navigation only when their file exists
   (:data:`OPTIONAL_PAGES`), so the site builds with ``--strict`` either way.
 """
@@ -64,6 +66,9 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
 _MATH = re.compile(r'<(span|div) class="arithmatex">\\[(\[](.*?)\\[)\]]</\1>', re.S)
 
 
+_ROLE = re.compile(r":(?:class|func|meth|mod|data|attr|exc|obj|ref):(?=<code>)")
+
+
 def on_page_content(content: str, page: Any, config: Any, files: Any) -> str:
     from latex2mathml.converter import convert
 
@@ -71,7 +76,8 @@ def on_page_content(content: str, page: Any, config: Any, files: Any) -> str:
         tex = html.unescape(m.group(2))
         return convert(tex, display="block" if m.group(1) == "div" else "inline")
 
-    return _MATH.sub(mathml, content)
+    content = _ROLE.sub("", _MATH.sub(mathml, content))
+    return content.replace("<code>~", "<code>")
 
 
 def _cell(text: str) -> str:
