@@ -343,7 +343,8 @@ def build_parser() -> argparse.ArgumentParser:
         "slam",
         help="run RBPF-CLAM (or RBPF-OGM) on a CARMEN log or a ROS bag and write a run folder",
         description="Runs a Rao-Blackwellized particle filter on a log and writes config.toml, trajectory.tum "
-        "(one pose per scan, file order), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
+        "(the estimate to use: one pose per scan, sorted by time), estimates/ (the other estimates), README.txt (what "
+        "each file holds), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
         "named preset (--preset, default robust) or a run folder's config.toml (--config); every SLAM flag given "
         "overrides them.",
     )
