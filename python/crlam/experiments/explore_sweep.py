@@ -18,10 +18,14 @@ from typing import Any
 import numpy as np
 
 from crlam.errors import ConfigError
+from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.explore import FUNCTIONS, ExploreConfig, default_start, explore
 from crlam.experiments.pool import run_jobs, write_atomic
 
 __all__ = ["ExploreSweep", "run_explore_experiment", "run_one_exploration", "variant_label"]
+
+#: An exploration reads its world (a built-in name or a map file) and writes ``metrics.json`` last.
+EXPLORE_RUN_LAYOUT = RunLayout(marker="metrics.json", inputs=("world",))
 
 
 def variant_label(function: str, alpha: float | None) -> str:
@@ -90,8 +94,10 @@ def run_explore_experiment(
     world_seed: int = 0,
     workers: int = 2,
     progress: bool = True,
+    executor: Executor | None = None,
 ) -> ExploreSweep:
-    """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``."""
+    """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``.
+    ``executor``: where the runs go (default: ``workers`` local processes)."""
     for f in functions:
         if f not in FUNCTIONS:
             raise ConfigError(f"unknown function {f!r}; expected one of {', '.join(FUNCTIONS)}")
@@ -129,6 +135,8 @@ def run_explore_experiment(
         workers=workers,
         progress=progress,
         desc="explorations",
+        executor=executor,
+        layout=EXPLORE_RUN_LAYOUT,
     )
     rows = [{**done[n], "name": n} for n, _ in jobs if n in done]
     files = {"runs": root / "runs.csv", "report": root / "report.md"}
