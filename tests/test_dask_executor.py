@@ -47,8 +47,11 @@ def _same_runs(local: Path, remote: Path, names: list[str]) -> None:
     in the remote one are the client's."""
     for name in names:
         a, b = local / "runs" / name, remote / "runs" / name
-        for f in sorted(a.glob("*.tum")) + [a / "steps.csv"]:
-            assert (b / f.name).read_bytes() == f.read_bytes(), f"{name}/{f.name}"
+        tables = [f for f in sorted(a.rglob("*")) if f.suffix in (".tum", ".csv")]
+        assert len(tables) >= 2
+        for f in tables:
+            rel = f.relative_to(a)
+            assert (b / rel).read_bytes() == f.read_bytes(), f"{name}/{rel}"
         ma, mb = (json.loads((d / "metrics.json").read_text()) for d in (a, b))
         for m in (ma, mb):
             for k in TIMING:
