@@ -21,11 +21,12 @@ from crlam.errors import ConfigError
 from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.explore import FUNCTIONS, ExploreConfig, default_start, explore
 from crlam.experiments.pool import run_jobs, write_atomic
+from crlam.sim.worlds import WORLD_NAMES
 
 __all__ = ["ExploreSweep", "run_explore_experiment", "run_one_exploration", "variant_label"]
 
-#: An exploration reads its world (a built-in name or a map file) and writes ``metrics.json`` last.
-EXPLORE_RUN_LAYOUT = RunLayout(marker="metrics.json", inputs=("world",))
+#: An exploration reads its world's map file (none for a built-in world) and writes ``metrics.json`` last.
+EXPLORE_RUN_LAYOUT = RunLayout(marker="metrics.json", inputs=("world_file",))
 
 
 def variant_label(function: str, alpha: float | None) -> str:
@@ -33,12 +34,23 @@ def variant_label(function: str, alpha: float | None) -> str:
 
 
 def run_one_exploration(
-    world: str, world_seed: int, function: str, alpha: float, seed: int, budget: float, slam: bool, particles: int, folder: str
+    world: str,
+    world_seed: int,
+    function: str,
+    alpha: float,
+    seed: int,
+    budget: float,
+    slam: bool,
+    particles: int,
+    folder: str,
+    world_file: str | None = None,
 ) -> dict[str, Any]:
-    """One exploration; writes ``progress.csv`` and then ``metrics.json`` into ``folder``."""
+    """One exploration; writes ``progress.csv`` and then ``metrics.json`` into ``folder``.
+    ``world`` names the world in the results; it is read from ``world_file`` when given (a
+    copy of the map file ``world`` names, e.g. on a remote worker)."""
     from crlam.sim.worlds import get_world
 
-    w = get_world(world, seed=world_seed)
+    w = get_world(world_file or world, seed=world_seed)
     cfg = ExploreConfig(
         function=function, alpha=alpha, budget_m=budget, threshold=0.05, seed=seed, slam=slam, slam_particles=particles
     )
@@ -124,6 +136,7 @@ def run_explore_experiment(
                                 "slam": slam,
                                 "particles": particles,
                                 "folder": str(root / "runs" / tag),
+                                "world_file": None if world in WORLD_NAMES else world,
                             },
                         )
                     )
