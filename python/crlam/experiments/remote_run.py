@@ -8,8 +8,8 @@ folder, which the client writes. On the worker the run happens in a child proces
 - ``RAYON_NUM_THREADS`` is set before rayon starts, whatever ran in the worker before;
 - a run killed by the OOM killer or a native crash leaves the worker up: the task raises
   :class:`RunProcessDied` and Dask starts it again (``retries``);
-- the child is started with ``subprocess`` (a new interpreter, never a fork of a process whose
-  rayon pool may have started) and ends itself when its worker is gone.
+- the child is a new interpreter (``subprocess``: fork and exec at once, so no copy of the worker
+  goes on running, whose rayon pool may have started) and ends itself when its worker is gone.
 
 Paths the worker saw in place of the client's (the input files, the scratch run folder) are
 replaced by the client's in the result and in the run's text files, so the run folder reads as
