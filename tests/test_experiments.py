@@ -239,6 +239,27 @@ def test_a_worker_killed_mid_job_fails_that_job_only(tmp_path: Path) -> None:
     assert "SIGKILL" in errors["j1"] and "out of memory" in errors["j1"]
 
 
+def _die_once(value: int, marker: str) -> dict[str, int]:
+    if not Path(marker).exists():
+        Path(marker).write_text("")
+        os.kill(os.getpid(), signal.SIGKILL)
+    return {"value": value}
+
+
+def test_a_run_whose_process_died_is_started_again(tmp_path: Path) -> None:
+    from crlam.experiments.pool import LocalExecutor, run_jobs
+
+    jobs = [("j0", {"value": 0, "marker": str(tmp_path / "died")})]
+    done, errors = run_jobs(jobs, _die_once, lambda n: False, lambda n: {}, progress=False, fresh_process=True)
+    assert done == {"j0": {"value": 0}} and not errors
+    # Without retries the death is the run's result.
+    (tmp_path / "died").unlink()
+    done, errors = run_jobs(
+        jobs, _die_once, lambda n: False, lambda n: {}, progress=False, fresh_process=True, executor=LocalExecutor(retries=0)
+    )
+    assert not done and "SIGKILL" in errors["j0"] and "attempt 1 of 1" in errors["j0"]
+
+
 def _slow_job(pidfile: str) -> dict[str, int]:
     tmp = Path(pidfile + ".tmp")
     tmp.write_text(str(os.getpid()))

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from crlam.experiments.executor import Executor
 from crlam.experiments.sweep import RunSpec, run_sweep
 from crlam.io.fetch import find_dataset
 from crlam.slam import SlamConfig
@@ -59,10 +60,13 @@ def run_real_logs(
     max_scans: int | None = None,
     progress: bool = True,
     report_only: bool = False,
+    executor: Executor | None = None,
 ) -> dict[str, Any]:
     """Runs (or resumes) the grid of runs and writes the table; returns the results.
 
     ``threads``: rayon threads of each run (the results do not depend on it; the wall times do).
+    ``executor``: where the runs go (default: ``workers`` local processes; the results do not
+    depend on it).
 
     ``base`` holds every setting but the grid's (method, particles, seed, max_range, which each
     run sets); without one the sweep uses the default preset (``SlamConfig.from_preset()``,
@@ -84,7 +88,7 @@ def run_real_logs(
                         specs.append(
                             RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans, threads=threads)
                         )
-    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
+    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor)
     rows = []
     for ds in datasets:
         for m in methods:
