@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from crlam import __version__
+from crlam.cli_executor import add_executor_options, executor_from_args
 from crlam.cli_options import (
     BATCH_KERNEL_HELP,
     BATCH_KERNELS,
@@ -201,6 +202,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     from crlam.presets import resolve
 
     out = Path(args.out)
+    executor = executor_from_args(args)
     if args.experiment == "iig":
         from crlam.experiments.iig import run_iig_experiment
 
@@ -216,6 +218,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             max_wall_seconds=args.max_seconds,
             start=(args.start[0], args.start[1]),
             progress=not args.quiet,
+            executor=executor,
         )
         print(f"{len(res.rows)} runs finished, {len(res.errors)} failed; report: {res.files['report']}")
         return 0 if not res.errors else 1
@@ -233,6 +236,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             particles=args.particles,
             workers=args.workers,
             progress=not args.quiet,
+            executor=executor,
         )
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
@@ -255,6 +259,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             base=base,
             progress=not args.quiet,
             report_only=args.report_only,
+            executor=executor,
         )
     else:
         from crlam.experiments.real_logs import run_real_logs
@@ -274,6 +279,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             max_scans=args.max_scans,
             progress=not args.quiet,
             report_only=args.report_only,
+            executor=executor,
         )
     print((out / "table.md").read_text())
     return 0
@@ -364,7 +370,8 @@ def build_parser() -> argparse.ArgumentParser:
         "slam",
         help="run RBPF-CLAM (or RBPF-OGM) on a CARMEN log or a ROS bag and write a run folder",
         description="Runs a Rao-Blackwellized particle filter on a log and writes config.toml, trajectory.tum "
-        "(one pose per scan, file order), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
+        "(the estimate to use: one pose per scan, sorted by time), estimates/ (the other estimates), README.txt (what "
+        "each file holds), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
         "named preset (--preset, default robust) or a run folder's config.toml (--config); every SLAM flag given "
         "overrides them.",
     )
@@ -464,8 +471,8 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "experiment",
         help="run a paper experiment (resumable) and write its table and figures",
-        description="Runs an experiment as a resumable sweep of SLAM runs in spawn worker processes; "
-        "rerunning the same command skips finished runs.",
+        description="Runs an experiment as a resumable sweep of runs in spawn worker processes on this machine "
+        "or on a Dask cluster (--executor dask); rerunning the same command skips finished runs.",
     )
     exp = p.add_subparsers(dest="experiment", metavar="EXPERIMENT")
     exp.required = True
@@ -555,6 +562,7 @@ def build_parser() -> argparse.ArgumentParser:
     ig.add_argument("--max-seconds", type=positive_float, default=600.0, help="wall-clock guard per run (default: 600)")
     ig.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ig.add_argument("--quiet", action="store_true", help="no progress output")
+    add_executor_options(ig)
     ig.set_defaults(func=cmd_experiment)
     ex = exp.add_parser(
         "explore",
@@ -573,6 +581,7 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--known-poses", action="store_true", help="no SLAM: the robot knows its pose")
     ex.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ex.add_argument("--quiet", action="store_true", help="no progress output")
+    add_executor_options(ex)
     ex.set_defaults(func=cmd_experiment)
     for q in (t1, rl):
         q.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
@@ -597,6 +606,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"
         )
+        add_executor_options(q)
         q.set_defaults(func=cmd_experiment)
 
     p = sub.add_parser(

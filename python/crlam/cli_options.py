@@ -162,7 +162,7 @@ def add_estimate_options(parser: argparse.ArgumentParser) -> None:
         nargs=2,
         default=None,
         metavar=("DXY", "DTHETA"),
-        help="kernel bandwidths (m, rad) of the mode-seeking estimate written to trajectory_mode.tum (the weighted mean of "
+        help="kernel bandwidths (m, rad) of the mode-seeking estimate written to estimates/mode.tum (the weighted mean of "
         "the densest group of particles; it does not change the filter; paper: 0.05 0.025; default: the preset's)",
     )
     parser.add_argument(
@@ -170,7 +170,7 @@ def add_estimate_options(parser: argparse.ArgumentParser) -> None:
         type=nonnegative_int,
         default=None,
         metavar="L",
-        help="lineage smoother written to trajectory_smoothed.tum: weigh each processed scan's particle ancestors with "
+        help="lineage smoother written to estimates/smoothed.tum: weigh each processed scan's particle ancestors with "
         "the weights L processed scans later (default: the preset's; unset there: the final weights, full smoothing)",
     )
 

@@ -18,10 +18,15 @@ from typing import Any
 import numpy as np
 
 from crlam.errors import ConfigError
+from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.explore import FUNCTIONS, ExploreConfig, default_start, explore
 from crlam.experiments.pool import run_jobs, write_atomic
+from crlam.sim.worlds import WORLD_NAMES
 
 __all__ = ["ExploreSweep", "run_explore_experiment", "run_one_exploration", "variant_label"]
+
+#: An exploration reads its world's map file (none for a built-in world) and writes ``metrics.json`` last.
+EXPLORE_RUN_LAYOUT = RunLayout(marker="metrics.json", inputs=("world_file",))
 
 
 def variant_label(function: str, alpha: float | None) -> str:
@@ -29,12 +34,23 @@ def variant_label(function: str, alpha: float | None) -> str:
 
 
 def run_one_exploration(
-    world: str, world_seed: int, function: str, alpha: float, seed: int, budget: float, slam: bool, particles: int, folder: str
+    world: str,
+    world_seed: int,
+    function: str,
+    alpha: float,
+    seed: int,
+    budget: float,
+    slam: bool,
+    particles: int,
+    folder: str,
+    world_file: str | None = None,
 ) -> dict[str, Any]:
-    """One exploration; writes ``progress.csv`` and then ``metrics.json`` into ``folder``."""
+    """One exploration; writes ``progress.csv`` and then ``metrics.json`` into ``folder``.
+    ``world`` names the world in the results; it is read from ``world_file`` when given (a
+    copy of the map file ``world`` names, e.g. on a remote worker)."""
     from crlam.sim.worlds import get_world
 
-    w = get_world(world, seed=world_seed)
+    w = get_world(world_file or world, seed=world_seed)
     cfg = ExploreConfig(
         function=function, alpha=alpha, budget_m=budget, threshold=0.05, seed=seed, slam=slam, slam_particles=particles
     )
@@ -90,8 +106,10 @@ def run_explore_experiment(
     world_seed: int = 0,
     workers: int = 2,
     progress: bool = True,
+    executor: Executor | None = None,
 ) -> ExploreSweep:
-    """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``."""
+    """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``.
+    ``executor``: where the runs go (default: ``workers`` local processes)."""
     for f in functions:
         if f not in FUNCTIONS:
             raise ConfigError(f"unknown function {f!r}; expected one of {', '.join(FUNCTIONS)}")
@@ -118,6 +136,7 @@ def run_explore_experiment(
                                 "slam": slam,
                                 "particles": particles,
                                 "folder": str(root / "runs" / tag),
+                                "world_file": None if world in WORLD_NAMES else world,
                             },
                         )
                     )
@@ -129,6 +148,8 @@ def run_explore_experiment(
         workers=workers,
         progress=progress,
         desc="explorations",
+        executor=executor,
+        layout=EXPLORE_RUN_LAYOUT,
     )
     rows = [{**done[n], "name": n} for n, _ in jobs if n in done]
     files = {"runs": root / "runs.csv", "report": root / "report.md"}

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from crlam.errors import ConfigError
+from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs, write_atomic
 from crlam.info import InformationFunction, load_map_prior, make_function
 from crlam.planner import IigSettings, IigTree, plan_iig
@@ -29,6 +30,8 @@ __all__ = ["FUNCTIONS", "LABELS", "IigExperiment", "function_for", "run_iig_expe
 FUNCTIONS = ("ogmi", "crmi", "ucrmi", "gpvr", "ugpvr")
 LABELS = {"ogmi": "OGMI", "crmi": "CRMI", "ucrmi": "UCRMI", "gpvr": "GPVR", "ugpvr": "UGPVR"}
 OGMI_IMPLEMENTATIONS = {"fsmi": "fsmi", "iig_mi": "iig_mi", "julian": "ogmi"}
+#: A planner run reads the map and writes ``tree.npz``, then ``result.json``.
+IIG_RUN_LAYOUT = RunLayout(marker="result.json", inputs=("map_path",))
 
 
 def function_for(name: str, *, mode: str, ogmi: str = "fsmi", particles: int = 100) -> InformationFunction:
@@ -96,8 +99,10 @@ def run_iig_experiment(
     max_wall_seconds: float = 600.0,
     start: tuple[float, float] = (10.0, 2.0),
     progress: bool = True,
+    executor: Executor | None = None,
 ) -> IigExperiment:
-    """Runs (resuming) the comparison and writes ``runs.csv``, the figures and ``report.md``."""
+    """Runs (resuming) the comparison and writes ``runs.csv``, the figures and ``report.md``.
+    ``executor``: where the runs go (default: ``workers`` local processes)."""
     for name in functions:
         function_for(name, mode=mode, ogmi=ogmi, particles=particles)  # validate before any run
     root = Path(out)
@@ -134,6 +139,8 @@ def run_iig_experiment(
         workers=workers,
         progress=progress,
         desc="planner runs",
+        executor=executor,
+        layout=IIG_RUN_LAYOUT,
     )
     rows = [done[n] for n, _ in jobs if n in done]
     files = {"runs": root / "runs.csv"}

@@ -3,18 +3,15 @@
 The folder holds ``config.toml`` (every resolved setting: the ``[input]`` table says how the log
 was read (for a bag: the topics, frames and laser mount used), the ``[slam]`` table has every
 :class:`crlam.slam.SlamConfig` field and the preset they were resolved from, so
-``crlam slam --config DIR/config.toml`` runs the same configuration again), ``trajectory.tum`` (one pose per laser
-scan of the log, in file order, stamped with the scan's ipc timestamp), ``metrics.json``,
-``trajectory_best_path.tum`` (the same from the final best particle's path, GMapping's trajectory;
-its errors are reported as ``reference_best_path`` / ``relations_best_path``),
-``trajectory_best_path_means.tum`` when the poses are drawn from a fitted proposal (the same
-lineage with each pose replaced by its proposal's mean; ``*_best_path_means`` errors),
-``trajectory_max_weight.tum`` (the highest-weight particle at each processed scan, chosen online;
-``*_max_weight`` errors), ``trajectory_mode.tum`` (the mode-seeking estimate of
-:func:`crlam.slam.mode_seeking_pose` at each processed scan; ``*_mode`` errors),
-``trajectory_smoothed.tum`` and, where the filter records proposal means,
-``trajectory_smoothed_means.tum`` (the lineage smoother of
-:meth:`crlam.slam.SlamRun.smoothed_trajectory`; ``*_smoothed`` / ``*_smoothed_means`` errors), ``steps.csv``
+``crlam slam --config DIR/config.toml`` runs the same configuration again), ``trajectory.tum`` (the filter's
+estimate: one pose per laser scan, sorted by time, stamped with the scan's timestamp),
+``metrics.json``, ``README.txt`` (one line per file), ``estimates/`` with the other estimates
+(:data:`ESTIMATES`: ``best_path.tum``, the final best particle's path, GMapping's trajectory,
+``*_best_path`` errors; ``best_path_means.tum`` when the poses are drawn from a fitted proposal;
+``max_weight.tum``; ``mode.tum``, :func:`crlam.slam.mode_seeking_pose` at each processed scan;
+``smoothed.tum`` and ``smoothed_means.tum``, the lineage smoother of
+:meth:`crlam.slam.SlamRun.smoothed_trajectory`; each with its ``reference_*`` / ``relations_*``
+errors in ``metrics.json``), ``steps.csv``
 (per processed scan: N_eff, resampling, the particle set's position and heading spread, the
 weighted-mean, highest-weight and mode-seeking poses; their summary is
 ``particle_set`` in ``metrics.json``), ``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best
@@ -51,7 +48,7 @@ from crlam.io.tum import read_tum, write_tum
 from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
 
-__all__ = ["SlamResult", "run_slam_log", "write_toml", "FILL_RULE"]
+__all__ = ["ESTIMATES", "FILL_RULE", "SlamResult", "run_slam_log", "write_run_readme", "write_toml"]
 
 FILL_RULE = (
     "every laser scan gets a pose: processed scans the filter's weighted-mean estimate, the others the "
@@ -87,30 +84,37 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        return repr(f) if math.isfinite(f) else ("nan" if math.isnan(f) else ("inf" if f > 0 else "-inf"))
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+def _toml_plain(v: Any) -> Any:
+    """``v`` with numpy scalars as Python numbers and tuples as lists (what tomli-w writes)."""
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_toml_plain(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _toml_plain(x) for k, x in v.items() if x is not None}
+    return v
 
 
 def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
-    """A flat TOML file of ``[section]`` tables (None values are written as comments)."""
-    lines = []
+    """A TOML file of ``[section]`` tables written with tomli-w.
+
+    A None value cannot be a TOML value: it is written as the comment line ``# name = (unset)``
+    at the end of its table, which :mod:`crlam.presets` and the sweeps read back as None (a key
+    that is absent altogether means "the preset's value", which is not the same).
+    """
+    import tomli_w
+
+    parts = []
     for name, table in sections.items():
-        lines.append(f"[{name}]")
-        for k, v in table.items():
-            lines.append(f"# {k} = (unset)" if v is None else f"{k} = {_toml_value(v)}")
-        lines.append("")
-    path.write_text("\n".join(lines))
+        values = {k: _toml_plain(v) for k, v in table.items() if v is not None}
+        unset = [f"# {k} = (unset)\n" for k, v in table.items() if v is None]
+        text = tomli_w.dumps({name: values}) if values else f"[{name}]\n"
+        parts.append(text + "".join(unset))
+    path.write_text("\n".join(parts))
 
 
 def _scan_inputs(scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -286,36 +290,47 @@ def _write_outputs(
     input_info = input_description(reader) | (odometry_info or {})
     config = run.config
     stamps, poses = run.trajectory()
-    write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam {config.method} trajectory of {Path(log_path).name}")
+    name = Path(log_path).name
+    # Every trajectory file is sorted by time (evo and other tools expect increasing stamps; a log's
+    # file order need not be). A stable sort keeps the file order of equal stamps.
+    order = np.argsort(stamps, kind="stable")
+    written: dict[str, str] = {}
+
+    def save(rel: str, traj: NDArray[np.float64], header: str, what: str) -> None:
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        write_tum(out / rel, stamps[order], traj[order], header=header)
+        written[rel] = what
+
+    save("trajectory.tum", poses, f"crlam {config.method} trajectory of {name}", ESTIMATES["trajectory.tum"])
     _, path_poses = run.best_path_trajectory()
-    write_tum(
-        out / "trajectory_best_path.tum",
-        stamps,
+    save(
+        "estimates/best_path.tum",
         path_poses,
-        header=f"crlam {config.method} final best particle's path over {Path(log_path).name}",
+        f"crlam {config.method} final best particle's path over {name}",
+        ESTIMATES["estimates/best_path.tum"],
     )
     path_means = run.best_path_means_trajectory()
     means_poses = None if path_means is None else path_means[1]
     if means_poses is not None:
-        write_tum(
-            out / "trajectory_best_path_means.tum",
-            stamps,
+        save(
+            "estimates/best_path_means.tum",
             means_poses,
-            header=f"crlam {config.method} proposal means along the final best particle's path over {Path(log_path).name}",
+            f"crlam {config.method} proposal means along the final best particle's path over {name}",
+            ESTIMATES["estimates/best_path_means.tum"],
         )
     _, max_weight_poses = run.max_weight_trajectory()
-    write_tum(
-        out / "trajectory_max_weight.tum",
-        stamps,
+    save(
+        "estimates/max_weight.tum",
         max_weight_poses,
-        header=f"crlam {config.method} highest-weight particle at each processed scan of {Path(log_path).name}",
+        f"crlam {config.method} highest-weight particle at each processed scan of {name}",
+        ESTIMATES["estimates/max_weight.tum"],
     )
     _, mode_poses = run.mode_trajectory()
-    write_tum(
-        out / "trajectory_mode.tum",
-        stamps,
+    save(
+        "estimates/mode.tum",
         mode_poses,
-        header=f"crlam {config.method} mode-seeking estimate (bandwidth {config.mode_bandwidth}) over {Path(log_path).name}",
+        f"crlam {config.method} mode-seeking estimate (bandwidth {config.mode_bandwidth}) over {name}",
+        ESTIMATES["estimates/mode.tum"],
     )
     smoothed = {}
     for suffix, use_means, what in (("", False, "poses"), ("_means", True, "proposal means")):
@@ -323,12 +338,8 @@ def _write_outputs(
         if traj is not None:
             smoothed[suffix] = traj[1]
             lag = "full" if config.smoothing_lag is None else f"lag {config.smoothing_lag}"
-            write_tum(
-                out / f"trajectory_smoothed{suffix}.tum",
-                stamps,
-                traj[1],
-                header=f"crlam {config.method} lineage smoother ({lag}, {what}) over {Path(log_path).name}",
-            )
+            rel = f"estimates/smoothed{suffix}.tum"
+            save(rel, traj[1], f"crlam {config.method} lineage smoother ({lag}, {what}) over {name}", ESTIMATES[rel])
     write_particle_sets(out / "steps.csv", run)
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
@@ -386,7 +397,7 @@ def _write_outputs(
         for suffix, sm_poses in smoothed.items():
             metrics[f"relations_smoothed{suffix}"] = relations_error(stamps, sm_poses, rels, on_missing=on_missing).summary()
         rel_figure = {
-            "weighted mean": rel_errors,
+            f"RBPF-{config.method.upper()}, weighted mean": rel_errors,
             "mode-seeking": rel_mode,
             "best particle's path": rel_path,
             "highest-weight particle": rel_max_weight,
@@ -443,6 +454,7 @@ def _write_outputs(
             poses,
             reference=None if ref_poses is None else ref_poses[1],
             title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, {config.particles} particles",
+            label=f"RBPF-{config.method.upper()}",
         )
         if ref_poses is not None:
             save_error_figure(out / "errors.png", ref_poses[2], title=f"{Path(log_path).name}: error against the reference")
@@ -453,11 +465,51 @@ def _write_outputs(
                 t0=float(stamps[0]),
                 title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, relations metric",
             )
+    write_run_readme(out, written, figures=figures, reference=ref_poses is not None, relations=rel_figure is not None)
     # metrics.json is written last and atomically: its presence marks a finished run (sweeps resume).
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
     tmp.replace(out / "metrics.json")
     return SlamResult(run, metrics, out)
+
+
+ESTIMATES = {
+    "trajectory.tum": "the filter's estimate, one pose per laser scan sorted by time: the weighted mean of the "
+    "particles at processed scans, carried by the odometry in between (use this one)",
+    "estimates/best_path.tum": "the final best particle's path (the trajectory GMapping reports)",
+    "estimates/best_path_means.tum": "the same lineage with each pose replaced by the mean of the proposal it was drawn from",
+    "estimates/max_weight.tum": "the highest-weight particle at each processed scan, chosen online",
+    "estimates/mode.tum": "mode-seeking estimate: the weighted mean of the densest group of particles",
+    "estimates/smoothed.tum": "lineage smoother: each scan's weighted mean of the particles' ancestors (final weights, "
+    "or --smoothing-lag)",
+    "estimates/smoothed_means.tum": "the lineage smoother over the ancestors' proposal means",
+}
+"""What each trajectory file of a run folder holds (the lines of its ``README.txt``)."""
+
+
+def write_run_readme(out: Path, written: dict[str, str], *, figures: bool, reference: bool, relations: bool) -> None:
+    """``README.txt``: one line per file of the run folder saying what it holds."""
+    rows = [*written.items()]
+    rows += [
+        ("config.toml", "every setting of the run; crlam slam LOG --config config.toml repeats it"),
+        ("metrics.json", "timing, memory, particle-set summary and the errors of every trajectory"),
+        ("steps.csv", "one row per processed scan: N_eff, resampling, particle spread, estimates"),
+        ("map.pgm, map.yaml", "the best particle's map as a Nav2 map (opens in RViz)"),
+    ]
+    if (out / "belief.npz").exists():
+        rows.append(("belief.npz", "the best particle's confidence-rich map, lossless (crlam.io.belief)"))
+    if (out / "run.mcap").exists():
+        rows.append(("run.mcap", "scans, TF, particles, path and map as ROS 2 messages (Foxglove, ros2 bag play)"))
+    if figures:
+        rows.append(("trajectory.png", "the trajectory over the map"))
+        if reference:
+            rows.append(("errors.png", "error against the reference over time"))
+        if relations:
+            rows.append(("relations_errors.png", "every relation's error against the time of its first pose"))
+    width = max(len(k) for k, _ in rows)
+    lines = ["crlam slam run folder: what each file holds", ""]
+    lines += [f"{k:<{width}}  {v}" for k, v in rows]
+    (out / "README.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 STEPS_COLUMNS = (

@@ -24,12 +24,17 @@ else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
 from crlam.errors import ConfigError
+from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs
 from crlam.slam import SlamConfig
 
 __all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics", "stored_setting_differences"]
 
 _UNSET_LINE = re.compile(r"^# (\w+) = \(unset\)$", re.MULTILINE)
+
+#: A SLAM run reads its log, reference and relations and writes ``metrics.json`` last; its map
+#: (``belief.npz``, hundreds of MB for a large log) is the file a remote executor may leave out.
+SLAM_RUN_LAYOUT = RunLayout(marker="metrics.json", inputs=("log", "reference", "relations"), maps=("belief.npz",))
 
 
 @dataclass(frozen=True)
@@ -117,20 +122,22 @@ def _check_finished_runs(specs: Sequence[RunSpec], root: Path) -> None:
         )
 
 
-def _run_spec(spec_dict: dict[str, Any], root: str) -> dict[str, Any]:
-    """One SLAM run in a worker (module level, so that ``spawn`` can pickle it)."""
+def _run_spec(
+    spec_dict: dict[str, Any], folder: str, log: str, reference: str | None = None, relations: str | None = None
+) -> dict[str, Any]:
+    """One SLAM run in a worker (module level, so that ``spawn`` can pickle it). The paths are
+    arguments of their own (not in ``spec_dict``): an executor may point them at copies."""
     from crlam.experiments.slam_run import run_slam_log
 
     d = dict(spec_dict)
     cfg = SlamConfig(**d.pop("config"))
-    spec = RunSpec(config=cfg, **d)
     res = run_slam_log(
-        spec.log,
-        spec.folder(Path(root)),
+        log,
+        folder,
         cfg,
-        reference=spec.reference,
-        relations=spec.relations,
-        max_scans=spec.max_scans,
+        reference=reference,
+        relations=relations,
+        max_scans=d["max_scans"],
         progress=False,
     )
     return dict(res.metrics)
@@ -138,6 +145,8 @@ def _run_spec(spec_dict: dict[str, Any], root: str) -> dict[str, Any]:
 
 def _spec_dict(spec: RunSpec) -> dict[str, Any]:
     d = asdict(spec)
+    for k in ("name", "log", "reference", "relations"):
+        del d[k]
     d["config"] = spec.config.to_dict()
     for k in ("motion_params", "init_sigma", "lattice_step", "mode_bandwidth"):
         if d["config"].get(k) is not None:
@@ -152,8 +161,12 @@ def run_sweep(
     workers: int = 1,
     progress: bool = True,
     report_only: bool = False,
+    executor: Executor | None = None,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """Runs every unfinished spec; returns ({name: metrics} of all finished runs, {name: error}).
+
+    ``executor`` carries the runs out (default: ``workers`` local processes; see
+    :mod:`crlam.experiments.executor`).
 
     ``report_only`` runs nothing and returns the runs finished so far (an interim report of a
     sweep that is still going on elsewhere or was stopped).
@@ -169,7 +182,8 @@ def run_sweep(
     if report_only:
         return {s.name: load_metrics(s.folder(root)) for s in specs if run_is_finished(s.folder(root))}, {}
     threads = max((s.threads for s in specs), default=1)
-    jobs = [(s.name, {"spec_dict": _spec_dict(s), "root": str(root)}) for s in specs]
+    paths = [{"log": s.log, "reference": s.reference, "relations": s.relations} for s in specs]
+    jobs = [(s.name, {"spec_dict": _spec_dict(s), "folder": str(s.folder(root)), **p}) for s, p in zip(specs, paths)]
     return run_jobs(
         jobs,
         _run_spec,
@@ -181,4 +195,6 @@ def run_sweep(
         # Each SLAM run reports its own peak RSS.
         fresh_process=True,
         desc="runs",
+        executor=executor,
+        layout=SLAM_RUN_LAYOUT,
     )

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from crlam.eval.trajectory import ReferenceErrors, aggregate_runs, reference_errors
+from crlam.experiments.executor import Executor
 from crlam.experiments.sweep import RunSpec, run_sweep
 from crlam.io.belief import load_belief
 from crlam.io.tum import read_tum
@@ -70,6 +71,7 @@ def run_table1(
     base: SlamConfig | None = None,
     progress: bool = True,
     report_only: bool = False,
+    executor: Executor | None = None,
 ) -> dict[str, Any]:
     """Runs (or resumes) the protocol and writes the table and figures; returns the results.
 
@@ -77,7 +79,10 @@ def run_table1(
     one the runs use the ``paper`` preset at the protocol's 8 m.
 
     ``report_only`` runs nothing: the table and figures cover the runs finished so far.
-    ``threads``: rayon threads of each run (the results do not depend on it; the wall times do)."""
+    ``threads``: rayon threads of each run (the results do not depend on it; the wall times do).
+    ``executor``: where the runs go (default: ``workers`` local processes; the results do not
+    depend on it). Run 0's ``fig2_trajectories.png`` needs its map, which a Dask executor sends
+    back only with ``keep_maps``."""
     out.mkdir(parents=True, exist_ok=True)
     sim_dir = out / "simulation"
     ensure_simulation(sim_dir, scans, sim_seed, world_seed)
@@ -92,7 +97,7 @@ def run_table1(
                     f"{m}_run{k:02d}", str(sim_dir / "log.clf"), cfg, reference=str(sim_dir / "groundtruth.tum"), threads=threads
                 )
             )
-    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
+    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor)
     rows: dict[str, dict[str, Any]] = {}
     for m in methods:
         finished = [done[s.name] | {"name": s.name} for s in specs if s.config.method == m and s.name in done]

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,78 +69,52 @@ def _pgm_error(path: str | os.PathLike[str], message: str, field: str) -> DataFo
     return DataFormatError(message, path=str(path), field=field)
 
 
-def _read_pgm(path: str | os.PathLike[str]) -> tuple[NDArray[np.uint16] | NDArray[np.uint8], int]:
-    data = Path(path).read_bytes()
-    if data[:2] not in (b"P5", b"P2"):
-        raise _pgm_error(path, f"not a PGM file (magic {data[:2]!r}, want P5 or P2)", "magic")
-    pos = 2
-    header: list[int] = []
-    while len(header) < 3:
-        while pos < len(data) and data[pos : pos + 1].isspace():
-            pos += 1
-        if pos < len(data) and data[pos : pos + 1] == b"#":
-            end = data.find(b"\n", pos)
-            pos = len(data) if end < 0 else end + 1
-            continue
-        start = pos
-        while pos < len(data) and not data[pos : pos + 1].isspace() and data[pos] != ord("#"):
-            pos += 1
-        name = ("width", "height", "maxval")[len(header)]
-        token = data[start:pos]
-        if not token.isdigit():
-            raise _pgm_error(path, f"bad header value {token[:16]!r}", name)
-        header.append(int(token))
-    width, height, maxval = header
-    if width <= 0 or height <= 0:
-        raise _pgm_error(path, f"image size {width} x {height} is empty", "width")
-    if not 0 < maxval < 65536:
-        raise _pgm_error(path, f"maxval {maxval} outside 1..65535", "maxval")
-    dtype = np.dtype(np.uint8) if maxval < 256 else np.dtype(">u2")
-    count = width * height
-    if data[:2] == b"P5":
-        # Exactly one whitespace byte separates maxval from the raster.
-        raster = data[pos + 1 : pos + 1 + count * dtype.itemsize]
-        if len(raster) < count * dtype.itemsize:
-            raise _pgm_error(path, f"raster truncated: {len(raster)} of {count * dtype.itemsize} bytes", "raster")
-        values = np.frombuffer(raster, dtype=dtype).astype(dtype.newbyteorder("="))
-    else:
-        text = re.sub(rb"#[^\n]*", b" ", data[pos:]).split()
-        if len(text) < count:
-            raise _pgm_error(path, f"raster truncated: {len(text)} of {count} values", "raster")
-        try:
-            ints = np.array([int(t) for t in text[:count]], dtype=np.int64)
-        except ValueError:
-            raise _pgm_error(path, "non-integer pixel value", "raster") from None
-        if ints.min() < 0 or ints.max() > maxval:
-            raise _pgm_error(path, f"pixel values must lie in 0..{maxval}", "raster")
-        values = ints.astype(np.uint8 if maxval < 256 else np.uint16)
-    if int(values.max()) > maxval:
-        raise _pgm_error(path, f"pixel value {int(values.max())} above maxval {maxval}", "raster")
-    return values.reshape(height, width), maxval
-
-
 def read_pgm(path: str | os.PathLike[str]) -> NDArray[np.uint8] | NDArray[np.uint16]:
-    """Read a binary (P5) or ASCII (P2) PGM image, comments allowed.
+    """Read a binary (P5) or ASCII (P2) PGM image with Pillow, comments allowed.
 
     Returns
     -------
     ndarray, shape (height, width)
-        Pixel values as stored, row 0 = top of the image: ``uint8`` when maxval <= 255,
-        ``uint16`` otherwise (native byte order).
+        Pixel values, row 0 = top of the image, scaled to the full range of the type as Pillow
+        does: ``uint8`` (0..255) when maxval <= 255, ``uint16`` (0..65535) otherwise. A file with
+        maxval 15 holding 15 reads as 255.
+
+    Raises
+    ------
+    DataFormatError
+        Naming the file and the field: ``magic`` (not a PGM), ``header`` (bad size or maxval)
+        or ``raster`` (truncated or out-of-range pixel data).
     """
-    return _read_pgm(path)[0]
+    from PIL import Image, UnidentifiedImageError
+
+    with open(path, "rb") as fh:
+        magic = fh.read(2)
+    if magic not in (b"P5", b"P2"):
+        raise _pgm_error(path, f"not a PGM file (magic {magic!r}, want P5 or P2)", "magic")
+    try:
+        img = Image.open(path)
+    except (UnidentifiedImageError, ValueError, SyntaxError, OSError) as exc:
+        raise _pgm_error(path, f"bad PGM header ({exc})", "header") from exc
+    with img:
+        try:
+            img.load()
+        except (ValueError, OSError) as exc:
+            raise _pgm_error(path, f"bad PGM raster ({exc})", "raster") from exc
+        if img.mode == "L":
+            return np.asarray(img, dtype=np.uint8).copy()
+        return np.asarray(img, dtype=np.int64).astype(np.uint16)
 
 
-def write_pgm(path: str | os.PathLike[str], image: ArrayLike, *, comment: str | None = None) -> None:
-    """Write a binary (P5) PGM, row 0 = top of the image.
+def write_pgm(path: str | os.PathLike[str], image: ArrayLike) -> None:
+    """Write a binary (P5) PGM with Pillow, row 0 = top of the image.
 
     Parameters
     ----------
     image : array_like, shape (height, width), integer
         ``uint8`` (maxval 255) or wider integers up to 65535 (maxval 65535, 16-bit big endian).
-    comment : str, optional
-        One comment line written in the header.
     """
+    from PIL import Image
+
     a = np.asarray(image)
     if a.ndim != 2 or a.size == 0:
         raise DataFormatError(f"image must be a non-empty 2-D array, got shape {a.shape}", path=str(path), field="image")
@@ -150,10 +123,8 @@ def write_pgm(path: str | os.PathLike[str], image: ArrayLike, *, comment: str | 
     if int(a.min()) < 0 or int(a.max()) > 65535:
         raise DataFormatError("pixel values must lie in 0..65535", path=str(path), field="image")
     wide = a.dtype == np.uint16 or (a.dtype.itemsize > 1 and int(a.max()) > 255)
-    maxval = 65535 if wide else 255
-    raster = a.astype(">u2" if wide else np.uint8).tobytes()
-    head = "P5\n" + ("" if comment is None else f"# {comment}\n") + f"{a.shape[1]} {a.shape[0]}\n{maxval}\n"
-    Path(path).write_bytes(head.encode("ascii") + raster)
+    img = Image.fromarray(np.ascontiguousarray(a, dtype=np.uint16 if wide else np.uint8))
+    img.save(path, format="PPM")
 
 
 def _image_planes(path: Path) -> tuple[FloatArray, FloatArray | None]:
@@ -161,8 +132,8 @@ def _image_planes(path: Path) -> tuple[FloatArray, FloatArray | None]:
     with open(path, "rb") as fh:
         magic = fh.read(2)
     if magic in (b"P5", b"P2"):
-        values, maxval = _read_pgm(path)
-        return values.astype(np.float64) / maxval, None
+        values = read_pgm(path)
+        return values.astype(np.float64) / (255.0 if values.dtype == np.uint8 else 65535.0), None
     from PIL import Image, UnidentifiedImageError
 
     try:
@@ -226,14 +197,6 @@ def _class_pixels(occupied_thresh: float, free_thresh: float, negate: int) -> di
     return out
 
 
-def _yaml_float(v: float) -> str:
-    text = repr(float(v))
-    # PyYAML (YAML 1.1) reads "1e-05" as a string; "1.0e-05" is a float for every parser.
-    if "e" in text and "." not in text:
-        text = text.replace("e", ".0e")
-    return text
-
-
 def write_nav2_map(
     pgm_path: str | os.PathLike[str],
     occupancy: ArrayLike,
@@ -293,16 +256,17 @@ def write_nav2_map(
         image[classes == cls] = px
     write_pgm(pgm, image[::-1])
     yaml_path = pgm.with_suffix(".yaml")
-    yaml_path.write_text(
-        f"image: {pgm.name}\n"
-        "mode: trinary\n"
-        f"resolution: {_yaml_float(resolution)}\n"
-        f"origin: [{', '.join(_yaml_float(v) for v in org.tolist())}]\n"
-        f"negate: {negate}\n"
-        f"occupied_thresh: {_yaml_float(occupied_thresh)}\n"
-        f"free_thresh: {_yaml_float(free_thresh)}\n",
-        encoding="utf-8",
-    )
+    doc = {
+        "image": pgm.name,
+        "mode": "trinary",
+        "resolution": float(resolution),
+        "origin": [float(v) for v in org.tolist()],
+        "negate": negate,
+        "occupied_thresh": float(occupied_thresh),
+        "free_thresh": float(free_thresh),
+    }
+    # PyYAML writes a float without a dot as "1.0e-05", which every YAML parser reads as a float.
+    yaml_path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None), encoding="utf-8")
     return yaml_path
 
 
