@@ -77,7 +77,7 @@ fn main() {
             println!("ucrmi {best:.1} us/pose (one thread, best of 7)")
         }
         "lnrate" => {
-            use crlam_core::info::fastmath::ln_clamped_slice;
+            use crlam_core::numeric::fastmath::ln_clamped_slice;
             let xs: Vec<f64> = (0..20_000)
                 .map(|i| 0.01 + (i as f64 * 0.618).fract() * 10.0)
                 .collect();

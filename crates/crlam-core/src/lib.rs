@@ -12,6 +12,7 @@ pub mod error;
 pub mod grid;
 pub mod info;
 pub mod motion;
+pub mod numeric;
 pub mod ogm;
 pub mod planner;
 pub mod pose;

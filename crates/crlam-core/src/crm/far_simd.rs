@@ -26,7 +26,7 @@
 #[cfg(target_arch = "x86_64")]
 use crate::crm::windowed::TAIL_EPS;
 #[cfg(target_arch = "x86_64")]
-use crate::info::fastmath::exp_for_sums_avx512;
+use crate::numeric::fastmath::exp_for_sums_avx512;
 use crate::raycast::FastWalk;
 use crate::simd::SimdLevel;
 #[cfg(target_arch = "x86_64")]

@@ -16,7 +16,7 @@ use super::far_simd::SET;
 #[cfg(target_arch = "x86_64")]
 use super::far_simd::{Crossing, WalkLanes};
 #[cfg(target_arch = "x86_64")]
-use crate::info::fastmath::exp_table_avx512;
+use crate::numeric::fastmath::exp_table_avx512;
 use crate::raycast::FastWalk;
 use crate::sensor::SensorModel;
 #[cfg(target_arch = "x86_64")]

@@ -93,7 +93,7 @@ pub(crate) struct WindowScratch {
 impl WindowScratch {
     /// Σ π / (1 − e^{−λd}) over the buffered tail, in walk order (consumes the exponents).
     fn tail_short(&mut self) -> f64 {
-        crate::info::fastmath::exp_for_sums(&mut self.tail_x);
+        crate::numeric::fastmath::exp_for_sums(&mut self.tail_x);
         self.tail_pi
             .iter()
             .zip(&self.tail_x)

@@ -23,9 +23,9 @@ pub use crate::info::crmi_channel::{
     beam_crmi, beam_posteriors, channel_masses, BeamChannel, BeamPosteriors,
 };
 use crate::info::crmi_kl::KlBatch;
-use crate::info::fastmath::ln_clamped_slice;
 use crate::info::lattice::BeamAngles;
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
+use crate::numeric::fastmath::ln_clamped_slice;
 use crate::raycast::traverse_with;
 use crate::sensor::{SensorModel, SensorModelKind};
 

@@ -14,8 +14,6 @@ pub mod crmi_authors;
 pub mod crmi_channel;
 mod crmi_kl;
 pub mod entropy;
-pub mod fastlog;
-pub mod fastmath;
 pub mod fsmi;
 pub mod gp;
 pub mod gp_kernel;
