@@ -36,7 +36,7 @@
 //! [`BatchKernel::FullRay`]: super::beam::BatchKernel::FullRay
 
 use crate::crm::beam::{BeamPlan, ScanStats};
-use crate::crm::map::BeamJob;
+use crate::crm::beam_job::BeamJob;
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::update::LINEAR_ETA_MIN;
 use crate::grid::{GridGeometry, TiledGrid};
@@ -182,9 +182,9 @@ impl<'a> WindowedScan<'a> {
         })
     }
 
-    /// The weight model and hit reach, for the window lanes ([`super::window_simd`]).
-    pub(crate) fn window_model(&self) -> Option<super::window_simd::WindowModel> {
-        self.weight.map(|w| super::window_simd::WindowModel {
+    /// The weight model and hit reach, for the window lanes ([`super::window_simd`], [`super::lane_io::WindowModel`]).
+    pub(crate) fn window_model(&self) -> Option<super::lane_io::WindowModel> {
+        self.weight.map(|w| super::lane_io::WindowModel {
             model: *w,
             hit_reach: self.weight_hit_reach,
         })
