@@ -4,7 +4,7 @@
 
 use crate::crm::update::{cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::error::Result;
-use crate::info::crmi::{CrmiConfig, CrmiQuadrature, SUPPORT_SIGMAS};
+use crate::info::crmi_config::{CrmiConfig, CrmiQuadrature, SUPPORT_SIGMAS};
 use crate::numeric::fastmath::{lower_tail_abs_slice, tail_difference};
 use crate::sensor::{normal_cdf, SensorModelKind};
 
