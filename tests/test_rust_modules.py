@@ -237,7 +237,9 @@ def graph() -> dict[Module, set[Module]]:
 
 def test_the_module_graph_of_the_core_has_no_import_loops(graph: dict[Module, set[Module]]) -> None:
     loops = [
-        " <-> ".join(_name(m) for m in comp) + ": " + "; ".join(f"{_name(a)} -> {_name(b)}" for a in comp for b in sorted(graph[a]) if b in comp)
+        " <-> ".join(_name(m) for m in comp)
+        + ": "
+        + "; ".join(f"{_name(a)} -> {_name(b)}" for a in comp for b in sorted(graph[a]) if b in comp)
         for comp in _cycles(graph)
     ]
     assert not loops, "import loops:\n" + "\n".join(loops)

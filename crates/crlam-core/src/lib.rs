@@ -6,7 +6,6 @@
 // Index loops over parallel per-level arrays read more clearly than zipped iterators here.
 #![allow(clippy::needless_range_loop)]
 
-pub mod bench;
 pub mod crm;
 pub mod error;
 pub mod grid;

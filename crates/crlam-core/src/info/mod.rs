@@ -17,7 +17,6 @@
 //! 3. CRMI: `crmi_config` (settings), [`crmi_channel`] (one beam's channel), [`crmi`] (the
 //!    pose evaluation), then [`crmi_authors`] and [`ucrmi`].
 
-pub mod bench;
 pub mod crmi;
 pub mod crmi_authors;
 pub mod crmi_channel;
