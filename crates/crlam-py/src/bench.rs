@@ -1,4 +1,4 @@
-//! `run_benchmark`: the core's named micro-benchmarks, for `crlam bench`.
+//! `run_benchmark`: the named micro-benchmarks of crlam-bench, for `crlam bench`.
 
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -13,9 +13,9 @@ pub fn run_benchmark<'py>(
     name: &str,
     size: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use crlam_core::bench;
+    use crlam_bench::slam as bench;
     if let Some((us, details)) = py
-        .allow_threads(|| crlam_core::info::bench::info_figure(name, size))
+        .allow_threads(|| crlam_bench::info::info_figure(name, size))
         .py_err()?
     {
         let d = PyDict::new(py);

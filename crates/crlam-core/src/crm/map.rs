@@ -1,10 +1,10 @@
 //! The confidence-rich map: tiled f32 pmfs per cell, their means and derived layers (the scan
 //! updates and likelihoods are in `scan.rs`).
 
-use crate::crm::beam::BeamPlan;
+use crate::crm::beam_job::BeamJob;
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
 use crate::crm::mean_cache::{MeanCache, TileMeans};
-use crate::crm::reading_table::{ReadingConstants, ReadingTable};
+use crate::crm::reading_table::ReadingTable;
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::windowed::WindowScratch;
 use crate::error::{config_err, CrlamError, Result};
@@ -61,16 +61,6 @@ pub struct CrmScratch {
     pub(super) jobs: Vec<BeamJob>,
     /// Pose-independent constants of the last weighed scan's readings.
     pub(super) readings: ReadingTable,
-}
-
-/// A beam of a batch scan: its weight and map plans (either may be absent) and its direction.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct BeamJob {
-    pub(crate) w_plan: Option<BeamPlan>,
-    pub(crate) m_plan: Option<BeamPlan>,
-    pub(crate) dir: [f64; 2],
-    /// The weighed reading's constants, when the scan's table has them.
-    pub(crate) consts: Option<ReadingConstants>,
 }
 
 /// The (cos, sin) of a scan's beam angles, kept while the angles stay the same (a filter's

@@ -17,7 +17,8 @@
 
 use std::cell::Cell;
 
-use super::scanmatch::{FreeTest, PreparedScan};
+use super::prepared_scan::PreparedScan;
+use super::scanmatch_params::FreeTest;
 use crate::crm::CrmMap;
 use crate::grid::{CellRect, GridGeometry, TiledGrid};
 use crate::ogm::{hit_mean_of, LogOddsGrid};

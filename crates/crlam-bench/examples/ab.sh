@@ -2,9 +2,9 @@
 # Interleaved A/B timing of two builds of the `info_timing` example (this VM's speed drifts by up
 # to 30 % within minutes, so only alternating runs of both binaries give a stable ratio).
 #
-#   cargo build --release -p crlam-core --example info_timing && cp target/release/examples/info_timing /tmp/it_a
+#   cargo build --release -p crlam-bench --example info_timing && cp target/release/examples/info_timing /tmp/it_a
 #   (change the code, rebuild, copy to /tmp/it_b)
-#   crates/crlam-core/examples/ab.sh /tmp/it_a /tmp/it_b crmi 7
+#   crates/crlam-bench/examples/ab.sh /tmp/it_a /tmp/it_b crmi 7
 #
 # Prints the median of each side and the median of the per-pair ratios B/A (< 1: B is faster).
 # Works with any binary whose output starts with one decimal figure, e.g. the `filter_timing`

@@ -2,11 +2,11 @@
 
 use std::time::Instant;
 
-use crate::crm::{BatchKernel, CrmConfig, CrmMap, CrmScratch, ScanOptions};
-use crate::error::Result;
-use crate::grid::GridGeometry;
-use crate::raycast::traverse_with;
-use crate::sensor::{SensorModel, SensorModelKind};
+use crlam_core::crm::{BatchKernel, CrmConfig, CrmMap, CrmScratch, ScanOptions};
+use crlam_core::error::Result;
+use crlam_core::grid::GridGeometry;
+use crlam_core::raycast::traverse_with;
+use crlam_core::sensor::{SensorModel, SensorModelKind};
 
 /// One measured figure.
 #[derive(Clone, Debug, PartialEq)]
@@ -150,7 +150,7 @@ pub fn raycast_cells(n_rays: usize) -> Result<BenchFigure> {
 
 /// A 20 m x 20 m room with pillars and a loop through it: exact scans for the filter benchmarks.
 struct FilterWorkload {
-    odom: Vec<crate::pose::Pose>,
+    odom: Vec<crlam_core::pose::Pose>,
     angles: Vec<f64>,
     ranges: Vec<Vec<f64>>,
 }
@@ -161,7 +161,7 @@ fn filter_workload(
     fov_deg: f64,
     z_max: f64,
 ) -> Result<FilterWorkload> {
-    use crate::sim::WorldRaster;
+    use crlam_core::sim::WorldRaster;
     let n = 400; // 0.05 m cells
     let mut occ = vec![0u8; n * n];
     for i in 0..n {
@@ -184,7 +184,7 @@ fn filter_workload(
     let angles: Vec<f64> = (0..n_beams)
         .map(|i| -fov / 2.0 + fov * i as f64 / (n_beams - 1) as f64)
         .collect();
-    let odom: Vec<crate::pose::Pose> = (0..n_scans)
+    let odom: Vec<crlam_core::pose::Pose> = (0..n_scans)
         .map(|k| {
             let a = k as f64 * 0.01;
             [
@@ -207,13 +207,13 @@ fn filter_workload(
 /// Seconds to feed scans 1..=n of a workload (after scan 0) to `process`, on one thread.
 fn time_filter<F>(w: &FilterWorkload, n_scans: usize, mut process: F) -> Result<f64>
 where
-    F: FnMut(&crate::rbpf::ScanInput) -> Result<crate::rbpf::FilterStep> + Send,
+    F: FnMut(&crlam_core::rbpf::ScanInput) -> Result<crlam_core::rbpf::FilterStep> + Send,
 {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
-        .map_err(|e| crate::error::config_err("threads", e.to_string()))?;
-    let scan = |k: usize| crate::rbpf::ScanInput {
+        .map_err(|e| crlam_core::error::config_err("threads", e.to_string()))?;
+    let scan = |k: usize| crlam_core::rbpf::ScanInput {
         odom: w.odom[k],
         angles: &w.angles,
         ranges: &w.ranges[k],
@@ -244,9 +244,9 @@ fn time_clam(
     n_scans: usize,
     n_particles: usize,
     n_beams: usize,
-    adjust: impl FnOnce(&mut crate::rbpf::ClamConfig),
+    adjust: impl FnOnce(&mut crlam_core::rbpf::ClamConfig),
 ) -> Result<f64> {
-    use crate::rbpf::{ClamConfig, RbpfClam};
+    use crlam_core::rbpf::{ClamConfig, RbpfClam};
     let fov = if n_beams == 1079 { 270.0 } else { 180.0 };
     let w = filter_workload(n_scans + 1, n_beams, fov, 8.0)?;
     let mut cfg = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2)?), 8.0);
@@ -292,7 +292,7 @@ pub fn rbpf_clam_likelihood_mode_scans(
     n_particles: usize,
     n_beams: usize,
 ) -> Result<BenchFigure> {
-    use crate::rbpf::ClamProposal;
+    use crlam_core::rbpf::ClamProposal;
     let secs = time_clam(n_scans, n_particles, n_beams, |cfg| {
         cfg.proposal = ClamProposal::likelihood_mode()
     })?;
@@ -312,8 +312,8 @@ pub fn rbpf_clam_likelihood_mode_scans(
 /// odometry model with the preset's noise, tempering 40) on the 180-beam filter workload, every
 /// scan processed, one thread: the figure to set beside `rbpf_ogm_gmapping_scans_per_s_180x30`.
 pub fn rbpf_clam_scan_match_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
-    use crate::motion::MotionModel;
-    use crate::rbpf::{ClamConfig, ClamProposal, ScanMatchSettings};
+    use crlam_core::motion::MotionModel;
+    use crlam_core::rbpf::{ClamConfig, ClamProposal, ScanMatchSettings};
     let preset = ClamConfig::paper(CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.1)?), 8.0);
     let secs = time_clam(n_scans, n_particles, 180, |cfg| {
         *cfg = ClamConfig {
@@ -340,7 +340,7 @@ pub fn rbpf_clam_scan_match_scans(n_scans: usize, n_particles: usize) -> Result<
 
 /// RBPF-OGM (GMapping-style) scans per second on one thread, 180 beams over 180°, 0.05 m grid.
 pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
-    use crate::rbpf::{OgmFilterConfig, RbpfOgm};
+    use crlam_core::rbpf::{OgmFilterConfig, RbpfOgm};
     let w = filter_workload(n_scans + 1, 180, 180.0, 8.0)?;
     let mut f = RbpfOgm::new(
         OgmFilterConfig {
@@ -360,10 +360,10 @@ pub fn rbpf_ogm_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure>
 }
 
 /// [`rbpf_ogm_scans`] with GMapping's cells in full (hit rate, not-occupied test, hit means:
-/// [`crate::rbpf::OgmFilterConfig::with_gmapping_map`]), its odometry model drawn per scan.
+/// [`crlam_core::rbpf::OgmFilterConfig::with_gmapping_map`]), its odometry model drawn per scan.
 pub fn rbpf_ogm_gmapping_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
-    use crate::motion::MotionModel;
-    use crate::rbpf::{MotionDraws, OgmFilterConfig, RbpfOgm};
+    use crlam_core::motion::MotionModel;
+    use crlam_core::rbpf::{MotionDraws, OgmFilterConfig, RbpfOgm};
     let w = filter_workload(n_scans + 1, 180, 180.0, 8.0)?;
     let cfg = OgmFilterConfig {
         n_particles,
@@ -386,7 +386,7 @@ pub fn rbpf_ogm_gmapping_scans(n_scans: usize, n_particles: usize) -> Result<Ben
 /// RBPF-OGM in the Table I setting: 100 particles, 1079 beams over 270°, 8 m, 0.2 m grid, one
 /// thread (the same workload as [`rbpf_clam_scans`] with 1079 beams).
 pub fn rbpf_ogm_scans_table1(n_scans: usize) -> Result<BenchFigure> {
-    use crate::rbpf::{OgmFilterConfig, RbpfOgm};
+    use crlam_core::rbpf::{OgmFilterConfig, RbpfOgm};
     let w = filter_workload(n_scans + 1, 1079, 270.0, 8.0)?;
     let defaults = OgmFilterConfig::default();
     let mut f = RbpfOgm::new(

@@ -1,12 +1,12 @@
 //! Fast, accurate scalar kernels for the CRMI inner loops: Φ by quintic Hermite interpolation
 //! of a table (absolute error < 1e-13) and exponentials; the logarithms live in
-//! [`crate::info::fastlog`] (re-exported here).
+//! [`crate::numeric::fastlog`] (re-exported here).
 
-pub use crate::info::fastlog::{ln_1p_slice, ln_clamped_slice, ln_normal};
+pub use crate::numeric::fastlog::{ln_1p_slice, ln_clamped_slice, ln_normal};
 
 use std::sync::OnceLock;
 
-use crate::sensor::normal_cdf;
+use crate::numeric::normal_cdf;
 use crate::simd::SimdLevel;
 
 /// `$vis fn $name(args)`: `$body(args)` compiled for AVX2 (as `$avx`) where

@@ -3,18 +3,18 @@
 
 use std::time::Instant;
 
-use crate::error::{CrlamError, Result};
-use crate::grid::GridGeometry;
-use crate::info::crmi::{Crmi, CrmiConfig, CrmiScratch};
-use crate::info::fsmi::{Fsmi, FsmiVariant, DEFAULT_TRUNCATION_SIGMAS};
-use crate::info::gp::{GpVarianceMap, Gpvr, GpvrOptions, Ugpvr};
-use crate::info::iig_mi::IigMi;
-use crate::info::lattice::{traverse_lattice, BeamAngles, OccupancyLattice};
-use crate::info::prior::crm_from_lattice;
-use crate::info::ucrmi::{Ucrmi, UcrmiConfig};
-use crate::info::{Candidate, InformationFunction};
-use crate::rng::Rng;
-use crate::sensor::{SensorModel, SensorModelKind};
+use crlam_core::error::{CrlamError, Result};
+use crlam_core::grid::GridGeometry;
+use crlam_core::info::crmi::{Crmi, CrmiConfig, CrmiScratch};
+use crlam_core::info::fsmi::{Fsmi, FsmiVariant, DEFAULT_TRUNCATION_SIGMAS};
+use crlam_core::info::gp::{GpVarianceMap, Gpvr, GpvrOptions, Ugpvr};
+use crlam_core::info::iig_mi::IigMi;
+use crlam_core::info::lattice::{traverse_lattice, BeamAngles, OccupancyLattice};
+use crlam_core::info::prior::crm_from_lattice;
+use crlam_core::info::ucrmi::{Ucrmi, UcrmiConfig};
+use crlam_core::info::{Candidate, InformationFunction};
+use crlam_core::rng::Rng;
+use crlam_core::sensor::{SensorModel, SensorModelKind};
 
 /// Microseconds per candidate pose of CRMI with the given configuration.
 pub fn crmi_us_per_pose(cfg: CrmiConfig, n_poses: usize) -> Result<f64> {
@@ -80,7 +80,7 @@ pub fn bench_lattice(seed: u64) -> Result<OccupancyLattice> {
         }
     }
     OccupancyLattice::new(
-        crate::grid::GridGeometry::new([-1.1, -1.1], 0.2)?,
+        crlam_core::grid::GridGeometry::new([-1.1, -1.1], 0.2)?,
         n,
         n,
         prob,
@@ -288,7 +288,7 @@ pub fn bench_us_per_pose_gpvr(f: &Gpvr, n_poses: usize) -> Result<GpBench> {
 
 /// µs per UGPVR evaluation (including the 1 m edge propagation) from a depth-3 covariance.
 pub fn bench_us_per_pose_ugpvr(f: &Ugpvr, n_poses: usize) -> Result<GpBench> {
-    let mut s = crate::info::posecov::root_covariance();
+    let mut s = crlam_core::info::posecov::root_covariance();
     for k in 0..3 {
         let c = Candidate {
             pose: [k as f64 + 1.0, 0.5 * k as f64, 0.0],
@@ -334,7 +334,7 @@ pub fn info_figure(name: &str, size: usize) -> Result<Option<InfoFigure>> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(1)
         .build()
-        .map_err(|e| crate::error::config_err("threads", e.to_string()))?;
+        .map_err(|e| crlam_core::error::config_err("threads", e.to_string()))?;
     pool.install(|| info_figure_on_this_pool(name, size))
 }
 

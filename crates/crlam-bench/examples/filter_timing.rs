@@ -1,6 +1,6 @@
 //! Timing of the particle filters outside `crlam bench`, for profiling and A/B comparisons
-//! (`cargo run --release -p crlam-core --example filter_timing -- clam|clam180|clam_lm|ogm|ogm_gmapping|ogm1079 [scans]`).
-use crlam_core::bench::{
+//! (`cargo run --release -p crlam-bench --example filter_timing -- clam|clam180|clam_lm|ogm|ogm_gmapping|ogm1079 [scans]`).
+use crlam_bench::slam::{
     rbpf_clam_likelihood_mode_scans, rbpf_clam_scans, rbpf_ogm_gmapping_scans, rbpf_ogm_scans,
     rbpf_ogm_scans_table1,
 };

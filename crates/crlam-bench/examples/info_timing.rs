@@ -1,12 +1,12 @@
 //! Timing of the information functions outside `crlam bench`, for profiling
-//! (`cargo run --release -p crlam-core --example info_timing -- crmi|mixture|ucrmi|likelihood|window|traverse|fsmi|tfsmi|julian`).
-use crlam_core::info::bench::{crmi_us_per_pose, info_figure};
+//! (`cargo run --release -p crlam-bench --example info_timing -- crmi|mixture|ucrmi|likelihood|window|traverse|fsmi|tfsmi|julian`).
+use crlam_bench::info::{crmi_us_per_pose, info_figure};
 use crlam_core::info::crmi::CrmiConfig;
 use crlam_core::sensor::{SensorModel, SensorModelKind};
 
 /// µs per UCRMI-style batch: 100 root particles, one 10-beam virtual scan, one thread.
 fn shared_likelihood_us(n_batches: usize, window_only: bool) -> f64 {
-    use crlam_core::info::bench::{room_poses, synthetic_cave_lattice};
+    use crlam_bench::info::{room_poses, synthetic_cave_lattice};
     use crlam_core::info::crmi::virtual_scan;
     use crlam_core::info::prior::crm_from_lattice;
     use crlam_core::info::shared_likelihood::SharedMapLikelihood;
@@ -77,7 +77,7 @@ fn main() {
             println!("ucrmi {best:.1} us/pose (one thread, best of 7)")
         }
         "lnrate" => {
-            use crlam_core::info::fastmath::ln_clamped_slice;
+            use crlam_core::numeric::fastmath::ln_clamped_slice;
             let xs: Vec<f64> = (0..20_000)
                 .map(|i| 0.01 + (i as f64 * 0.618).fract() * 10.0)
                 .collect();
@@ -131,7 +131,7 @@ fn main() {
             println!("particle likelihoods {best:.1} us per 100 particles x 10 beams (best of 7)")
         }
         "fsmi" | "tfsmi" | "julian" => {
-            use crlam_core::info::bench::bench_lattice;
+            use crlam_bench::info::bench_lattice;
             use crlam_core::info::fsmi::{Fsmi, FsmiVariant, DEFAULT_TRUNCATION_SIGMAS};
             let variant = match which.as_str() {
                 "fsmi" => FsmiVariant::Full,
