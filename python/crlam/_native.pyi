@@ -26,6 +26,7 @@ __all__ = [
     "cast_ranges",
     "crm_update_ray",
     "run_benchmark",
+    "set_limits",
     "simd_info",
     "simd_level",
     "traverse_ray",
@@ -338,6 +339,7 @@ def crm_update_ray(
 def run_benchmark(name: str, size: int) -> dict[str, Any]: ...
 def simd_level() -> str: ...
 def simd_info() -> dict[str, Any]: ...
+def set_limits(*, map_cells: int | None = None, particles: int | None = None) -> tuple[int, int]: ...
 
 @final
 class OccupancyLattice:

@@ -32,9 +32,12 @@ from crlam.cli_options import (
     add_bag_options,
     add_estimate_options,
     add_likelihood_mode_options,
+    add_limit_options_everywhere,
     add_map_options,
     add_preset_option,
+    apply_limit_options,
     bag_options,
+    finite_float,
     nonnegative_float,
     nonnegative_int,
     positive_float,
@@ -529,7 +532,7 @@ def build_parser() -> argparse.ArgumentParser:
     ig.add_argument("--mode", choices=("reference", "clean"), default="reference", help="planner and function quirks")
     ig.add_argument("--ogmi", choices=("fsmi", "iig_mi", "julian"), default="fsmi", help="what OGMI means (default: exact FSMI)")
     ig.add_argument("--particles", type=positive_int, default=100, help="UCRMI particles per node (default: 100)")
-    ig.add_argument("--start", type=float, nargs=2, default=(10.0, 2.0), metavar=("X", "Y"), help="start (default: 10 2)")
+    ig.add_argument("--start", type=finite_float, nargs=2, default=(10.0, 2.0), metavar=("X", "Y"), help="start (default: 10 2)")
     ig.add_argument("--max-seconds", type=positive_float, default=600.0, help="wall-clock guard per run (default: 600)")
     ig.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ig.add_argument("--quiet", action="store_true", help="no progress output")
@@ -591,6 +594,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=positive_int, default=3, help="best of N (default: 3)")
     p.add_argument("--verbose", action="store_true", help="print the full result, not just the figures")
     p.set_defaults(func=cmd_bench)
+    add_limit_options_everywhere(parser)
     return parser
 
 
@@ -598,6 +602,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        apply_limit_options(args)
         status = int(args.func(args))
         sys.stdout.flush()
         return status

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from crlam.cli_options import positive_float, positive_int
+from crlam.cli_options import finite_float, positive_float, positive_int
 
 __all__ = ["add_explore_parser", "cmd_explore"]
 
@@ -64,12 +64,12 @@ def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--world-seed", type=int, default=0, help="seed of a procedural world (default: 0)")
     p.add_argument("--world-resolution", type=positive_float, default=None, help="m per pixel of a bare image")
     p.add_argument("--function", choices=("crmi", "ucrmi", "fsmi", "frontier"), default="crmi")
-    p.add_argument("--alpha", type=float, default=0.5, help="UCRMI weight of the map term (default: 0.5)")
+    p.add_argument("--alpha", type=finite_float, default=0.5, help="UCRMI weight of the map term (default: 0.5)")
     p.add_argument("--budget", type=positive_float, default=150.0, help="travel budget in metres (default: 150)")
-    p.add_argument("--threshold", type=float, default=0.1, help="stop when the best gain is below this (default: 0.1)")
+    p.add_argument("--threshold", type=finite_float, default=0.1, help="stop when the best gain is below this (default: 0.1)")
     p.add_argument("--candidates", type=positive_int, default=200, help="candidates per decision (default: 200)")
     p.add_argument("--radius", type=positive_float, default=5.0, help="candidate radius in metres (default: 5)")
-    p.add_argument("--cost-weight", type=float, default=0.0, help="score = gain / cost^w (default 0: pure gain)")
+    p.add_argument("--cost-weight", type=finite_float, default=0.0, help="score = gain / cost^w (default 0: pure gain)")
     p.add_argument("--max-range", type=positive_float, default=5.0, help="sensor range in metres (default: 5)")
     p.add_argument("--particles", type=positive_int, default=30, help="UCRMI particles (default: 30)")
     p.add_argument(
@@ -79,7 +79,7 @@ def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
         "its estimate; UCRMI sees its particle set) instead of knowing it",
     )
     p.add_argument("--slam-particles", type=positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
-    p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"), help="start position (default: a free corner)")
+    p.add_argument("--start", type=finite_float, nargs=2, metavar=("X", "Y"), help="start position (default: a free corner)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and candidate sampling")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--no-gif", action="store_true", help="skip the animation")

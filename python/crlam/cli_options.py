@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -32,6 +33,7 @@ __all__ = [
     "add_preset_option",
     "bag_options",
     "slam_overrides",
+    "finite_float",
     "nonnegative_float",
     "nonnegative_int",
     "positive_float",
@@ -54,6 +56,13 @@ def positive_float(text: str) -> float:
     v = _parse(text, float, "a number")
     if not (v > 0 and v != float("inf")):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
+
+
+def finite_float(text: str) -> float:
+    v = _parse(text, float, "a number")
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
     return v
 
 
@@ -277,3 +286,60 @@ def bag_options(args: argparse.Namespace) -> dict[str, Any]:
     if getattr(args, "upside_down", False):
         out["upside_down"] = True
     return out
+
+
+def _limit_value(text: str) -> int:
+    from crlam.errors import ConfigError
+    from crlam.limits import parse_limit
+
+    try:
+        return parse_limit(text)
+    except ConfigError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def add_limit_options(parser: argparse.ArgumentParser) -> None:
+    """The resource-limit flags (:mod:`crlam.limits`), given to every subcommand that does work."""
+    from crlam.limits import DEFAULTS, env_name
+
+    g = parser.add_argument_group(
+        "resource limits",
+        "inputs that would need more than these are refused with an error before the memory is taken; "
+        "the environment variables CRLAM_MAX_* set them too (values like 1e8 are accepted)",
+    )
+    helps = {
+        "map_cells": "cells of a map or of a dense copy of it",
+        "particles": "particles of a filter or pose belief",
+        "image_pixels": "pixels of a map image, checked before decoding",
+        "archive_bytes": "uncompressed bytes of a .npz archive (belief.npz, tree.npz), checked before decompressing",
+        "download_bytes": "bytes of a download whose size is not known in advance",
+    }
+    for name, text in helps.items():
+        g.add_argument(
+            "--max-" + name.replace("_", "-"),
+            dest="limit_" + name,
+            type=_limit_value,
+            default=None,
+            metavar="N",
+            help=f"{text} (default: {getattr(DEFAULTS, name):,}; {env_name(name)})",
+        )
+
+
+def add_limit_options_everywhere(parser: argparse.ArgumentParser) -> None:
+    """:func:`add_limit_options` on every leaf subcommand of ``parser``."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        add_limit_options(parser)
+        return
+    for action in subs:
+        for child in dict.fromkeys(action.choices.values()):
+            add_limit_options_everywhere(child)
+
+
+def apply_limit_options(args: argparse.Namespace) -> None:
+    """Puts the limits given on the command line in force (for this process and its workers)."""
+    from crlam.limits import set_limits
+
+    given = {k[len("limit_") :]: v for k, v in vars(args).items() if k.startswith("limit_") and v is not None}
+    if given:
+        set_limits(**given)

@@ -462,12 +462,24 @@ class ConfidenceRichMap:
                 config = MappingConfig(
                     resolution=archive.resolution, n_levels=k, origin=(float(archive.origin[0]), float(archive.origin[1]))
                 )
+        res, (ox, oy) = config.resolution, config.origin
+        # The archive's own fields describe its grid: a configuration (given, or stored in the
+        # metadata) on another grid would silently place the beliefs on cells of another size.
+        if not math.isclose(archive.resolution, res, rel_tol=1e-9, abs_tol=0.0):
+            raise ConfigError(
+                f"the archive's cells are {archive.resolution} m but its configuration (metadata config_json or the "
+                f"config given) says resolution {res} m"
+            )
+        fx, fy = ((archive.origin[0] - ox) / res, (archive.origin[1] - oy) / res)
+        ix0, iy0 = round(fx), round(fy)
+        if abs(fx - ix0) > 1e-6 or abs(fy - iy0) > 1e-6:
+            raise ConfigError(
+                f"the archive's origin {archive.origin.tolist()} is not on the configuration's grid (origin {config.origin}, "
+                f"cells {res} m)"
+            )
         m = cls(config)
         if archive.levels.shape != m.levels.shape or not np.allclose(archive.levels, m.levels):
             raise ConfigError("archive levels do not match the configuration's levels")
-        res, (ox, oy) = config.resolution, config.origin
-        ix0 = round((archive.origin[0] - ox) / res)
-        iy0 = round((archive.origin[1] - oy) / res)
         m.native.set_beliefs(ix0, iy0, np.ascontiguousarray(archive.beliefs, dtype=np.float64))
         return m
 

@@ -11,6 +11,7 @@ pub mod crm;
 pub mod error;
 pub mod grid;
 pub mod info;
+pub mod limits;
 pub mod motion;
 pub mod ogm;
 pub mod planner;

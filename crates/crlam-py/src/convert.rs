@@ -12,6 +12,7 @@ pub fn to_py(err: CrlamError) -> PyErr {
             CrlamError::Config { .. } | CrlamError::Shape(_) => "ConfigError",
             CrlamError::OutOfBounds(_) => "MapBoundsError",
             CrlamError::NonFinite { .. } => "NumericalError",
+            CrlamError::Limit { .. } | CrlamError::Alloc(_) => "ResourceLimitError",
         };
         let msg = err.to_string();
         match py

@@ -340,11 +340,9 @@ filter_pymethods!(ClamFilter {
         seed: u64,
     ) -> PyResult<Self> {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
-        let extent = match extent {
-            None => None,
-            Some((ix0, iy0, nx, ny)) if nx > 0 && ny > 0 => Some(CellRect { ix0, iy0, nx, ny }),
-            Some(t) => return Err(shape_err(format!("extent needs nx, ny > 0, got {t:?}"))),
-        };
+        let extent = extent
+            .map(|(ix0, iy0, nx, ny)| CellRect::checked(ix0, iy0, nx, ny).py_err())
+            .transpose()?;
         let crm = CrmConfig {
             geometry,
             n_levels,

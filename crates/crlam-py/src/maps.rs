@@ -132,13 +132,8 @@ impl SensorModel {
 }
 
 fn rect_from(t: Option<(i64, i64, i64, i64)>) -> PyResult<Option<CellRect>> {
-    match t {
-        None => Ok(None),
-        Some((ix0, iy0, nx, ny)) if nx > 0 && ny > 0 => Ok(Some(CellRect { ix0, iy0, nx, ny })),
-        Some(t) => Err(shape_err(format!(
-            "a cell rectangle (ix0, iy0, nx, ny) needs nx, ny > 0, got {t:?}"
-        ))),
-    }
+    t.map(|(ix0, iy0, nx, ny)| CellRect::checked(ix0, iy0, nx, ny).py_err())
+        .transpose()
 }
 
 fn rect_tuple(r: CellRect) -> (i64, i64, i64, i64) {
@@ -293,9 +288,9 @@ impl CrmMap {
         self.inner.grid().written_bounds().map(rect_tuple)
     }
 
-    /// Cell index (ix, iy) of a world point.
-    fn cell_of(&self, x: f64, y: f64) -> (i64, i64) {
-        self.inner.geometry().cell_of(x, y)
+    /// Cell index (ix, iy) of a world point (finite, within 1e7 m of the origin).
+    fn cell_of(&self, x: f64, y: f64) -> PyResult<(i64, i64)> {
+        self.inner.geometry().checked_cell_of(x, y).py_err()
     }
 
     /// Expected occupancy of one cell.
@@ -415,7 +410,7 @@ impl CrmMap {
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
         let r = self.rect_or_bounds(rect)?;
         let k = self.inner.levels().len();
-        let v = self.inner.beliefs(r);
+        let v = self.inner.beliefs(r).py_err()?;
         let a = Array3::from_shape_vec((r.ny.max(0) as usize, r.nx.max(0) as usize, k), v)
             .map_err(|e| shape_err(e.to_string()))?;
         Ok(a.into_pyarray(py))
@@ -439,12 +434,8 @@ impl CrmMap {
         if s[0] == 0 || s[1] == 0 {
             return Ok(());
         }
-        let r = CellRect {
-            ix0,
-            iy0,
-            nx: s[1] as i64,
-            ny: s[0] as i64,
-        };
+        let side = |n: usize| i64::try_from(n).unwrap_or(i64::MAX);
+        let r = CellRect::checked(ix0, iy0, side(s[1]), side(s[0])).py_err()?;
         let v = beliefs
             .as_slice()
             .map_err(|_| shape_err("beliefs must be contiguous"))?;
@@ -463,7 +454,7 @@ impl CrmMap {
         Bound<'py, PyArray2<f64>>,
     )> {
         let r = self.rect_or_bounds(rect)?;
-        let (m, v, h) = py.allow_threads(|| self.inner.derived(r));
+        let (m, v, h) = py.allow_threads(|| self.inner.derived(r)).py_err()?;
         let shape = (r.ny.max(0) as usize, r.nx.max(0) as usize);
         let to =
             |x: Vec<f64>| Array2::from_shape_vec(shape, x).map_err(|e| shape_err(e.to_string()));
@@ -614,7 +605,13 @@ impl LogOddsMap {
         rect: Option<(i64, i64, i64, i64)>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
         let r = rect_from(rect)?.unwrap_or_else(|| self.inner.grid().bounds());
-        let v: Vec<f64> = self.inner.export(r).into_iter().map(f64::from).collect();
+        let v: Vec<f64> = self
+            .inner
+            .export(r)
+            .py_err()?
+            .into_iter()
+            .map(f64::from)
+            .collect();
         let a = Array2::from_shape_vec((r.ny.max(0) as usize, r.nx.max(0) as usize), v)
             .map_err(|e| shape_err(e.to_string()))?;
         Ok(a.into_pyarray(py))

@@ -39,6 +39,12 @@ pub fn traverse_ray<'py>(
             "origin, angle and length must be finite (length <= 1e6 m)",
         ));
     }
+    // A ray crosses at most 2 (length / resolution) + 2 cells.
+    crlam_core::limits::check_map_cells(
+        &format!("a ray of {length} m on {resolution} m cells"),
+        2.0 * length / resolution + 2.0,
+    )
+    .py_err()?;
     let mut cells = Vec::new();
     raycast::traverse(&g, [origin_x, origin_y], angle, length, None, &mut cells);
     let idx: Vec<i64> = cells.iter().flat_map(|c| [c.ix, c.iy]).collect();
@@ -75,7 +81,12 @@ pub fn cast_ranges<'py>(
     let world = WorldRaster::new(g, shape[1], shape[0], occ).py_err()?;
     let poses = poses_n3(&poses)?;
     let a = slice1(&angles, "angles")?;
-    let mut out = vec![0.0; poses.len() * a.len()];
+    let mut out = crlam_core::limits::try_filled(
+        poses.len().saturating_mul(a.len()),
+        0.0,
+        "cast_ranges output",
+    )
+    .py_err()?;
     py.allow_threads(|| world.cast(&poses, a, max_range, &mut out))
         .py_err()?;
     let arr = Array2::from_shape_vec((poses.len(), a.len()), out)

@@ -92,6 +92,10 @@ def run_explore_experiment(
     progress: bool = True,
 ) -> ExploreSweep:
     """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``."""
+    if not functions or not worlds:
+        raise ConfigError("no function or no world given: the sweep would run nothing")
+    if "ucrmi" in functions and not alphas:
+        raise ConfigError("UCRMI needs at least one alpha (--alphas)")
     for f in functions:
         if f not in FUNCTIONS:
             raise ConfigError(f"unknown function {f!r}; expected one of {', '.join(FUNCTIONS)}")

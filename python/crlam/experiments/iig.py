@@ -22,7 +22,7 @@ import numpy as np
 from crlam.errors import ConfigError
 from crlam.experiments.pool import run_jobs, write_atomic
 from crlam.info import InformationFunction, load_map_prior, make_function
-from crlam.planner import IigSettings, IigTree, plan_iig
+from crlam.planner import IigSettings, IigTree, check_start, plan_iig
 
 __all__ = ["FUNCTIONS", "LABELS", "IigExperiment", "function_for", "run_iig_experiment", "run_one"]
 
@@ -98,6 +98,8 @@ def run_iig_experiment(
     progress: bool = True,
 ) -> IigExperiment:
     """Runs (resuming) the comparison and writes ``runs.csv``, the figures and ``report.md``."""
+    if not functions:
+        raise ConfigError("no information function given (e.g. --functions crmi,ucrmi)")
     for name in functions:
         function_for(name, mode=mode, ogmi=ogmi, particles=particles)  # validate before any run
     root = Path(out)
@@ -107,7 +109,8 @@ def run_iig_experiment(
 
         map_path = find_dataset("cave-map")
     map_path = str(Path(map_path).resolve())
-    load_map_prior(map_path)  # a clean error for an unusable map before spawning workers
+    # A clean error for an unusable map or start before spawning workers.
+    check_start(load_map_prior(map_path), (float(start[0]), float(start[1])))
     jobs = [
         (
             f"{name}-s{seed:02d}",

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 from crlam import _native
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.nav2 import read_nav2_map, read_pgm
+from crlam.limits import check_limit
 
 __all__ = ["MapPrior", "lattice_from_obstacles", "load_map_prior", "prior_from_crm_mean"]
 
@@ -83,8 +84,16 @@ def lattice_from_obstacles(
         raise ConfigError(f"resolution must be finite and > 0, got {resolution}")
     if obstacle.ndim != 2 or obstacle.size == 0:
         raise ConfigError(f"the obstacle mask must be a non-empty 2-D array, got shape {obstacle.shape}")
-    m = int(round(margin / resolution))
+    if not (math.isfinite(margin) and margin >= 0):
+        raise ConfigError(f"margin must be finite and >= 0, got {margin}")
     ny, nx = obstacle.shape
+    m_float = round(margin / resolution)
+    check_limit(
+        "map_cells",
+        (ny + 2.0 * m_float) * (nx + 2.0 * m_float),
+        f"a map prior of {nx} x {ny} cells of {resolution} m with a {margin} m margin",
+    )
+    m = int(m_float)
     prob = np.full((ny + 2 * m, nx + 2 * m), p_free)
     inner = prob[m : m + ny, m : m + nx]
     unk = np.zeros_like(obstacle) if unknown is None else unknown

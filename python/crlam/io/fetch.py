@@ -31,6 +31,7 @@ from typing import IO, Any
 
 from crlam.errors import CrlamError
 from crlam.io.datasets import DATASETS, DatasetNotFoundError, data_root
+from crlam.limits import check_limit, limits
 
 __all__ = [
     "REMOTE",
@@ -272,6 +273,12 @@ def _content_length(response: Any) -> int | None:
         return None
 
 
+def _too_large(url: str, n: int, size: int | None) -> None:
+    if size is not None:
+        raise ChecksumError(f"download of {url} sends {n:,} bytes or more, expected {size:,}; discarded")
+    check_limit("download_bytes", n, f"download of {url}")
+
+
 def download(
     url: str,
     dest: str | os.PathLike[str],
@@ -309,7 +316,10 @@ def download(
     DownloadError
         When the URL cannot be read; the message names it.
     ChecksumError
-        When the bytes have the wrong size or SHA-256; nothing is written at ``dest``.
+        When the bytes have the wrong size or SHA-256; nothing is written at ``dest``. A source
+        sending more than ``size`` bytes is stopped as soon as it does.
+    ResourceLimitError
+        When no ``size`` is given and the source sends more than the ``download_bytes`` limit.
     """
     from tqdm import tqdm
 
@@ -319,19 +329,29 @@ def download(
     tmp = Path(tmp_name)
     h = hashlib.sha256()
     n = 0
+    # Never more than the expected size (or, with none, the download_bytes limit) is written:
+    # a server (or a file:// URL such as /dev/zero) sending more is stopped at once.
+    cap = size if size is not None else limits().download_bytes
     try:
         with os.fdopen(fd, "wb") as out:
             try:
                 with (opener or _urlopen)(url, timeout) as response:
-                    total = _content_length(response) or size
+                    announced = _content_length(response)
+                    if announced is not None and announced > cap:
+                        _too_large(url, announced, size)
+                    total = announced or size
                     with tqdm(
                         total=total, unit="B", unit_scale=True, unit_divisor=1024, desc=label or dest.name, disable=not progress
                     ) as bar:
                         for block in iter(lambda: response.read(_CHUNK), b""):
+                            if n + len(block) > cap:
+                                _too_large(url, n + len(block), size)
                             out.write(block)
                             h.update(block)
                             n += len(block)
                             bar.update(len(block))
+            except CrlamError:
+                raise
             except (urllib.error.URLError, http.client.HTTPException, OSError, ValueError) as exc:
                 reason = getattr(exc, "reason", None) or exc
                 raise DownloadError(f"download of {url} failed: {reason}") from exc

@@ -24,7 +24,8 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
 
-from crlam.errors import ConfigError, DataFormatError
+from crlam.errors import ConfigError, DataFormatError, ResourceLimitError
+from crlam.limits import check_limit, limits
 
 __all__ = ["Nav2Map", "read_image", "read_nav2_map", "read_pgm", "write_nav2_map", "write_pgm"]
 
@@ -70,8 +71,53 @@ def _pgm_error(path: str | os.PathLike[str], message: str, field: str) -> DataFo
     return DataFormatError(message, path=str(path), field=field)
 
 
+def read_image_bytes(path: str | os.PathLike[str]) -> bytes:
+    """The bytes of an image file, refusing what is not a regular file (a FIFO, ``/dev/zero``)
+    and files larger than any image within the ``image_pixels`` limit could be (8 bytes a pixel
+    covers 16-bit ASCII PGMs)."""
+    p = Path(path)
+    if not p.is_file():
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: no such image file")
+        raise DataFormatError("not a regular file", path=str(p), field="image")
+    size = p.stat().st_size
+    check_limit("image_pixels", (size - 4096) / 8, f"image file {p} ({size:,} bytes)")
+    return p.read_bytes()
+
+
+def check_image_size(path: str | os.PathLike[str], width: int, height: int) -> None:
+    """Refuses an image of more pixels than the ``image_pixels`` limit, before it is decoded."""
+    check_limit("image_pixels", float(width) * float(height), f"image {path} ({width} x {height} pixels)")
+
+
+def open_pil_image(path: str | os.PathLike[str]):  # type: ignore[no-untyped-def]
+    """A Pillow image, opened (header read, nothing decoded) and checked against the
+    ``image_pixels`` limit; Pillow's own decompression-bomb guard becomes the same error."""
+    from PIL import Image, UnidentifiedImageError
+
+    p = Path(path)
+    if not p.is_file():
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: no such image file")
+        raise DataFormatError("not a regular file", path=str(p), field="image")
+    try:
+        img = Image.open(p)
+    except Image.DecompressionBombError as exc:
+        raise ResourceLimitError(
+            f"image {p}: {exc} (crlam's limit is {limits().image_pixels:,} pixels; raise it with --max-image-pixels N)"
+        ) from exc
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        raise DataFormatError(f"cannot read image ({exc})", path=str(p), field="image") from exc
+    try:
+        check_image_size(p, *img.size)
+    except ResourceLimitError:
+        img.close()
+        raise
+    return img
+
+
 def _read_pgm(path: str | os.PathLike[str]) -> tuple[NDArray[np.uint16] | NDArray[np.uint8], int]:
-    data = Path(path).read_bytes()
+    data = read_image_bytes(path)
     if data[:2] not in (b"P5", b"P2"):
         raise _pgm_error(path, f"not a PGM file (magic {data[:2]!r}, want P5 or P2)", "magic")
     pos = 2
@@ -96,6 +142,7 @@ def _read_pgm(path: str | os.PathLike[str]) -> tuple[NDArray[np.uint16] | NDArra
         raise _pgm_error(path, f"image size {width} x {height} is empty", "width")
     if not 0 < maxval < 65536:
         raise _pgm_error(path, f"maxval {maxval} outside 1..65535", "maxval")
+    check_image_size(path, width, height)
     dtype = np.dtype(np.uint8) if maxval < 256 else np.dtype(">u2")
     count = width * height
     if data[:2] == b"P5":
@@ -163,12 +210,10 @@ def _image_planes(path: Path) -> tuple[FloatArray, FloatArray | None]:
     if magic in (b"P5", b"P2"):
         values, maxval = _read_pgm(path)
         return values.astype(np.float64) / maxval, None
-    from PIL import Image, UnidentifiedImageError
-
+    img = open_pil_image(path)
     try:
-        img: Image.Image = Image.open(path)
         img.load()
-    except (UnidentifiedImageError, OSError) as exc:
+    except (OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"cannot read image ({exc})", path=str(path), field="image") from exc
     if img.mode == "P":
         img = img.convert("RGBA" if "transparency" in img.info else "RGB")
@@ -352,6 +397,12 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
     org = np.array([_yaml_number({"origin": v}, "origin", path, None) for v in origin] + [0.0])[:3]
     occ_t = _yaml_number(doc, "occupied_thresh", path, 0.65)
     free_t = _yaml_number(doc, "free_thresh", path, 0.196)
+    if not 0.0 <= free_t <= occ_t <= 1.0:
+        raise DataFormatError(
+            f"need 0 <= free_thresh <= occupied_thresh <= 1, got free_thresh {free_t}, occupied_thresh {occ_t}",
+            path=str(path),
+            field="free_thresh",
+        )
     negate_raw = doc.get("negate", 0)
     if negate_raw not in (0, 1):  # True/False compare equal to 1/0
         raise DataFormatError(f"must be 0 or 1, got {negate_raw!r}", path=str(path), field="negate")

@@ -18,7 +18,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from crlam.errors import ConfigError, DataFormatError
+from crlam.errors import ConfigError, CrlamError, DataFormatError
 from crlam.sim.grid_ops import ClearanceField, distance_map
 
 __all__ = ["World", "read_pgm", "write_pgm"]
@@ -238,10 +238,12 @@ def _read_grey(path: Path) -> NDArray[np.uint8]:
         magic = fh.read(2)
     if magic in (b"P5", b"P2"):
         return read_pgm(path)
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
+
+    from crlam.io.nav2 import open_pil_image
 
     try:
-        with Image.open(path) as img:
+        with open_pil_image(path) as img:
             if img.mode in ("RGBA", "LA", "PA") or (img.mode == "P" and "transparency" in img.info):
                 img = img.convert("RGBA")
                 background = Image.new("RGBA", img.size, (255, 255, 255, 255))
@@ -251,7 +253,9 @@ def _read_grey(path: Path) -> NDArray[np.uint8]:
                 top = arr.max() if arr.max() > 255 else 255.0
                 return np.round(arr * 255.0 / top).astype(np.uint8)
             return np.asarray(img.convert("L"), dtype=np.uint8).copy()
-    except UnidentifiedImageError as exc:
+    except CrlamError:
+        raise
+    except (OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"not an image: {exc}", path=str(path)) from exc
 
 
@@ -261,8 +265,10 @@ def read_pgm(path: PathLike) -> NDArray[np.uint8]:
     Comments (``#`` to end of line) may appear anywhere in the header. Files with
     ``maxval != 255`` are rescaled to 0..255 (16-bit P5 samples are big-endian).
     """
+    from crlam.io.nav2 import check_image_size, read_image_bytes
+
     p = Path(path)
-    data = p.read_bytes()
+    data = read_image_bytes(p)
     magic = data[:2]
     if magic not in (b"P5", b"P2"):
         raise DataFormatError(f"not a PGM file (magic {magic!r})", path=str(p), line=1)
@@ -289,6 +295,7 @@ def read_pgm(path: PathLike) -> NDArray[np.uint8]:
         raise DataFormatError(f"bad header values {tokens!r}", path=str(p), field="header") from exc
     if width <= 0 or height <= 0 or not 0 < maxval < 65536:
         raise DataFormatError(f"bad size or maxval {width}x{height}/{maxval}", path=str(p), field="header")
+    check_image_size(p, width, height)
     if magic == b"P5":
         pos += 1  # exactly one whitespace byte separates the header from the raster
         dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)

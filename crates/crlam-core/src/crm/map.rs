@@ -8,7 +8,8 @@ use crate::crm::reading_table::{ReadingConstants, ReadingTable};
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::windowed::WindowScratch;
 use crate::error::{config_err, CrlamError, Result};
-use crate::grid::{CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::grid::{check_dense_rect, CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::limits::try_vec;
 use crate::raycast::RayCell;
 
 /// Configuration of a CRM (crm-spec 9).
@@ -279,15 +280,16 @@ impl CrmMap {
     /// Replaces the pmfs over `rect` (row-major `[iy][ix][k]`, normalised here).
     pub fn set_beliefs(&mut self, rect: CellRect, values: &[f64]) -> Result<()> {
         let k = self.mu.len();
-        if values.len() != rect.n_cells() * k {
+        rect.validate()?;
+        if values.len() != rect.n_cells().saturating_mul(k) {
             return Err(CrlamError::Shape(format!(
                 "beliefs for {} cells x {k} levels need {} values, got {}",
                 rect.n_cells(),
-                rect.n_cells() * k,
+                rect.n_cells().saturating_mul(k),
                 values.len()
             )));
         }
-        let mut out = Vec::with_capacity(values.len());
+        let mut out = try_vec(values.len(), "beliefs")?;
         for p in values.chunks(k) {
             let s: f64 = p.iter().sum();
             if !(s > 0.0 && s.is_finite()) || p.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
@@ -304,18 +306,24 @@ impl CrmMap {
         self.grid.import(rect, &out)
     }
 
-    /// Pmfs over `rect`, row-major `[iy][ix][k]`.
-    pub fn beliefs(&self, rect: CellRect) -> Vec<f32> {
+    /// Pmfs over `rect`, row-major `[iy][ix][k]` (refused above the map-cell limit).
+    pub fn beliefs(&self, rect: CellRect) -> Result<Vec<f32>> {
         self.grid.export(rect)
     }
 
-    /// (mean, variance, entropy in bits) per cell over `rect`, each row-major `[iy][ix]`.
-    pub fn derived(&self, rect: CellRect) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    /// (mean, variance, entropy in bits) per cell over `rect`, each row-major `[iy][ix]`
+    /// (refused above the map-cell limit).
+    pub fn derived(&self, rect: CellRect) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        if rect.nx <= 0 || rect.ny <= 0 {
+            return Ok((Vec::new(), Vec::new(), Vec::new()));
+        }
+        rect.validate()?;
+        check_dense_rect(rect)?;
         let n = rect.n_cells();
         let (mut m, mut v, mut h) = (
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
+            try_vec(n, "mean layer")?,
+            try_vec(n, "variance layer")?,
+            try_vec(n, "entropy layer")?,
         );
         for iy in rect.iy0..rect.iy0 + rect.ny {
             for ix in rect.ix0..rect.ix0 + rect.nx {
@@ -325,6 +333,6 @@ impl CrmMap {
                 h.push(c);
             }
         }
-        (m, v, h)
+        Ok((m, v, h))
     }
 }

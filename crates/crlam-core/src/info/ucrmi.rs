@@ -104,12 +104,10 @@ impl UcrmiConfig {
                 format!("must be in [0, 1], got {}", self.alpha),
             ));
         }
-        if self.n_particles == 0 || self.n_particles > 100_000 {
-            return Err(config_err(
-                "n_particles",
-                format!("must be in [1, 100000], got {}", self.n_particles),
-            ));
+        if self.n_particles == 0 {
+            return Err(config_err("n_particles", "must be >= 1"));
         }
+        crate::limits::check_particles("UCRMI n_particles", self.n_particles)?;
         if !(0.0..=1.0).contains(&self.resample_threshold) {
             return Err(config_err(
                 "resample_threshold",

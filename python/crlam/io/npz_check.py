@@ -1,0 +1,91 @@
+"""Checks of an ``.npz`` archive made *before* it is decompressed (zip-bomb guard).
+
+``np.load`` allocates each array at the size its ``.npy`` header declares and only then reads the
+data, and a zip member may inflate far beyond its compressed size. :func:`check_npz` reads only
+the zip directory and the few bytes of each array header, and refuses an archive whose declared
+content exceeds the ``archive_bytes`` limit (:mod:`crlam.limits`), whose array headers claim more
+bytes than their member holds, or which holds object arrays.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import zipfile
+from dataclasses import dataclass
+
+import numpy as np
+
+from crlam.errors import DataFormatError
+from crlam.limits import check_limit
+
+__all__ = ["NpzMember", "check_npz"]
+
+
+@dataclass(frozen=True)
+class NpzMember:
+    """An array of an archive, as its header declares it."""
+
+    shape: tuple[int, ...]
+    dtype: np.dtype
+    nbytes: int
+
+
+def _read_header(fh: object, where: str, name: str) -> tuple[tuple[int, ...], np.dtype]:
+    fmt = np.lib.format
+    try:
+        version = fmt.read_magic(fh)  # type: ignore[arg-type]
+        if version == (1, 0):
+            shape, _, dtype = fmt.read_array_header_1_0(fh)  # type: ignore[arg-type]
+        elif version == (2, 0):
+            shape, _, dtype = fmt.read_array_header_2_0(fh)  # type: ignore[arg-type]
+        else:
+            raise DataFormatError(f"unsupported .npy format version {version}", path=where, field=name)
+    except (ValueError, EOFError, OSError, SyntaxError) as exc:
+        raise DataFormatError(f"invalid array header ({exc})", path=where, field=name) from exc
+    return tuple(int(n) for n in shape), np.dtype(dtype)
+
+
+def check_npz(path: str | os.PathLike[str], what: str = "archive") -> dict[str, NpzMember]:
+    """The arrays of an ``.npz`` file as declared, after checking that loading it is safe.
+
+    Raises
+    ------
+    ResourceLimitError
+        When the members' declared uncompressed size exceeds the ``archive_bytes`` limit.
+    DataFormatError
+        When the file is not a zip of ``.npy`` members, a header is invalid, an array holds
+        Python objects or claims more bytes than its member holds.
+    FileNotFoundError
+        When the file does not exist.
+    """
+    where = str(path)
+    try:
+        zf = zipfile.ZipFile(path)
+    except zipfile.BadZipFile as exc:
+        raise DataFormatError(f"not a {what} (not a zip file: {exc})", path=where) from exc
+    except IsADirectoryError as exc:
+        raise DataFormatError(f"not a {what} (a directory)", path=where) from exc
+    out: dict[str, NpzMember] = {}
+    with zf:
+        infos = zf.infolist()
+        total = sum(i.file_size for i in infos)
+        check_limit("archive_bytes", total, f"{what} {where} ({len(infos)} members, uncompressed)")
+        for info in infos:
+            name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            try:
+                with zf.open(info) as fh:
+                    shape, dtype = _read_header(fh, where, name)
+            except (zipfile.BadZipFile, NotImplementedError, RuntimeError) as exc:
+                raise DataFormatError(f"unreadable member ({exc})", path=where, field=name) from exc
+            if dtype.hasobject:
+                raise DataFormatError("holds Python objects (not allowed)", path=where, field=name)
+            nbytes = math.prod(shape) * dtype.itemsize
+            if nbytes > info.file_size:
+                raise DataFormatError(
+                    f"header declares {shape} {dtype} ({nbytes:,} bytes) but the member holds {info.file_size:,}",
+                    path=where,
+                    field=name,
+                )
+            out[name] = NpzMember(shape, dtype, nbytes)
+    return out
