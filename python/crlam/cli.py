@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from crlam import __version__
+from crlam.cli_failures import EXPECTED_FAILURES, describe_failure
 from crlam.cli_options import (
     BATCH_KERNEL_HELP,
     BATCH_KERNELS,
@@ -44,7 +45,6 @@ from crlam.cli_options import (
     positive_int,
     slam_overrides,
 )
-from crlam.errors import CrlamError
 from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
 
 if TYPE_CHECKING:
@@ -606,12 +606,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         status = int(args.func(args))
         sys.stdout.flush()
         return status
-    except (CrlamError, FileNotFoundError) as e:
-        print(f"crlam {args.command}: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"crlam {args.command}: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:
         # The reader of our output went away (`crlam slam ... | head`): stop without a traceback,
         # with the status a process killed by SIGPIPE has, and keep Python's exit-time flush of
@@ -619,6 +613,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141
+    except EXPECTED_FAILURES as e:
+        # Expected failures (bad input, a file system refusing, a limit, memory) are one line;
+        # CRLAM_TRACEBACK=1 shows the traceback. Other exceptions are bugs and keep theirs.
+        if os.environ.get("CRLAM_TRACEBACK"):
+            raise
+        print(f"crlam {args.command}: error: {describe_failure(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"crlam {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -16,7 +16,7 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{pose3, poses_n3, shape_err, slice1, IntoPy};
+use crate::convert::{guard, pose3, poses_n3, shape_err, slice1, IntoPy};
 use crate::maps::{CrmMap, LogOddsMap, SensorModel};
 
 /// Parses the motion model name and its parameters.
@@ -138,16 +138,18 @@ pub fn mode_seeking_pose(
     weights: PyReadonlyArray1<'_, f64>,
     bandwidth: (f64, f64),
 ) -> PyResult<(f64, f64, f64)> {
-    let p = poses_n3(&poses)?;
-    let w = slice1(&weights, "weights")?;
-    let bw = ModeBandwidth {
-        xy: bandwidth.0,
-        theta: bandwidth.1,
-    };
-    let m = py
-        .allow_threads(|| core_mode_seeking_pose(&p, w, bw))
-        .py_err()?;
-    Ok((m[0], m[1], m[2]))
+    guard("mode_seeking_pose", || {
+        let p = poses_n3(&poses)?;
+        let w = slice1(&weights, "weights")?;
+        let bw = ModeBandwidth {
+            xy: bandwidth.0,
+            theta: bandwidth.1,
+        };
+        let m = py
+            .allow_threads(|| core_mode_seeking_pose(&p, w, bw))
+            .py_err()?;
+        Ok((m[0], m[1], m[2]))
+    })
 }
 
 /// RBPF-CLAM: particles with poses, log-weights and their own copy-on-write CRMs.
@@ -183,12 +185,14 @@ macro_rules! filter_pymethods {
                 ranges: PyReadonlyArray1<'_, f64>,
                 laser_offset: PyReadonlyArray1<'_, f64>,
             ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
+                guard(concat!(stringify!($class), ".process"), || {
                 let scan = scan_of(&odom, &angles, &ranges, &laser_offset)?;
                 let inner = &mut self.inner;
                 let s = py
                     .allow_threads(|| ParticleFilter::process(inner, &scan))
                     .py_err()?;
                 Ok(step_tuple(s))
+                })
             }
 
             /// Feeds n scans with shared beam angles: odoms (n, 3), ranges (n, m). Returns a dict
@@ -201,9 +205,11 @@ macro_rules! filter_pymethods {
                 ranges: PyReadonlyArray2<'py, f64>,
                 laser_offset: PyReadonlyArray1<'py, f64>,
             ) -> PyResult<Bound<'py, PyDict>> {
+                guard(concat!(stringify!($class), ".process_many"), || {
                 let inner = &mut self.inner;
                 feed_many(py, &odoms, &angles, &ranges, &laser_offset, |scan| {
                     ParticleFilter::process(inner, scan)
+                })
                 })
             }
 
@@ -215,21 +221,27 @@ macro_rules! filter_pymethods {
 
             /// Particle poses, shape (n, 3).
             fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                guard(concat!(stringify!($class), ".particle_poses"), || {
                 poses_array(py, ParticleFilter::poses(&self.inner))
+                })
             }
 
             /// The best particle's pose at every processed scan, first to last, shape (n_processed, 3).
             fn best_path<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                guard(concat!(stringify!($class), ".best_path"), || {
                 poses_array(py, ParticleFilter::best_path(&self.inner))
+                })
             }
 
             /// The proposal means along the best particle's path, shape (n_processed, 3); None
             /// unless the poses are drawn from a fitted proposal (the likelihood-mode / improved
             /// proposal with pose "sample").
             fn best_path_means<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+                guard(concat!(stringify!($class), ".best_path_means"), || {
                 ParticleFilter::best_path_means(&self.inner)
                     .map(|p| poses_array(py, p))
                     .transpose()
+                })
             }
 
             /// Poses (n, 3) and normalised weights (n,) of the last processed scan before
@@ -238,11 +250,13 @@ macro_rules! filter_pymethods {
                 &self,
                 py: Python<'py>,
             ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+                guard(concat!(stringify!($class), ".weighed_set"), || {
                 let set = ParticleFilter::weighed_set(&self.inner);
                 Ok((
                     poses_array(py, set.poses.clone())?,
                     Array1::from_vec(set.weights.clone()).into_pyarray(py),
                 ))
+                })
             }
 
             /// Smoothed means of the weighed set's lineages, shape (k, 3): row j is the weighted
@@ -256,12 +270,14 @@ macro_rules! filter_pymethods {
                 max_lag: Option<usize>,
                 proposal_means: bool,
             ) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+                guard(concat!(stringify!($class), ".ancestor_means"), || {
                 let inner = &self.inner;
                 py.allow_threads(|| {
                     ParticleFilter::ancestor_means(inner, max_lag.unwrap_or(usize::MAX), proposal_means)
                 })
                 .map(|m| poses_array(py, m))
                 .transpose()
+                })
             }
 
             /// Particle log-weights as the filter stores them (RBPF-OGM: before its weight
@@ -339,6 +355,7 @@ filter_pymethods!(ClamFilter {
         scan_match_weight: &str,
         seed: u64,
     ) -> PyResult<Self> {
+        guard("ClamFilter.new", || {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
         let extent = extent
             .map(|(ix0, iy0, nx, ny)| CellRect::checked(ix0, iy0, nx, ny).py_err())
@@ -426,6 +443,7 @@ filter_pymethods!(ClamFilter {
         Ok(Self {
             inner: RbpfClam::new(cfg, pose3(&initial_pose)?).py_err()?,
         })
+        })
     }
 
     /// The best particle's map (a copy-on-write copy).
@@ -465,6 +483,7 @@ filter_pymethods!(OgmFilter {
         weight_smoothing: f64,
         seed: u64,
     ) -> PyResult<Self> {
+        guard("OgmFilter.new", || {
         let defaults = OgmFilterConfig::default();
         let motion = match (motion, &motion_params) {
             ("thrun", None) => OgmFilterConfig::default_motion(),
@@ -510,6 +529,7 @@ filter_pymethods!(OgmFilter {
         };
         Ok(Self {
             inner: RbpfOgm::new(cfg, pose3(&initial_pose)?).py_err()?,
+        })
         })
     }
 

@@ -5,12 +5,14 @@ breaks (a binary file, ``/dev/zero``) gives an error instead of being read into 
 from __future__ import annotations
 
 import io
+import os
 from collections.abc import Iterator
+from pathlib import Path
 from typing import BinaryIO
 
 from crlam.errors import DataFormatError
 
-__all__ = ["MAX_LINE_CHARS", "text_lines"]
+__all__ = ["MAX_LINE_CHARS", "MAX_SMALL_FILE_BYTES", "read_small_text", "text_lines"]
 
 #: Longest line accepted (characters). A CARMEN ROBOTLASER1 line of 1,081 beams with remissions
 #: is about 20,000 characters; nothing a text log holds comes near a million.
@@ -39,3 +41,21 @@ def text_lines(stream: BinaryIO, path: str) -> Iterator[tuple[int, str]]:
             yield number, text
     finally:
         fh.detach()
+
+
+#: Largest small text file (a map YAML, a config TOML, a result JSON) read whole (bytes).
+MAX_SMALL_FILE_BYTES = 16 << 20
+
+
+def read_small_text(path: str | os.PathLike[str], what: str = "file") -> str:
+    """The text of a small file (YAML, TOML, JSON) read whole, refusing what is not a regular file
+    (a folder, ``/dev/zero``, a pipe) and files over :data:`MAX_SMALL_FILE_BYTES`."""
+    p = Path(path)
+    if not p.is_file():
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: no such {what}")
+        raise DataFormatError(f"not a regular file (a folder, a device or a pipe): not a {what}", path=str(p))
+    size = p.stat().st_size
+    if size > MAX_SMALL_FILE_BYTES:
+        raise DataFormatError(f"{size:,} bytes is too large for a {what} (at most {MAX_SMALL_FILE_BYTES:,})", path=str(p))
+    return p.read_bytes().decode("utf-8", "replace")

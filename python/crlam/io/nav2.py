@@ -25,6 +25,7 @@ import yaml
 from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import ConfigError, DataFormatError, ResourceLimitError
+from crlam.io.lines import read_small_text
 from crlam.limits import check_limit, limits
 
 __all__ = ["Nav2Map", "read_image", "read_nav2_map", "read_pgm", "write_nav2_map", "write_pgm"]
@@ -100,12 +101,18 @@ def open_pil_image(path: str | os.PathLike[str]):  # type: ignore[no-untyped-def
         if not p.exists():
             raise FileNotFoundError(f"{p}: no such image file")
         raise DataFormatError("not a regular file", path=str(p), field="image")
+    # Pillow's own guard (a warning above MAX_IMAGE_PIXELS, an error above twice that) follows
+    # crlam's limit, which is checked below on the size the header declares.
+    Image.MAX_IMAGE_PIXELS = limits().image_pixels
     try:
         img = Image.open(p)
     except Image.DecompressionBombError as exc:
-        raise ResourceLimitError(
-            f"image {p}: {exc} (crlam's limit is {limits().image_pixels:,} pixels; raise it with --max-image-pixels N)"
-        ) from exc
+        size = re.search(r"\((\d+) pixels\)", str(exc))
+        try:
+            check_limit("image_pixels", int(size.group(1)) if size else math.inf, f"image {p}")
+        except ResourceLimitError as limit_error:
+            raise limit_error from exc
+        raise  # not reached: Pillow refuses only images above the limit
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"cannot read image ({exc})", path=str(p), field="image") from exc
     try:
@@ -380,10 +387,11 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
     """
     path = Path(yaml_path)
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        doc = yaml.safe_load(read_small_text(path, "Nav2 map YAML"))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        raise DataFormatError(f"invalid YAML ({exc})", path=str(path), line=None if mark is None else mark.line + 1) from exc
+        reason = " ".join(str(exc).split())
+        raise DataFormatError(f"invalid YAML ({reason})", path=str(path), line=None if mark is None else mark.line + 1) from exc
     if not isinstance(doc, dict):
         raise DataFormatError("not a YAML mapping", path=str(path))
     if not isinstance(doc.get("image"), str) or not doc["image"]:

@@ -13,6 +13,7 @@ import math
 import os
 import zipfile
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -59,13 +60,18 @@ def check_npz(path: str | os.PathLike[str], what: str = "archive") -> dict[str, 
     FileNotFoundError
         When the file does not exist.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path must be a str or os.PathLike, got {type(path).__name__}")
     where = str(path)
+    p = Path(path)
+    if not p.is_file():
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: no such {what}")
+        raise DataFormatError(f"not a regular file (a folder, a device or a pipe): not a {what}", path=where)
     try:
         zf = zipfile.ZipFile(path)
     except zipfile.BadZipFile as exc:
         raise DataFormatError(f"not a {what} (not a zip file: {exc})", path=where) from exc
-    except IsADirectoryError as exc:
-        raise DataFormatError(f"not a {what} (a directory)", path=where) from exc
     out: dict[str, NpzMember] = {}
     with zf:
         infos = zf.infolist()
