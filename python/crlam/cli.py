@@ -32,10 +32,12 @@ from crlam.cli_options import (
     WEIGHT_SMOOTHING_HELP,
     add_bag_options,
     add_estimate_options,
+    add_force_option,
     add_likelihood_mode_options,
     add_limit_options_everywhere,
     add_map_options,
     add_preset_option,
+    add_resume_options,
     apply_limit_options,
     bag_options,
     finite_float,
@@ -44,6 +46,7 @@ from crlam.cli_options import (
     positive_float,
     positive_int,
     slam_overrides,
+    staged_output,
 )
 from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
 
@@ -73,43 +76,52 @@ def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
 
 def cmd_map(args: argparse.Namespace) -> int:
     from crlam.experiments.known_poses import map_log
+    from crlam.run_folder import moved
 
-    run, files = map_log(
-        args.log,
-        args.out,
-        _mapping_config(args),
-        poses=args.poses,
-        on_error="skip" if args.skip_malformed else "raise",
-        max_scans=args.max_scans,
-        progress=not args.quiet,
-        bag_options=bag_options(args),
-    )
+    config = _mapping_config(args)
+    with staged_output(args) as stage:
+        run, files = map_log(
+            args.log,
+            stage,
+            config,
+            poses=args.poses,
+            on_error="skip" if args.skip_malformed else "raise",
+            max_scans=args.max_scans,
+            progress=not args.quiet,
+            bag_options=bag_options(args),
+        )
     print(f"mapped {run.n_scans} scans in {run.wall_time_s:.1f} s ({run.n_scans / max(run.wall_time_s, 1e-9):.0f} scans/s)")
     for name, path in files.items():
-        print(f"  {name:12s} {path}")
+        print(f"  {name:12s} {moved(path, stage, Path(args.out))}")
     return 0
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from crlam.experiments.simulate import simulate_to_folder
+    from crlam.run_folder import moved
 
-    summary = simulate_to_folder(
-        world=args.world,
-        n_scans=args.scans,
-        seed=args.seed,
-        out_dir=args.out,
-        sensor=args.sensor,
-        progress=not args.quiet,
-    )
+    with staged_output(args) as stage:
+        summary = simulate_to_folder(
+            world=args.world,
+            n_scans=args.scans,
+            seed=args.seed,
+            out_dir=stage,
+            sensor=args.sensor,
+            progress=not args.quiet,
+        )
+    summary["out"] = args.out
+    summary["files"] = {k: str(moved(v, stage, Path(args.out))) for k, v in summary["files"].items()}
     print(json.dumps(summary, indent=2))
     return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from crlam.experiments.demo import run_demo
+    from crlam.run_folder import moved
 
-    report = run_demo(Path(args.out), n_scans=args.scans, seed=args.seed, progress=not args.quiet)
-    print(f"demo written to {args.out}; open {report}")
+    with staged_output(args) as stage:
+        report = run_demo(stage, n_scans=args.scans, seed=args.seed, progress=not args.quiet)
+    print(f"demo written to {args.out}; open {moved(report, stage, Path(args.out))}")
     return 0
 
 
@@ -140,23 +152,24 @@ def cmd_slam(args: argparse.Namespace) -> int:
     from crlam.experiments.slam_run import run_slam_log
 
     config, max_scans = slam_config_of(args)
-    res = run_slam_log(
-        args.log,
-        args.out,
-        config,
-        reference=args.reference,
-        relations=args.relations,
-        max_scans=max_scans,
-        progress=not args.quiet,
-        bag_options=bag_options(args),
-        mcap=args.mcap,
-    )
+    with staged_output(args) as stage:
+        res = run_slam_log(
+            args.log,
+            stage,
+            config,
+            reference=args.reference,
+            relations=args.relations,
+            max_scans=max_scans,
+            progress=not args.quiet,
+            bag_options=bag_options(args),
+            mcap=args.mcap,
+        )
     m = res.metrics
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
     print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
-        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {res.out_dir}"
+        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {args.out}"
     )
     for key in (
         "reference",
@@ -198,6 +211,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             max_wall_seconds=args.max_seconds,
             start=(args.start[0], args.start[1]),
             progress=not args.quiet,
+            resume=args.resume,
+            force=args.force,
         )
         print(f"{len(res.rows)} runs finished, {len(res.errors)} failed; report: {res.files['report']}")
         return 0 if not res.errors else 1
@@ -215,6 +230,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             particles=args.particles,
             workers=args.workers,
             progress=not args.quiet,
+            resume=args.resume,
+            force=args.force,
         )
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
@@ -237,6 +254,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             base=base,
             progress=not args.quiet,
             report_only=args.report_only,
+            resume=args.resume,
+            force=args.force,
         )
     else:
         from crlam.experiments.real_logs import run_real_logs
@@ -256,6 +275,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             max_scans=args.max_scans,
             progress=not args.quiet,
             report_only=args.report_only,
+            resume=args.resume,
+            force=args.force,
         )
     print((out / "table.md").read_text())
     return 0
@@ -293,6 +314,7 @@ def build_parser() -> argparse.ArgumentParser:
         "figures and report.md.",
     )
     p.add_argument("--out", default="demo-out", help="output folder (default: demo-out)")
+    add_force_option(p)
     p.add_argument("--scans", type=positive_int, default=4000, help="number of scans to simulate (default: 4000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -313,6 +335,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="paper = 1079 beams over 270 deg, 8 m; sick = 180 beams over 180 deg, 80 m (default: paper)",
     )
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_simulate)
 
@@ -329,6 +352,7 @@ def build_parser() -> argparse.ArgumentParser:
         "metadata.yaml, .bag or .mcap)",
     )
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument(
         "--poses",
         choices=("log", "odometry"),
@@ -352,6 +376,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (folder with metadata.yaml, .bag or .mcap)")
     p.add_argument("--out", required=True, help="run folder")
+    add_force_option(p)
     source = p.add_mutually_exclusive_group()
     add_preset_option(source, DEFAULT_PRESET)
     source.add_argument(
@@ -446,7 +471,8 @@ def build_parser() -> argparse.ArgumentParser:
         "experiment",
         help="run a paper experiment (resumable) and write its table and figures",
         description="Runs an experiment as a resumable sweep of SLAM runs in spawn worker processes; "
-        "rerunning the same command skips finished runs.",
+        "rerunning the same command with --resume skips finished runs (after checking that the folder's runs were "
+        "made with the same settings), --force starts the folder anew.",
     )
     exp = p.add_subparsers(dest="experiment", metavar="EXPERIMENT")
     exp.required = True
@@ -456,7 +482,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Museum world, 1079 beams over 270 deg, 8 m, 0.2 m grid; Monte Carlo runs per method "
         "against the exact ground truth; writes table.md/csv, results.json and the Fig. 2 figures.",
     )
-    t1.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    t1.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     t1.add_argument("--runs", type=positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
     t1.add_argument("--scans", type=positive_int, default=5500, help="scans of the simulated log (default: 5500)")
     t1.add_argument("--particles", type=positive_int, default=None, help=f"particles (paper: 100; {FROM_PRESET})")
@@ -477,7 +503,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--ranges) sets each run's method, particle count, seed and z_max.",
     )
     add_preset_option(rl, DEFAULT_PRESET)
-    rl.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    rl.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     rl.add_argument("--datasets", nargs="+", choices=("intel", "aces"), default=["intel", "aces"])
     rl.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"])
     rl.add_argument("--particles", dest="particles_list", type=positive_int, nargs="+", default=[30, 100])
@@ -526,7 +552,7 @@ def build_parser() -> argparse.ArgumentParser:
         "fig3_trees.png, fig4_boxplots.png, fig5_ric_gain.png and report.md (the paper's six claims checked).",
     )
     ig.add_argument("--map", default=None, help="map (.pgm read as the planner reads cave.pgm, or Nav2 .yaml); default: cave-map")
-    ig.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    ig.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     ig.add_argument("--runs", type=positive_int, default=20, help="runs (seeds) per function (default: 20)")
     ig.add_argument("--functions", default="ogmi,crmi,ucrmi,gpvr,ugpvr", help="comma-separated (default: all five)")
     ig.add_argument("--mode", choices=("reference", "clean"), default="reference", help="planner and function quirks")
@@ -537,6 +563,7 @@ def build_parser() -> argparse.ArgumentParser:
     ig.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ig.add_argument("--quiet", action="store_true", help="no progress output")
     ig.set_defaults(func=cmd_experiment)
+    add_resume_options(ig)
     ex = exp.add_parser(
         "explore",
         help="exploration runs over worlds, functions, UCRMI alphas and seeds",
@@ -544,7 +571,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(resumable); writes runs.csv, coverage.png (explored area, map error and pose error against distance), "
         "pose_error.png and report.md. Poses come from RBPF-CLAM unless --known-poses.",
     )
-    ex.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    ex.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     ex.add_argument("--worlds", nargs="+", default=["office"], help="museum | office | map files (default: office)")
     ex.add_argument("--functions", default="crmi,ucrmi,fsmi,frontier", help="comma-separated (default: all four)")
     ex.add_argument("--alphas", default="0,0.25,0.5,0.75,1", help="UCRMI weights of the map term (default: 0,...,1)")
@@ -555,7 +582,9 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ex.add_argument("--quiet", action="store_true", help="no progress output")
     ex.set_defaults(func=cmd_experiment)
+    add_resume_options(ex)
     for q in (t1, rl):
+        add_resume_options(q)
         q.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
         q.add_argument(
             "--threads", type=positive_int, default=1, help="threads of each run (default: 1; the results do not depend on it)"

@@ -28,11 +28,14 @@ __all__ = [
     "WEIGHT_SMOOTHING_HELP",
     "add_bag_options",
     "add_estimate_options",
+    "add_force_option",
     "add_likelihood_mode_options",
     "add_map_options",
     "add_preset_option",
+    "add_resume_options",
     "bag_options",
     "slam_overrides",
+    "staged_output",
     "finite_float",
     "nonnegative_float",
     "nonnegative_int",
@@ -343,3 +346,33 @@ def apply_limit_options(args: argparse.Namespace) -> None:
     given = {k[len("limit_") :]: v for k, v in vars(args).items() if k.startswith("limit_") and v is not None}
     if given:
         set_limits(**given)
+
+
+def add_force_option(parser: argparse.ArgumentParser) -> None:
+    """``--force``: replace an existing output (once the new one is complete)."""
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an existing output; the old one stays untouched until the new one is complete",
+    )
+
+
+def staged_output(args: argparse.Namespace, out: str | None = None):  # type: ignore[no-untyped-def]
+    """The staging folder of the command's ``--out`` (see :mod:`crlam.run_folder`), after the
+    up-front check: a context manager yielding the folder to write into."""
+    from crlam.run_folder import check_output, staged_folder
+
+    path = check_output(out if out is not None else args.out, force=getattr(args, "force", False))
+    return staged_folder(path, command=f"crlam {args.command}")
+
+
+def add_resume_options(parser: argparse.ArgumentParser) -> None:
+    """``--resume`` and ``--force`` of the resumable experiments."""
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the experiment folder: finished runs are kept when it was made with the same settings (else an "
+        "error lists the differences); unreadable runs are done again",
+    )
+    g.add_argument("--force", action="store_true", help="empty an existing experiment folder and start anew")

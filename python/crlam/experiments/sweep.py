@@ -10,7 +10,6 @@ context, because a forked child of a process whose rayon pool has started hangs.
 
 from __future__ import annotations
 
-import json
 import re
 import sys
 from collections.abc import Sequence
@@ -23,8 +22,12 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from crlam.errors import ConfigError
+from crlam.errors import ConfigError, CrlamError
 from crlam.experiments.pool import run_jobs
+from crlam.experiments.resume import load_json_dict
+from crlam.io.npz_check import check_npz
+from crlam.io.tum import read_tum
+from crlam.run_folder import staged_folder
 from crlam.slam import SlamConfig
 
 __all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics", "stored_setting_differences"]
@@ -49,12 +52,25 @@ class RunSpec:
 
 
 def run_is_finished(folder: Path) -> bool:
-    """A run is finished when its metrics.json exists (it is written last)."""
-    return (folder / "metrics.json").is_file()
+    """A run is finished when its metrics.json (written last) reads as a JSON object and the files
+    the report reads back, where present, read too: a run with a corrupt file is done again."""
+    if load_json_dict(folder / "metrics.json") is None:
+        return False
+    try:
+        if (folder / "config.toml").is_file():
+            tomllib.loads((folder / "config.toml").read_text())
+        if (folder / "trajectory.tum").is_file():
+            read_tum(folder / "trajectory.tum")
+        if (folder / "belief.npz").is_file():
+            check_npz(folder / "belief.npz", "belief archive")
+    except (CrlamError, OSError, ValueError, tomllib.TOMLDecodeError):
+        return False
+    return True
 
 
 def load_metrics(folder: Path) -> dict[str, Any]:
-    return json.loads((folder / "metrics.json").read_text())
+    """The metrics of a finished run (an empty dict if they cannot be read)."""
+    return load_json_dict(folder / "metrics.json") or {}
 
 
 def _normalised(v: Any) -> Any:
@@ -113,7 +129,8 @@ def _check_finished_runs(specs: Sequence[RunSpec], root: Path) -> None:
     if problems:
         raise ConfigError(
             f"{len(problems)} finished run(s) under {root} were made with other settings than this command asks "
-            "for (use another output folder, or delete those run folders to redo them):\n  " + "\n  ".join(problems)
+            "for (use another output folder, --force to redo every run, or delete those run folders to redo them):\n  "
+            + "\n  ".join(problems)
         )
 
 
@@ -124,15 +141,17 @@ def _run_spec(spec_dict: dict[str, Any], root: str) -> dict[str, Any]:
     d = dict(spec_dict)
     cfg = SlamConfig(**d.pop("config"))
     spec = RunSpec(config=cfg, **d)
-    res = run_slam_log(
-        spec.log,
-        spec.folder(Path(root)),
-        cfg,
-        reference=spec.reference,
-        relations=spec.relations,
-        max_scans=spec.max_scans,
-        progress=False,
-    )
+    # Staged: the run's folder appears (replacing an older, unfinished or corrupt one) only whole.
+    with staged_folder(spec.folder(Path(root)), command=f"crlam experiment run {spec.name}") as stage:
+        res = run_slam_log(
+            spec.log,
+            stage,
+            cfg,
+            reference=spec.reference,
+            relations=spec.relations,
+            max_scans=spec.max_scans,
+            progress=False,
+        )
     return dict(res.metrics)
 
 
