@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 import os
+import zlib
 from collections.abc import Iterator
 from pathlib import Path
 from typing import BinaryIO
@@ -29,7 +30,7 @@ def text_lines(stream: BinaryIO, path: str) -> Iterator[tuple[int, str]]:
         while True:
             try:
                 text = fh.readline(MAX_LINE_CHARS + 1)
-            except (OSError, EOFError, ValueError) as exc:
+            except (OSError, EOFError, ValueError, zlib.error) as exc:
                 raise DataFormatError(f"corrupt or truncated (compressed?) stream ({exc})", path=path, line=number + 1) from exc
             if not text:
                 return

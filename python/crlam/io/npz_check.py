@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import math
 import os
+import tokenize
 import zipfile
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from crlam.errors import DataFormatError
+from crlam.errors import CrlamError, DataFormatError
 from crlam.limits import check_limit
 
 __all__ = ["NpzMember", "check_npz"]
@@ -42,7 +44,7 @@ def _read_header(fh: object, where: str, name: str) -> tuple[tuple[int, ...], np
             shape, _, dtype = fmt.read_array_header_2_0(fh)  # type: ignore[arg-type]
         else:
             raise DataFormatError(f"unsupported .npy format version {version}", path=where, field=name)
-    except (ValueError, EOFError, OSError, SyntaxError) as exc:
+    except (ValueError, EOFError, OSError, SyntaxError, tokenize.TokenError) as exc:
         raise DataFormatError(f"invalid array header ({exc})", path=where, field=name) from exc
     return tuple(int(n) for n in shape), np.dtype(dtype)
 
@@ -69,21 +71,27 @@ def check_npz(path: str | os.PathLike[str], what: str = "archive") -> dict[str, 
             raise FileNotFoundError(f"{p}: no such {what}")
         raise DataFormatError(f"not a regular file (a folder, a device or a pipe): not a {what}", path=where)
     try:
-        zf = zipfile.ZipFile(path)
-    except zipfile.BadZipFile as exc:
-        raise DataFormatError(f"not a {what} (not a zip file: {exc})", path=where) from exc
+        return _members(path, where, what)
+    except (zipfile.BadZipFile, EOFError, ValueError, NotImplementedError, RuntimeError, zlib.error) as exc:
+        if isinstance(exc, CrlamError):
+            raise
+        raise DataFormatError(f"not a {what} ({type(exc).__name__}: {exc})", path=where) from exc
+    except OSError as exc:
+        if isinstance(exc, (FileNotFoundError, CrlamError)):
+            raise
+        raise DataFormatError(f"not a {what} (unreadable zip: {exc})", path=where) from exc
+
+
+def _members(path: str | os.PathLike[str], where: str, what: str) -> dict[str, NpzMember]:
     out: dict[str, NpzMember] = {}
-    with zf:
+    with zipfile.ZipFile(path) as zf:
         infos = zf.infolist()
         total = sum(i.file_size for i in infos)
         check_limit("archive_bytes", total, f"{what} {where} ({len(infos)} members, uncompressed)")
         for info in infos:
             name = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
-            try:
-                with zf.open(info) as fh:
-                    shape, dtype = _read_header(fh, where, name)
-            except (zipfile.BadZipFile, NotImplementedError, RuntimeError) as exc:
-                raise DataFormatError(f"unreadable member ({exc})", path=where, field=name) from exc
+            with zf.open(info) as fh:
+                shape, dtype = _read_header(fh, where, name)
             if dtype.hasobject:
                 raise DataFormatError("holds Python objects (not allowed)", path=where, field=name)
             nbytes = math.prod(shape) * dtype.itemsize

@@ -300,16 +300,21 @@ def read_pgm(path: PathLike) -> NDArray[np.uint8]:
         pos += 1  # exactly one whitespace byte separates the header from the raster
         dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
         count = width * height
-        raw = np.frombuffer(data, dtype=dtype, count=-1, offset=pos) if pos < n else np.zeros(0, dtype)
-        if raw.size < count:
-            raise DataFormatError(f"raster has {raw.size} samples, expected {count}", path=str(p), field="raster")
-        arr = raw[:count].astype(np.float64).reshape(height, width)
+        raster = data[pos : pos + count * dtype.itemsize] if pos < n else b""
+        if len(raster) < count * dtype.itemsize:
+            raise DataFormatError(
+                f"raster has {len(raster) // dtype.itemsize} samples, expected {count}", path=str(p), field="raster"
+            )
+        arr = np.frombuffer(raster, dtype=dtype).astype(np.float64).reshape(height, width)
     else:
         body = data[pos:].split(b"\n")
         vals = [tok for line in body for tok in line.split(b"#", 1)[0].split()]
         if len(vals) < width * height:
             raise DataFormatError(f"raster has {len(vals)} samples, expected {width * height}", path=str(p))
-        arr = np.array([int(v) for v in vals[: width * height]], dtype=np.float64).reshape(height, width)
+        try:
+            arr = np.array([int(v) for v in vals[: width * height]], dtype=np.float64).reshape(height, width)
+        except ValueError:
+            raise DataFormatError("non-integer pixel value", path=str(p), field="raster") from None
     if maxval != 255:
         arr = np.round(arr * 255.0 / maxval)
     return np.clip(arr, 0, 255).astype(np.uint8)

@@ -306,6 +306,20 @@ impl CrmMap {
         self.grid.import(rect, &out)
     }
 
+    /// Refuses rays reaching `reach` metres when they could cross more cells than the map-cell
+    /// limit (on a growing map a ray is not clipped, and its cells are gathered in buffers): a
+    /// huge z_max or a tiny cell must give an error before the first ray, not exhaust memory.
+    pub fn check_ray_reach(&self, reach: f64) -> Result<()> {
+        let res = self.geometry().resolution;
+        if self.grid.fixed_extent().is_some() && reach.is_finite() {
+            return Ok(()); // rays are clipped to the extent, itself within the limit
+        }
+        crate::limits::check_map_cells(
+            &format!("a ray reaching {reach} m on {res} m cells"),
+            2.0 * reach / res + 4.0,
+        )
+    }
+
     /// Pmfs over `rect`, row-major `[iy][ix][k]` (refused above the map-cell limit).
     pub fn beliefs(&self, rect: CellRect) -> Result<Vec<f32>> {
         self.grid.export(rect)

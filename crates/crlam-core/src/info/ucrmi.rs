@@ -222,6 +222,7 @@ impl InformationFunction for Ucrmi {
         candidate: &Candidate,
         seed: u64,
     ) -> Result<Evaluation<ParticleBelief, VirtualScan>> {
+        map.check_ray_reach(self.cfg.crmi.model.z_max.max(self.cfg.weight_model.z_max))?;
         let n = parent.particles.len();
         if n == 0 || parent.log_weights.len() != n {
             return Err(crate::error::CrlamError::Shape(format!(
