@@ -76,7 +76,7 @@ def test_outputs_are_checked_before_any_work(tmp_path: Path) -> None:
     (tmp_path / "empty").mkdir()
     full = tmp_path / "full"
     full.mkdir()
-    (full / "f").write_text("x")
+    (full / "metrics.json").write_text("{}")
     assert check_output(tmp_path / "new") == tmp_path / "new"
     assert check_output(tmp_path / "empty") == tmp_path / "empty"
     for p in (tmp_path / "file", full):
@@ -87,6 +87,22 @@ def test_outputs_are_checked_before_any_work(tmp_path: Path) -> None:
         check_output(full, resumable=True)
     with pytest.raises(ConfigError):
         check_output(tmp_path / "file" / "sub")
+
+
+def test_force_never_replaces_a_folder_that_is_not_a_crlam_output(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    mine = tmp_path / "documents"
+    mine.mkdir()
+    (mine / "thesis.tex").write_text("years of work")
+    with pytest.raises(ConfigError, match="does not look like an output of crlam"):
+        check_output(mine, force=True)
+    monkeypatch.chdir(mine)
+    for p in (Path("."), Path(".."), tmp_path, Path("/")):
+        with pytest.raises(ConfigError, match="will not replace it"):
+            check_output(p, force=True)
+    (mine / "mapping.json").write_text("{}")  # a map folder made before the COMPLETE marker existed
+    monkeypatch.chdir(tmp_path)
+    assert check_output(tmp_path / "documents", force=True) == tmp_path / "documents"
+    assert (mine / "thesis.tex").is_file(), "checking replaces nothing"
 
 
 def test_a_staged_file_keeps_its_name_and_suffix(tmp_path: Path) -> None:

@@ -59,6 +59,37 @@ def _is_empty_dir(p: Path) -> bool:
     return p.is_dir() and not p.is_symlink() and not any(p.iterdir())
 
 
+#: Files one of crlam's output folders holds at its top level (folders written before the
+#: COMPLETE marker existed are recognised by these).
+_CRLAM_FILES = (
+    "mapping.json",
+    "metrics.json",
+    "config.toml",
+    "simulation.json",
+    "info.json",
+    "summary.json",
+    "experiment.json",
+    "report.md",
+    "results.json",
+    "metadata.yaml",
+)
+
+
+def _refuse_to_replace(p: Path) -> str | None:
+    """Why the existing output ``p`` must not be replaced by ``--force`` (None if it may be): a
+    folder that holds the working directory, the home folder or the root, or one that is not an
+    output of crlam, is never deleted by a flag."""
+    if not p.is_dir() or p.is_symlink():
+        return None
+    resolved = p.resolve()
+    for keep in (Path.cwd().resolve(), Path.home().resolve(), Path(resolved.anchor)):
+        if resolved == keep or resolved in keep.parents:
+            return f"it holds {keep}"
+    if is_complete(p) or (p / INCOMPLETE).is_file() or any((p / name).is_file() for name in _CRLAM_FILES):
+        return None
+    return "it does not look like an output of crlam (no COMPLETE marker, no crlam summary file)"
+
+
 def check_output(
     out: str | os.PathLike[str],
     *,
@@ -85,6 +116,11 @@ def check_output(
             kind = "a file" if not p.is_dir() else ("a complete run folder" if is_complete(p) else "a folder")
             flags = "--resume to continue it or --force to replace it" if resumable else "--force to replace it"
             raise ConfigError(f"{what} {p} already exists ({kind}); use {flags}, or another --out")
+        why = None if _is_empty_dir(p) else _refuse_to_replace(p)
+        if why is not None:
+            raise ConfigError(
+                f"{what} {p} exists and --force will not replace it: {why}; remove it yourself or use another --out"
+            )
     elif resume:
         raise ConfigError(f"--resume: {what} {p} does not exist")
     parent = p.parent
