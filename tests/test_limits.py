@@ -118,6 +118,16 @@ def test_a_huge_image_is_refused_before_it_is_decoded(tmp_path: Path, capsys: py
     assert "81,000,000 pixels" in msg
 
 
+def test_a_procedural_world_on_tiny_cells_is_refused_before_it_is_drawn(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    msg = _cli_error(
+        ["explore", "--world", "office", "--world-resolution", "0.0001", "--out", str(tmp_path / "o"), "--quiet"], capsys
+    )
+    _assert_limit_message(msg, "--max-map-cells")
+    assert "world at 0.0001 m cells" in msg
+
+
 def test_a_huge_pgm_header_is_refused_before_its_raster_is_read(tmp_path: Path) -> None:
     from crlam.io.nav2 import read_pgm
     from crlam.sim.world import read_pgm as read_world_pgm
