@@ -128,6 +128,13 @@ def test_a_procedural_world_on_tiny_cells_is_refused_before_it_is_drawn(
     assert "world at 0.0001 m cells" in msg
 
 
+def test_a_huge_simulation_is_refused_before_it_starts(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    t0 = time.perf_counter()
+    msg = _cli_error(["simulate", "--scans", "100000000", "--out", str(tmp_path / "o"), "--quiet"], capsys)
+    assert time.perf_counter() - t0 < 30
+    _assert_limit_message(msg, "--max-readings")
+
+
 def test_a_huge_pgm_header_is_refused_before_its_raster_is_read(tmp_path: Path) -> None:
     from crlam.io.nav2 import read_pgm
     from crlam.sim.world import read_pgm as read_world_pgm

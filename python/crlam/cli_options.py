@@ -316,6 +316,7 @@ def add_limit_options(parser: argparse.ArgumentParser) -> None:
         "image_pixels": "pixels of a map image, checked before decoding",
         "archive_bytes": "uncompressed bytes of a .npz archive (belief.npz, tree.npz), checked before decompressing",
         "download_bytes": "bytes of a download whose size is not known in advance",
+        "readings": "range readings (scans x beams) a simulated log holds in memory",
     }
     for name, text in helps.items():
         g.add_argument(

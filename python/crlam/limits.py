@@ -1,7 +1,8 @@
 """Resource limits: how much memory an input may make crlam use.
 
 Every allocation whose size an input decides (the cells of a map, the particles of a filter, the
-pixels of an image, the uncompressed bytes of an archive, the bytes of a download) is checked
+pixels of an image, the uncompressed bytes of an archive, the bytes of a download, the readings
+of a simulated log) is checked
 against one of these limits *before* it is made; an input over a limit raises
 :class:`~crlam.errors.ResourceLimitError` naming the input, the limit and how to raise it, instead
 of exhausting the machine.
@@ -14,13 +15,16 @@ limit              default       command-line flag               environment var
 ``image_pixels``   16,000,000    ``--max-image-pixels N``        ``CRLAM_MAX_IMAGE_PIXELS``
 ``archive_bytes``  1 GiB         ``--max-archive-bytes N``       ``CRLAM_MAX_ARCHIVE_BYTES``
 ``download_bytes`` 1 GiB         ``--max-download-bytes N``      ``CRLAM_MAX_DOWNLOAD_BYTES``
+``readings``       100,000,000   ``--max-readings N``            ``CRLAM_MAX_READINGS``
 =================  ============  ==============================  ====================================
 
 16 million cells is a 4,000 x 4,000 grid (an 800 m square at 0.2 m, 200 m at 0.05 m); writing a
-map folder of that size takes about 2 GB. The environment variables are read when crlam is
-imported; :func:`set_limits` changes the limits of this process and of the worker processes it
-starts afterwards (they inherit the environment). The Rust core enforces ``map_cells`` and
-``particles`` itself; the others are checked in Python, before the file is decoded.
+map folder of that size takes about 2 GB. ``readings`` bounds the range readings a simulated log
+holds in memory (scans x beams, 8 bytes each: 100 million is about 92,000 scans of the paper's
+1079-beam LIDAR, 800 MB). The environment variables are read when crlam is imported;
+:func:`set_limits` changes the limits of this process and of the worker processes it starts
+afterwards (they inherit the environment). The Rust core enforces ``map_cells`` and ``particles``
+itself; the others are checked in Python, before the file is decoded or the log simulated.
 """
 
 from __future__ import annotations
@@ -43,6 +47,7 @@ class Limits:
     image_pixels: int = 16_000_000
     archive_bytes: int = 1 << 30
     download_bytes: int = 1 << 30
+    readings: int = 100_000_000
 
 
 DEFAULTS = Limits()
@@ -53,6 +58,7 @@ _UNITS = {
     "image_pixels": "pixels",
     "archive_bytes": "bytes",
     "download_bytes": "bytes",
+    "readings": "range readings",
 }
 
 
