@@ -147,7 +147,7 @@ def plot(result: dict[str, Any], path: Path) -> None:
     ax.set_ylabel("MB")
     ax.set_title(f"RBPF-CLAM soak: {Path(result['log']).name}, {result['particles']} particles ({result['preset']})")
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(loc="center right", fontsize=8)
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
