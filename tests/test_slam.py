@@ -236,7 +236,8 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
     assert main([*_slam_paper(office), "--out", str(out), "--particles", "3", "--max-scans", "30", "--quiet"]) == 0
     assert json.loads((out / "metrics.json").read_text())["n_scans"] == 30
     wide = tmp_path / "wide"
-    args = [*_slam_paper(office), "--out", str(wide), "--particles", "3", "--max-scans", "5", "--quiet"]
+    # --force: each variant replaces the folder of the one before.
+    args = [*_slam_paper(office), "--out", str(wide), "--particles", "3", "--max-scans", "5", "--quiet", "--force"]
     assert main([*args, "--sigma-range", "0.05"]) == 0
     text = (wide / "config.toml").read_text()  # no tomllib: Python 3.10 is supported
     hit = re.search(r"^sigma_hit_resolved = (\S+)$", text, re.M)

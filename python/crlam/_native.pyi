@@ -9,6 +9,7 @@ __core_version__: str
 
 __all__ = [
     "__core_version__",
+    "_guarded_panic",
     "ClamFilter",
     "CrmMap",
     "GpVarianceMap",
@@ -27,6 +28,7 @@ __all__ = [
     "cast_ranges",
     "crm_update_ray",
     "run_benchmark",
+    "set_limits",
     "simd_info",
     "simd_level",
     "traverse_ray",
@@ -372,6 +374,8 @@ def crm_update_ray(
 def run_benchmark(name: str, size: int) -> dict[str, Any]: ...
 def simd_level() -> str: ...
 def simd_info() -> dict[str, Any]: ...
+def _guarded_panic(message: str) -> None: ...
+def set_limits(*, map_cells: int | None = None, particles: int | None = None) -> tuple[int, int]: ...
 
 @final
 class OccupancyLattice:

@@ -12,6 +12,7 @@ from typing import TYPE_CHECKING, Any
 
 from crlam import __version__
 from crlam.cli_executor import add_executor_options, executor_from_args
+from crlam.cli_failures import EXPECTED_FAILURES, describe_failure
 from crlam.cli_options import (
     BATCH_KERNEL_HELP,
     BATCH_KERNELS,
@@ -32,19 +33,24 @@ from crlam.cli_options import (
     WEIGHT_SMOOTHING_HELP,
     add_bag_options,
     add_estimate_options,
+    add_force_option,
     add_likelihood_mode_options,
+    add_limit_options_everywhere,
     add_map_options,
     add_odometry_options,
     add_preset_option,
+    add_resume_options,
+    apply_limit_options,
     bag_options,
+    finite_float,
     nonnegative_float,
     nonnegative_int,
     positive_float,
     positive_int,
     slam_overrides,
+    staged_output,
     stored_input_options,
 )
-from crlam.errors import CrlamError
 from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
 
 if TYPE_CHECKING:
@@ -73,43 +79,52 @@ def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
 
 def cmd_map(args: argparse.Namespace) -> int:
     from crlam.experiments.known_poses import map_log
+    from crlam.run_folder import moved
 
-    run, files = map_log(
-        args.log,
-        args.out,
-        _mapping_config(args),
-        poses=args.poses,
-        on_error="skip" if args.skip_malformed else "raise",
-        max_scans=args.max_scans,
-        progress=not args.quiet,
-        bag_options=bag_options(args),
-    )
+    config = _mapping_config(args)
+    with staged_output(args) as stage:
+        run, files = map_log(
+            args.log,
+            stage,
+            config,
+            poses=args.poses,
+            on_error="skip" if args.skip_malformed else "raise",
+            max_scans=args.max_scans,
+            progress=not args.quiet,
+            bag_options=bag_options(args),
+        )
     print(f"mapped {run.n_scans} scans in {run.wall_time_s:.1f} s ({run.n_scans / max(run.wall_time_s, 1e-9):.0f} scans/s)")
     for name, path in files.items():
-        print(f"  {name:12s} {path}")
+        print(f"  {name:12s} {moved(path, stage, Path(args.out))}")
     return 0
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from crlam.experiments.simulate import simulate_to_folder
+    from crlam.run_folder import moved
 
-    summary = simulate_to_folder(
-        world=args.world,
-        n_scans=args.scans,
-        seed=args.seed,
-        out_dir=args.out,
-        sensor=args.sensor,
-        progress=not args.quiet,
-    )
+    with staged_output(args) as stage:
+        summary = simulate_to_folder(
+            world=args.world,
+            n_scans=args.scans,
+            seed=args.seed,
+            out_dir=stage,
+            sensor=args.sensor,
+            progress=not args.quiet,
+        )
+    summary["out"] = args.out
+    summary["files"] = {k: str(moved(v, stage, Path(args.out))) for k, v in summary["files"].items()}
     print(json.dumps(summary, indent=2))
     return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from crlam.experiments.demo import run_demo
+    from crlam.run_folder import moved
 
-    report = run_demo(Path(args.out), n_scans=args.scans, seed=args.seed, progress=not args.quiet)
-    print(f"demo written to {args.out}; open {report}")
+    with staged_output(args) as stage:
+        report = run_demo(stage, n_scans=args.scans, seed=args.seed, progress=not args.quiet)
+    print(f"demo written to {args.out}; open {moved(report, stage, Path(args.out))}")
     return 0
 
 
@@ -157,25 +172,26 @@ def cmd_slam(args: argparse.Namespace) -> int:
 
     config, max_scans = slam_config_of(args)
     input_options, odometry = slam_input_of(args)
-    res = run_slam_log(
-        args.log,
-        args.out,
-        config,
-        reference=args.reference,
-        relations=args.relations,
-        max_scans=max_scans,
-        progress=not args.quiet,
-        bag_options=input_options,
-        mcap=args.mcap,
-        odometry=odometry,
-    )
+    with staged_output(args) as stage:
+        res = run_slam_log(
+            args.log,
+            stage,
+            config,
+            reference=args.reference,
+            relations=args.relations,
+            max_scans=max_scans,
+            progress=not args.quiet,
+            bag_options=input_options,
+            mcap=args.mcap,
+            odometry=odometry,
+        )
     m = res.metrics
     print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
     print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
-        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {res.out_dir}"
+        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {args.out}"
     )
     for key in (
         "reference",
@@ -219,6 +235,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             start=(args.start[0], args.start[1]),
             progress=not args.quiet,
             executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
         print(f"{len(res.rows)} runs finished, {len(res.errors)} failed; report: {res.files['report']}")
         return 0 if not res.errors else 1
@@ -237,6 +255,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             workers=args.workers,
             progress=not args.quiet,
             executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
@@ -260,6 +280,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             progress=not args.quiet,
             report_only=args.report_only,
             executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
     else:
         from crlam.experiments.real_logs import run_real_logs
@@ -280,6 +302,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             progress=not args.quiet,
             report_only=args.report_only,
             executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
     print((out / "table.md").read_text())
     return 0
@@ -317,6 +341,7 @@ def build_parser() -> argparse.ArgumentParser:
         "figures and report.md.",
     )
     p.add_argument("--out", default="demo-out", help="output folder (default: demo-out)")
+    add_force_option(p)
     p.add_argument("--scans", type=positive_int, default=4000, help="number of scans to simulate (default: 4000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -337,6 +362,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="paper = 1079 beams over 270 deg, 8 m; sick = 180 beams over 180 deg, 80 m (default: paper)",
     )
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_simulate)
 
@@ -353,6 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
         "metadata.yaml, .bag or .mcap)",
     )
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument(
         "--poses",
         choices=("log", "odometry"),
@@ -377,6 +404,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (folder with metadata.yaml, .bag or .mcap)")
     p.add_argument("--out", required=True, help="run folder")
+    add_force_option(p)
     source = p.add_mutually_exclusive_group()
     add_preset_option(source, DEFAULT_PRESET)
     source.add_argument(
@@ -472,7 +500,8 @@ def build_parser() -> argparse.ArgumentParser:
         "experiment",
         help="run a paper experiment (resumable) and write its table and figures",
         description="Runs an experiment as a resumable sweep of runs in spawn worker processes on this machine "
-        "or on a Dask cluster (--executor dask); rerunning the same command skips finished runs.",
+        "or on a Dask cluster (--executor dask); rerunning the same command with --resume skips finished runs "
+        "(after checking that the folder's runs were made with the same settings), --force starts the folder anew.",
     )
     exp = p.add_subparsers(dest="experiment", metavar="EXPERIMENT")
     exp.required = True
@@ -482,7 +511,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Museum world, 1079 beams over 270 deg, 8 m, 0.2 m grid; Monte Carlo runs per method "
         "against the exact ground truth; writes table.md/csv, results.json and the Fig. 2 figures.",
     )
-    t1.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    t1.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     t1.add_argument("--runs", type=positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
     t1.add_argument("--scans", type=positive_int, default=5500, help="scans of the simulated log (default: 5500)")
     t1.add_argument("--particles", type=positive_int, default=None, help=f"particles (paper: 100; {FROM_PRESET})")
@@ -503,7 +532,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--ranges) sets each run's method, particle count, seed and z_max.",
     )
     add_preset_option(rl, DEFAULT_PRESET)
-    rl.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    rl.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     rl.add_argument("--datasets", nargs="+", choices=("intel", "aces"), default=["intel", "aces"])
     rl.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"])
     rl.add_argument("--particles", dest="particles_list", type=positive_int, nargs="+", default=[30, 100])
@@ -552,18 +581,19 @@ def build_parser() -> argparse.ArgumentParser:
         "fig3_trees.png, fig4_boxplots.png, fig5_ric_gain.png and report.md (the paper's six claims checked).",
     )
     ig.add_argument("--map", default=None, help="map (.pgm read as the planner reads cave.pgm, or Nav2 .yaml); default: cave-map")
-    ig.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    ig.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     ig.add_argument("--runs", type=positive_int, default=20, help="runs (seeds) per function (default: 20)")
     ig.add_argument("--functions", default="ogmi,crmi,ucrmi,gpvr,ugpvr", help="comma-separated (default: all five)")
     ig.add_argument("--mode", choices=("reference", "clean"), default="reference", help="planner and function quirks")
     ig.add_argument("--ogmi", choices=("fsmi", "iig_mi", "julian"), default="fsmi", help="what OGMI means (default: exact FSMI)")
     ig.add_argument("--particles", type=positive_int, default=100, help="UCRMI particles per node (default: 100)")
-    ig.add_argument("--start", type=float, nargs=2, default=(10.0, 2.0), metavar=("X", "Y"), help="start (default: 10 2)")
+    ig.add_argument("--start", type=finite_float, nargs=2, default=(10.0, 2.0), metavar=("X", "Y"), help="start (default: 10 2)")
     ig.add_argument("--max-seconds", type=positive_float, default=600.0, help="wall-clock guard per run (default: 600)")
     ig.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ig.add_argument("--quiet", action="store_true", help="no progress output")
     add_executor_options(ig)
     ig.set_defaults(func=cmd_experiment)
+    add_resume_options(ig)
     ex = exp.add_parser(
         "explore",
         help="exploration runs over worlds, functions, UCRMI alphas and seeds",
@@ -571,7 +601,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(resumable); writes runs.csv, coverage.png (explored area, map error and pose error against distance), "
         "pose_error.png and report.md. Poses come from RBPF-CLAM unless --known-poses.",
     )
-    ex.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    ex.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     ex.add_argument("--worlds", nargs="+", default=["office"], help="museum | office | map files (default: office)")
     ex.add_argument("--functions", default="crmi,ucrmi,fsmi,frontier", help="comma-separated (default: all four)")
     ex.add_argument("--alphas", default="0,0.25,0.5,0.75,1", help="UCRMI weights of the map term (default: 0,...,1)")
@@ -583,7 +613,9 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--quiet", action="store_true", help="no progress output")
     add_executor_options(ex)
     ex.set_defaults(func=cmd_experiment)
+    add_resume_options(ex)
     for q in (t1, rl):
+        add_resume_options(q)
         q.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
         q.add_argument(
             "--threads", type=positive_int, default=1, help="threads of each run (default: 1; the results do not depend on it)"
@@ -623,6 +655,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=positive_int, default=3, help="best of N (default: 3)")
     p.add_argument("--verbose", action="store_true", help="print the full result, not just the figures")
     p.set_defaults(func=cmd_bench)
+    add_limit_options_everywhere(parser)
     return parser
 
 
@@ -630,15 +663,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        apply_limit_options(args)
         status = int(args.func(args))
         sys.stdout.flush()
         return status
-    except (CrlamError, FileNotFoundError) as e:
-        print(f"crlam {args.command}: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"crlam {args.command}: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:
         # The reader of our output went away (`crlam slam ... | head`): stop without a traceback,
         # with the status a process killed by SIGPIPE has, and keep Python's exit-time flush of
@@ -646,6 +674,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141
+    except EXPECTED_FAILURES as e:
+        # Expected failures (bad input, a file system refusing, a limit, memory) are one line;
+        # CRLAM_TRACEBACK=1 shows the traceback. Other exceptions are bugs and keep theirs.
+        if os.environ.get("CRLAM_TRACEBACK"):
+            raise
+        print(f"crlam {args.command}: error: {describe_failure(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"crlam {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -10,6 +10,7 @@ pub mod crm;
 pub mod error;
 pub mod grid;
 pub mod info;
+pub mod limits;
 pub mod motion;
 pub mod numeric;
 pub mod ogm;

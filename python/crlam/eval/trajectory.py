@@ -519,10 +519,25 @@ def reference_errors(
     ``align="none"`` compares the poses as they are (the two trajectories share the world frame,
     as a simulation's ground truth does); ``"se2"`` first moves the estimate by the rigid motion
     that best fits its matched positions to the reference's (:func:`crlam.eval.align.align_se2`,
-    evo's ``--align`` in the plane).
+    evo's ``--align`` in the plane). A stamp estimated twice with different poses raises
+    DataFormatError too (identical repeated rows count once).
     """
     t_est, p_est = _as_estimate(stamps_est, poses_est, "estimate")
     t_ref, p_ref = _as_estimate(stamps_ref, poses_ref, "reference")
+    # A stamp estimated twice with different poses would be scored twice against one reference
+    # pose; repeated identical rows are scored once.
+    own = _StampIndex(t_est, p_est, 0.0)
+    if own.ambiguous:
+        first = min(own.ambiguous)
+        rows = np.flatnonzero(t_est == first)[:2].tolist()
+        raise DataFormatError(
+            f"estimate: {len(own.ambiguous)} stamps occur more than once with different poses (first: {first:.6f} at rows "
+            f"{rows[0]} and {rows[1]})",
+            field="timestamp",
+        )
+    keep = np.zeros(t_est.shape[0], dtype=bool)
+    keep[sorted(own.exact.values())] = True
+    t_est, p_est = t_est[keep], p_est[keep]
     index = _StampIndex(t_ref, p_ref, tolerance)
     j = np.array([index.find(x) for x in t_est.tolist()], dtype=np.int64)
     ok = j >= 0

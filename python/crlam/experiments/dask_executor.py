@@ -8,9 +8,9 @@ end. Dask (``pip install "crlam[cluster]"``) is imported only here, and only whe
 The guarantees are those of the local executor:
 
 - no shared file system is needed: each run's input files are sent to the workers (once per
-  worker), and each finished run's files come back to this process, which writes them into the
-  run folder with the marker file last (atomically); maps (``RunLayout.maps``) come back only
-  with ``keep_maps``;
+  worker), and each finished run's files come back to this process, which writes them through a
+  staging folder (:mod:`crlam.run_folder`), so a run folder appears only whole; maps
+  (``RunLayout.maps``) come back only with ``keep_maps``;
 - a rerun skips finished runs (the sweep loop checks the markers before anything is sent);
 - a worker killed mid-run costs only the runs it held: the scheduler starts them elsewhere, up to
   ``retries`` more times (the LocalCluster's ``allowed-failures``; a cluster of your own uses its
@@ -52,16 +52,20 @@ def _distributed() -> Any:
     return distributed
 
 
-def write_run_files(folder: Path, files: dict[str, bytes], marker: str) -> None:
-    """Writes a run's files into ``folder``, each through a temporary file and a rename, the
-    marker last: a folder with the marker holds the whole run, whenever this process stops."""
-    folder.mkdir(parents=True, exist_ok=True)
-    for rel in sorted(files, key=lambda r: r == marker):
-        path = folder / rel
-        path.parent.mkdir(parents=True, exist_ok=True)
-        tmp = path.with_name(path.name + ".tmp")
-        tmp.write_bytes(files[rel])
-        tmp.replace(path)
+def write_run_files(folder: Path, files: dict[str, bytes]) -> None:
+    """Writes a run's files into ``folder`` through a staging folder (:mod:`crlam.run_folder`):
+    the folder appears, replacing an older unfinished or corrupt one, only when every file is
+    written, whenever this process stops. The worker's own markers are not copied; the staging
+    writes its own ``COMPLETE`` last."""
+    from crlam.run_folder import COMPLETE, INCOMPLETE, staged_folder
+
+    with staged_folder(folder, command="crlam experiment (run sent back by a Dask worker)") as stage:
+        for rel in sorted(files):
+            if rel in (COMPLETE, INCOMPLETE):
+                continue
+            path = stage / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_bytes(files[rel])
 
 
 class DaskExecutor:
@@ -189,7 +193,7 @@ class DaskExecutor:
         if answer.error is not None or answer.result is None:
             collect(name, None, answer.error)
             return
-        write_run_files(Path(kw[layout.folder]), answer.files, layout.marker)
+        write_run_files(Path(kw[layout.folder]), answer.files)
         collect(name, answer.result, None)
 
 

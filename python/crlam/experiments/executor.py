@@ -39,8 +39,6 @@ class RunLayout:
     folder:
         The keyword argument holding the run's folder (as this process sees it). A remote worker
         runs the job with a scratch folder of its own instead and sends the files back.
-    marker:
-        The file written last (atomically); its presence marks a finished run.
     inputs:
         Keyword arguments holding paths of files or folders the run reads. Those that exist
         here are sent to the workers; other values (``None``, a built-in world's name) pass
@@ -51,7 +49,6 @@ class RunLayout:
     """
 
     folder: str = "folder"
-    marker: str = "metrics.json"
     inputs: tuple[str, ...] = ()
     maps: tuple[str, ...] = ()
 

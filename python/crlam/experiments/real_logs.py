@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from crlam.experiments.executor import Executor
+from crlam.experiments.resume import close_experiment, open_experiment
 from crlam.experiments.sweep import RunSpec, run_sweep
 from crlam.io.fetch import find_dataset
 from crlam.slam import SlamConfig
@@ -61,6 +62,8 @@ def run_real_logs(
     progress: bool = True,
     report_only: bool = False,
     executor: Executor | None = None,
+    resume: bool = True,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Runs (or resumes) the grid of runs and writes the table; returns the results.
 
@@ -72,8 +75,12 @@ def run_real_logs(
     run sets); without one the sweep uses the default preset (``SlamConfig.from_preset()``,
     ``robust``).
 
-    ``report_only`` runs nothing: the table covers the runs finished so far."""
+    ``report_only`` runs nothing: the table covers the runs finished so far.
+
+    An existing ``out`` is resumed (``resume``: every finished run's ``config.toml`` must hold the
+    settings asked for) or replaced (``force``); see :mod:`crlam.experiments.resume`."""
     base = base or SlamConfig.from_preset()
+    out = open_experiment(out, "real-logs", {}, resume=resume, force=force, report_only=report_only, runs_check_themselves=True)
     specs: list[RunSpec] = []
     for ds in datasets:
         if ds not in LOGS:
@@ -144,6 +151,8 @@ def run_real_logs(
     out.mkdir(parents=True, exist_ok=True)
     (out / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
     _write_table(out, rows, datasets)
+    if not report_only:
+        close_experiment(out, n_runs=len(specs), failed=errors)
     return results
 
 

@@ -10,7 +10,6 @@ context, because a forked child of a process whose rayon pool has started hangs.
 
 from __future__ import annotations
 
-import json
 import re
 import sys
 from collections.abc import Sequence
@@ -23,9 +22,13 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from crlam.errors import ConfigError
+from crlam.errors import ConfigError, CrlamError
 from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs
+from crlam.experiments.resume import load_json_dict
+from crlam.io.npz_check import check_npz
+from crlam.io.tum import read_tum
+from crlam.run_folder import staged_folder
 from crlam.slam import SlamConfig
 
 __all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics", "stored_setting_differences"]
@@ -34,7 +37,7 @@ _UNSET_LINE = re.compile(r"^# (\w+) = \(unset\)$", re.MULTILINE)
 
 #: A SLAM run reads its log, reference and relations and writes ``metrics.json`` last; its map
 #: (``belief.npz``, hundreds of MB for a large log) is the file a remote executor may leave out.
-SLAM_RUN_LAYOUT = RunLayout(marker="metrics.json", inputs=("log", "reference", "relations"), maps=("belief.npz",))
+SLAM_RUN_LAYOUT = RunLayout(inputs=("log", "reference", "relations"), maps=("belief.npz",))
 
 
 @dataclass(frozen=True)
@@ -54,12 +57,25 @@ class RunSpec:
 
 
 def run_is_finished(folder: Path) -> bool:
-    """A run is finished when its metrics.json exists (it is written last)."""
-    return (folder / "metrics.json").is_file()
+    """A run is finished when its metrics.json (written last) reads as a JSON object and the files
+    the report reads back, where present, read too: a run with a corrupt file is done again."""
+    if load_json_dict(folder / "metrics.json") is None:
+        return False
+    try:
+        if (folder / "config.toml").is_file():
+            tomllib.loads((folder / "config.toml").read_text())
+        if (folder / "trajectory.tum").is_file():
+            read_tum(folder / "trajectory.tum")
+        if (folder / "belief.npz").is_file():
+            check_npz(folder / "belief.npz", "belief archive")
+    except (CrlamError, OSError, ValueError, tomllib.TOMLDecodeError):
+        return False
+    return True
 
 
 def load_metrics(folder: Path) -> dict[str, Any]:
-    return json.loads((folder / "metrics.json").read_text())
+    """The metrics of a finished run (an empty dict if they cannot be read)."""
+    return load_json_dict(folder / "metrics.json") or {}
 
 
 def _normalised(v: Any) -> Any:
@@ -118,7 +134,8 @@ def _check_finished_runs(specs: Sequence[RunSpec], root: Path) -> None:
     if problems:
         raise ConfigError(
             f"{len(problems)} finished run(s) under {root} were made with other settings than this command asks "
-            "for (use another output folder, or delete those run folders to redo them):\n  " + "\n  ".join(problems)
+            "for (use another output folder, --force to redo every run, or delete those run folders to redo them):\n  "
+            + "\n  ".join(problems)
         )
 
 
@@ -131,15 +148,17 @@ def _run_spec(
 
     d = dict(spec_dict)
     cfg = SlamConfig(**d.pop("config"))
-    res = run_slam_log(
-        log,
-        folder,
-        cfg,
-        reference=reference,
-        relations=relations,
-        max_scans=d["max_scans"],
-        progress=False,
-    )
+    # Staged: the run's folder appears (replacing an older, unfinished or corrupt one) only whole.
+    with staged_folder(Path(folder), command=f"crlam experiment run {d['name']}") as stage:
+        res = run_slam_log(
+            log,
+            stage,
+            cfg,
+            reference=reference,
+            relations=relations,
+            max_scans=d["max_scans"],
+            progress=False,
+        )
     return dict(res.metrics)
 
 

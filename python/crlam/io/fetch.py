@@ -29,6 +29,7 @@ from typing import IO, Any
 
 from crlam.errors import CrlamError
 from crlam.io.datasets import DATASETS, DatasetNotFoundError, data_root
+from crlam.limits import check_limit, limits
 
 __all__ = [
     "REMOTE",
@@ -286,21 +287,37 @@ class _StreamDownloader:
         from tqdm import tqdm
 
         n = 0
+        # Never more than the expected size (or, with none, the download_bytes limit) is written:
+        # a server (or a file:// URL such as /dev/zero) sending more is stopped at once.
+        cap = self.size if self.size is not None else limits().download_bytes
         try:
             with self.opener(url, self.timeout) as response, open(output_file, "wb") as out:
-                total = _content_length(response) or self.size
+                announced = _content_length(response)
+                if announced is not None and announced > cap:
+                    _too_large(url, announced, self.size)
+                total = announced or self.size
                 with tqdm(
                     total=total, unit="B", unit_scale=True, unit_divisor=1024, desc=self.label, disable=not self.progress
                 ) as bar:
                     for block in iter(lambda: response.read(_CHUNK), b""):
+                        if n + len(block) > cap:
+                            _too_large(url, n + len(block), self.size)
                         out.write(block)
                         n += len(block)
                         bar.update(len(block))
+        except CrlamError:
+            raise
         except (urllib.error.URLError, http.client.HTTPException, OSError, ValueError) as exc:
             reason = getattr(exc, "reason", None) or exc
             raise DownloadError(f"download of {url} failed: {reason}") from exc
         if self.size is not None and n != self.size:
             raise ChecksumError(f"download of {url} has {n} bytes, expected {self.size}; discarded")
+
+
+def _too_large(url: str, n: int, size: int | None) -> None:
+    if size is not None:
+        raise ChecksumError(f"download of {url} sends {n:,} bytes or more, expected {size:,}; discarded")
+    check_limit("download_bytes", n, f"download of {url}")
 
 
 def download(
@@ -323,18 +340,18 @@ def download(
     Parameters
     ----------
     url : str
-        ``http(s)://`` (pooch's HTTP downloader) or ``file://`` URL.
+        ``http(s)://`` or ``file://`` URL (read by ``urllib.request.urlopen``).
     dest : str or PathLike
         Final path; its folder is created. Replaced only by verified bytes, and downloaded
         again only when it does not verify.
     sha256 : str
         Expected SHA-256 (hex).
     size : int, optional
-        Expected size (bytes), checked on streamed downloads, and the progress bar's total when
-        the server sends none.
+        Expected size (bytes): a source sending more is stopped at once, one sending less is
+        refused; the progress bar's total when the server sends none.
     opener : callable, optional
-        ``opener(url, timeout)`` -> binary stream; given, it reads the URL instead of pooch's
-        HTTP downloader (``file://`` URLs always go through ``urllib.request.urlopen``).
+        ``opener(url, timeout)`` -> binary stream; given, it reads the URL instead of
+        ``urllib.request.urlopen`` (mirrors, tests).
     progress : bool
         Show a tqdm progress bar (on stderr).
     timeout : float
@@ -347,26 +364,24 @@ def download(
     DownloadError
         When the URL cannot be read; the message names it.
     ChecksumError
-        When the bytes have the wrong size or SHA-256; nothing is written at ``dest``.
+        When the bytes have the wrong size or SHA-256; nothing is written at ``dest``. A source
+        sending more than ``size`` bytes is stopped as soon as it does.
+    ResourceLimitError
+        When no ``size`` is given and the source sends more than the ``download_bytes`` limit.
     """
     import pooch
-    import requests
 
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     pooch.get_logger().setLevel("WARNING")
-    downloader: Any
-    if opener is not None or not url.startswith(("http://", "https://")):
-        downloader = _StreamDownloader(opener or _urlopen, timeout, size, progress, label or dest.name)
-    else:
-        downloader = pooch.HTTPDownloader(progressbar=progress, timeout=timeout)
+    # Pooch checks the hash and moves the file into place; the bytes come through our streaming
+    # downloader on every scheme, so the size cap holds for http(s) too.
+    downloader = _StreamDownloader(opener or _urlopen, timeout, size, progress, label or dest.name)
     try:
         fetched = pooch.retrieve(
             url, known_hash=f"sha256:{sha256.lower()}", fname=dest.name, path=dest.parent, downloader=downloader
         )
-    except requests.RequestException as exc:
-        raise DownloadError(f"download of {url} failed: {exc}") from exc
-    except DownloadError:
+    except CrlamError:
         raise
     except ValueError as exc:  # pooch: the SHA-256 does not match
         raise ChecksumError(f"download of {url} does not have SHA-256 {sha256} ({exc}); discarded") from exc

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -23,7 +24,9 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
 
-from crlam.errors import ConfigError, DataFormatError
+from crlam.errors import ConfigError, DataFormatError, ResourceLimitError
+from crlam.io.lines import read_small_text
+from crlam.limits import check_limit, limits
 
 __all__ = ["Nav2Map", "read_image", "read_nav2_map", "read_pgm", "write_nav2_map", "write_pgm"]
 
@@ -69,6 +72,44 @@ def _pgm_error(path: str | os.PathLike[str], message: str, field: str) -> DataFo
     return DataFormatError(message, path=str(path), field=field)
 
 
+def check_image_size(path: str | os.PathLike[str], width: int, height: int) -> None:
+    """Refuses an image of more pixels than the ``image_pixels`` limit, before it is decoded."""
+    check_limit("image_pixels", float(width) * float(height), f"image {path} ({width} x {height} pixels)")
+
+
+def open_pil_image(path: str | os.PathLike[str], field: str = "image"):  # type: ignore[no-untyped-def]
+    """A Pillow image, opened (header read, nothing decoded) and checked against the
+    ``image_pixels`` limit; Pillow's own decompression-bomb guard becomes the same error.
+    A file Pillow cannot read raises DataFormatError naming ``field``."""
+    from PIL import Image, UnidentifiedImageError
+
+    p = Path(path)
+    if not p.is_file():
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: no such image file")
+        raise DataFormatError("not a regular file", path=str(p), field="image")
+    # Pillow's own guard (a warning above MAX_IMAGE_PIXELS, an error above twice that) follows
+    # crlam's limit, which is checked below on the size the header declares.
+    Image.MAX_IMAGE_PIXELS = limits().image_pixels
+    try:
+        img = Image.open(p)
+    except Image.DecompressionBombError as exc:
+        size = re.search(r"\((\d+) pixels\)", str(exc))
+        try:
+            check_limit("image_pixels", int(size.group(1)) if size else math.inf, f"image {p}")
+        except ResourceLimitError as limit_error:
+            raise limit_error from exc
+        raise  # not reached: Pillow refuses only images above the limit
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        raise DataFormatError(f"cannot read image ({exc})", path=str(p), field=field) from exc
+    try:
+        check_image_size(p, *img.size)
+    except ResourceLimitError:
+        img.close()
+        raise
+    return img
+
+
 def read_pgm(path: str | os.PathLike[str]) -> NDArray[np.uint8] | NDArray[np.uint16]:
     """Read a binary (P5) or ASCII (P2) PGM image with Pillow, comments allowed.
 
@@ -85,16 +126,13 @@ def read_pgm(path: str | os.PathLike[str]) -> NDArray[np.uint8] | NDArray[np.uin
         Naming the file and the field: ``magic`` (not a PGM), ``header`` (bad size or maxval)
         or ``raster`` (truncated or out-of-range pixel data).
     """
-    from PIL import Image, UnidentifiedImageError
-
-    with open(path, "rb") as fh:
-        magic = fh.read(2)
-    if magic not in (b"P5", b"P2"):
-        raise _pgm_error(path, f"not a PGM file (magic {magic!r}, want P5 or P2)", "magic")
-    try:
-        img = Image.open(path)
-    except (UnidentifiedImageError, ValueError, SyntaxError, OSError) as exc:
-        raise _pgm_error(path, f"bad PGM header ({exc})", "header") from exc
+    p = Path(path)
+    if p.is_file():  # anything else (missing, a FIFO, /dev/zero) is refused by open_pil_image
+        with open(p, "rb") as fh:
+            magic = fh.read(2)
+        if magic not in (b"P5", b"P2"):
+            raise _pgm_error(path, f"not a PGM file (magic {magic!r}, want P5 or P2)", "magic")
+    img = open_pil_image(p, field="header")
     with img:
         try:
             img.load()
@@ -134,12 +172,10 @@ def _image_planes(path: Path) -> tuple[FloatArray, FloatArray | None]:
     if magic in (b"P5", b"P2"):
         values = read_pgm(path)
         return values.astype(np.float64) / (255.0 if values.dtype == np.uint8 else 65535.0), None
-    from PIL import Image, UnidentifiedImageError
-
+    img = open_pil_image(path)
     try:
-        img: Image.Image = Image.open(path)
         img.load()
-    except (UnidentifiedImageError, OSError) as exc:
+    except (OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"cannot read image ({exc})", path=str(path), field="image") from exc
     if img.mode == "P":
         img = img.convert("RGBA" if "transparency" in img.info else "RGB")
@@ -299,10 +335,11 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
     """
     path = Path(yaml_path)
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        doc = yaml.safe_load(read_small_text(path, "Nav2 map YAML"))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        raise DataFormatError(f"invalid YAML ({exc})", path=str(path), line=None if mark is None else mark.line + 1) from exc
+        reason = " ".join(str(exc).split())
+        raise DataFormatError(f"invalid YAML ({reason})", path=str(path), line=None if mark is None else mark.line + 1) from exc
     if not isinstance(doc, dict):
         raise DataFormatError("not a YAML mapping", path=str(path))
     if not isinstance(doc.get("image"), str) or not doc["image"]:
@@ -316,6 +353,12 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
     org = np.array([_yaml_number({"origin": v}, "origin", path, None) for v in origin] + [0.0])[:3]
     occ_t = _yaml_number(doc, "occupied_thresh", path, 0.65)
     free_t = _yaml_number(doc, "free_thresh", path, 0.196)
+    if not 0.0 <= free_t <= occ_t <= 1.0:
+        raise DataFormatError(
+            f"need 0 <= free_thresh <= occupied_thresh <= 1, got free_thresh {free_t}, occupied_thresh {occ_t}",
+            path=str(path),
+            field="free_thresh",
+        )
     negate_raw = doc.get("negate", 0)
     if negate_raw not in (0, 1):  # True/False compare equal to 1/0
         raise DataFormatError(f"must be 0 or 1, got {negate_raw!r}", path=str(path), field="negate")

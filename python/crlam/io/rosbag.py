@@ -76,7 +76,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from crlam.errors import ConfigError, DataFormatError
+from crlam.errors import ConfigError, CrlamError, DataFormatError
 from crlam.io.carmen_types import CarmenStats, ImuReading, LaserScan, LogRecord, OdometryReading
 from crlam.io.rosbag_tf import FixedTransforms, TransformTree, planar, transform_matrix, wrap, yaw_of
 from crlam.pose import compose
@@ -191,6 +191,26 @@ def _topics_text(connections: Sequence[Any]) -> str:
     for c in connections:
         seen.setdefault(c.topic, c.msgtype)
     return ", ".join(f"{t} ({ty})" for t, ty in sorted(seen.items())) or "(none)"
+
+
+def _library_errors() -> tuple[type[BaseException], ...]:
+    """What reading a damaged bag raises in the bag library (and the standard library under it)."""
+    import struct
+
+    # MemoryError: a damaged length field makes the library ask for an absurd buffer at once.
+    errors: list[type[BaseException]] = [KeyError, IndexError, ValueError, EOFError, OSError, struct.error, AssertionError]
+    # TypeError: the MCAP parser on a truncated record; AttributeError: a ROS 1 bag whose damaged
+    # message definition gives a known type name other fields.
+    errors += [MemoryError, TypeError, ArithmeticError, AttributeError]
+    try:
+        from rosbags.highlevel import AnyReaderError
+        from rosbags.rosbag1 import ReaderError as Ros1Error
+        from rosbags.rosbag2 import ReaderError as Ros2Error
+
+        errors += [AnyReaderError, Ros1Error, Ros2Error]
+    except ImportError:  # pragma: no cover - rosbags is a dependency
+        pass
+    return tuple(errors)
 
 
 class RosbagReader:
@@ -416,6 +436,17 @@ class RosbagReader:
         return self._records()
 
     def _records(self) -> Iterator[LogRecord]:
+        """The records; what the bag library cannot read (a damaged, truncated or foreign file)
+        is a :class:`DataFormatError` naming the bag."""
+        try:
+            yield from self._read_records()
+        except CrlamError:
+            raise
+        except _library_errors() as exc:
+            reason = " ".join(str(exc).split())[:300]
+            raise DataFormatError(f"damaged or unreadable ROS bag ({type(exc).__name__}: {reason})", path=str(self.path)) from exc
+
+    def _read_records(self) -> Iterator[LogRecord]:
         self.stats = stats = BagStats()
         self._scan_span, self._odom_span = (math.nan, math.nan), None
         with self._open() as reader:

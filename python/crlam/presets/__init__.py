@@ -79,8 +79,10 @@ def preset_path(name: str) -> Path:
 
 def _parse(path: Path) -> tuple[dict[str, Any], dict[str, set[str]]]:
     """The TOML document of ``path`` and, per section, the names of its ``# name = (unset)`` lines."""
+    from crlam.io.lines import read_small_text
+
     try:
-        text = path.read_text()
+        text = read_small_text(path, "config file")
     except OSError as e:
         raise ConfigError(f"{path}: cannot read ({e.strerror or e})") from e
     try:

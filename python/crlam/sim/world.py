@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from crlam.errors import ConfigError, DataFormatError
+from crlam.errors import ConfigError, CrlamError, DataFormatError
 from crlam.sim.grid_ops import ClearanceField, distance_map
 
 __all__ = ["World", "read_pgm", "write_pgm"]
@@ -239,10 +239,12 @@ def _read_grey(path: Path) -> NDArray[np.uint8]:
         magic = fh.read(2)
     if magic in (b"P5", b"P2"):
         return read_pgm(path)
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
+
+    from crlam.io.nav2 import open_pil_image
 
     try:
-        with Image.open(path) as img:
+        with open_pil_image(path) as img:
             if img.mode in ("RGBA", "LA", "PA") or (img.mode == "P" and "transparency" in img.info):
                 img = img.convert("RGBA")
                 background = Image.new("RGBA", img.size, (255, 255, 255, 255))
@@ -252,7 +254,9 @@ def _read_grey(path: Path) -> NDArray[np.uint8]:
                 top = arr.max() if arr.max() > 255 else 255.0
                 return np.round(arr * 255.0 / top).astype(np.uint8)
             return np.asarray(img.convert("L"), dtype=np.uint8).copy()
-    except UnidentifiedImageError as exc:
+    except CrlamError:
+        raise
+    except (OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"not an image: {exc}", path=str(path)) from exc
 
 

@@ -246,6 +246,7 @@ impl Crmi {
     /// CRMI (in the configured units) at `pose`, using `sc` for buffers.
     pub fn gain_with(&self, map: &CrmMap, pose: [f64; 3], sc: &mut CrmiScratch) -> Result<f64> {
         check_pose(pose)?;
+        map.check_ray_reach(self.cfg.model.z_max)?;
         let mu = map.levels();
         let k = mu.len();
         let g = *map.geometry();

@@ -156,6 +156,7 @@ impl ClamConfig {
         if self.n_particles == 0 {
             return Err(config_err("n_particles", "must be >= 1"));
         }
+        crate::limits::check_particles("RBPF-CLAM n_particles", self.n_particles)?;
         if self.weight_stride == 0 || self.map_stride == 0 {
             return Err(config_err("beam_stride", "must be >= 1"));
         }
