@@ -18,6 +18,7 @@ from crlam.cli_options import (
     BATCH_KERNELS,
     CAUSE_KERNEL_HELP,
     CAUSE_KERNELS,
+    MATCH_RANGE_HELP,
     MATCH_STRIDE_HELP,
     MOTION_DRAWS,
     MOTION_DRAWS_HELP,
@@ -43,6 +44,7 @@ from crlam.cli_options import (
     apply_limit_options,
     bag_options,
     finite_float,
+    match_range,
     nonnegative_float,
     nonnegative_int,
     positive_float,
@@ -448,6 +450,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering tau (paper: 1; {FROM_PRESET})")
     p.add_argument("--tempering-beams", type=positive_float, default=None, metavar="B", help=TEMPERING_BEAMS_HELP)
     p.add_argument("--scan-match-weight", choices=("crm", "endpoint"), default=None, help=SCAN_MATCH_WEIGHT_HELP)
+    p.add_argument("--match-range", type=match_range, default=None, metavar="z_max|full|M", help=MATCH_RANGE_HELP)
     p.add_argument("--motion-noise", choices=("model", "estimate"), default=None, help=MOTION_NOISE_HELP)
     p.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
     p.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)
@@ -626,6 +629,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument("--tempering", type=positive_float, default=None, help=f"weight tempering (paper: 1; {FROM_PRESET})")
         q.add_argument("--tempering-beams", type=positive_float, default=None, metavar="B", help=TEMPERING_BEAMS_HELP)
         q.add_argument("--scan-match-weight", choices=("crm", "endpoint"), default=None, help=SCAN_MATCH_WEIGHT_HELP)
+        q.add_argument("--match-range", type=match_range, default=None, metavar="z_max|full|M", help=MATCH_RANGE_HELP)
         q.add_argument("--motion-noise", choices=("model", "estimate"), default=None, help=MOTION_NOISE_HELP)
         q.add_argument("--sigma-range", type=nonnegative_float, default=None, help=SIGMA_RANGE_HELP)
         q.add_argument("--cause-kernel", choices=CAUSE_KERNELS, default=None, help=CAUSE_KERNEL_HELP)

@@ -13,6 +13,7 @@ __all__ = [
     "CAUSE_KERNELS",
     "CAUSE_KERNEL_HELP",
     "LATTICE_STEP_HELP",
+    "MATCH_RANGE_HELP",
     "MATCH_STRIDE_HELP",
     "MOTION_DRAWS",
     "MOTION_DRAWS_HELP",
@@ -39,6 +40,7 @@ __all__ = [
     "stored_input_options",
     "staged_output",
     "finite_float",
+    "match_range",
     "nonnegative_float",
     "nonnegative_int",
     "positive_float",
@@ -92,6 +94,19 @@ def nonnegative_int(text: str) -> int:
     return v
 
 
+def match_range(text: str) -> str | float:
+    """``--match-range``: ``z_max``, ``full`` or a range in metres."""
+    if text in ("z_max", "full"):
+        return text
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not z_max, full or a range in metres: {text!r}") from None
+    if not (v > 0 and math.isfinite(v)):
+        raise argparse.ArgumentTypeError(f"a range must be a finite number > 0, got {text}")
+    return v
+
+
 CAUSE_KERNELS = ("midpoint", "chord")
 BATCH_KERNELS = ("windowed", "full_ray")
 BATCH_KERNEL_HELP = (
@@ -134,6 +149,11 @@ PROPOSAL_HELP = (
 PROPOSAL_POSE_HELP = (
     "improved proposals (RBPF-CLAM likelihood_mode, RBPF-OGM): draw the pose from the Gaussian fitted around the "
     "match (sample, paper) or keep the match, as GMapping's code does (match) (default: the preset's)"
+)
+MATCH_RANGE_HELP = (
+    "RBPF-CLAM scan_match: the readings the endpoint matcher uses: below z_max (z_max, paper), every reading that "
+    "returned at its measured range (full), or those below a range in metres; the map update and the weights use "
+    "z_max either way; no-returns are never matched (default: the preset's)"
 )
 MATCH_STRIDE_HELP = (
     "RBPF-CLAM likelihood_mode: climb to the mode on every n-th beam (paper: 3; default: the preset's); the lattice "

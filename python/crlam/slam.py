@@ -30,6 +30,16 @@ __all__ = [
 
 Method = Literal["clam", "ogm"]
 
+#: Largest ``match_range`` in metres (the native matcher's bound on a usable range).
+MAX_MATCH_RANGE = 1e5
+
+
+def _valid_match_range(v: object) -> bool:
+    """``"z_max"``, ``"full"`` or a finite range in (0, MAX_MATCH_RANGE] metres (not a bool)."""
+    if isinstance(v, str):
+        return v in ("z_max", "full")
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) and 0 < v <= MAX_MATCH_RANGE
+
 
 @dataclass(frozen=True)
 class SlamConfig:
@@ -93,6 +103,16 @@ class SlamConfig:
         paper's CRM predictive likelihood as the importance weight of the drawn pose) or
         ``endpoint`` (GMapping's: the lattice normaliser of the endpoint likelihood × motion
         density the proposal was fitted to; the CRM is then the map only).
+    match_range : str or float
+        RBPF-CLAM's ``scan_match`` proposal: the readings its endpoint matcher uses (the map
+        update and the CRM weight always use those below ``max_range``). ``"z_max"`` (paper):
+        readings below ``max_range``. ``"full"``: every reading that returned, at its measured
+        range; beyond ``max_range`` the far endpoints land on cells mapped earlier from closer by
+        (a corridor's end on a revisit) or on unknown cells that match nothing. A number: as
+        ``"full"`` up to that range (m). No-returns are never matched: readings at or above the
+        scan's stated maximum range (CARMEN ROBOTLASER1, a ROS ``range_max``; FLASER states none,
+        81 m is taken) and, beyond ``max_range``, readings within 5 cm of the largest reading
+        of the log so far (a laser reports a no-return as one fixed value, its maximum).
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step), ``thrun``
         (``motion_params`` = alpha1..alpha4, variance coefficients) or ``gmapping`` (GMapping's own
@@ -167,6 +187,7 @@ class SlamConfig:
     lattice_step: tuple[float, float] = (0.05, 0.025)
     motion_outlier: float = 0.0
     scan_match_weight: str = "crm"
+    match_range: str | float = "z_max"
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
     motion_noise: str = "model"
@@ -241,6 +262,8 @@ class SlamConfig:
             raise bad("proposal_pose", "'match' needs an improved proposal: proposal='likelihood_mode' (RBPF-CLAM)")
         if self.scan_match_weight not in ("crm", "endpoint"):
             raise bad("scan_match_weight", "must be 'crm' or 'endpoint'")
+        if not _valid_match_range(self.match_range):
+            raise bad("match_range", f"must be 'z_max', 'full' or a range in metres in (0, {MAX_MATCH_RANGE:g}]")
         if self.ogm_map not in ("log_odds", "hit_rate", "gmapping"):
             raise bad("ogm_map", "must be 'log_odds', 'hit_rate' or 'gmapping'")
         if self.ogm_motion_draws not in ("per_update", "per_scan"):
@@ -357,6 +380,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             lattice_step=(float(config.lattice_step[0]), float(config.lattice_step[1])),
             motion_outlier=float(config.motion_outlier),
             scan_match_weight=config.scan_match_weight,
+            match_range=config.match_range if isinstance(config.match_range, str) else float(config.match_range),
             seed=config.seed,
         )
     except ValueError as e:

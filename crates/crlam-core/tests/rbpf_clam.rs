@@ -6,7 +6,8 @@ use crlam_core::grid::GridGeometry;
 use crlam_core::motion::MotionModel;
 use crlam_core::pose::{between, compose, wrap, Pose};
 use crlam_core::rbpf::{
-    ClamConfig, ClamProposal, ProposalPose, RbpfClam, ScanInput, ScanMatchSettings, ScanMatchWeight,
+    ClamConfig, ClamProposal, MatchRange, ProposalPose, RbpfClam, ScanInput, ScanMatchSettings,
+    ScanMatchWeight,
 };
 use crlam_core::rng::Rng;
 use crlam_core::sim::WorldRaster;
@@ -43,6 +44,11 @@ struct Run {
 }
 
 fn simulate(n_scans: usize) -> Run {
+    simulate_to(n_scans, 8.0)
+}
+
+/// [`simulate`] with readings up to `max_range` (m); none beyond (`inf`).
+fn simulate_to(n_scans: usize, max_range: f64) -> Run {
     let occ = world();
     let w = WorldRaster::new(
         GridGeometry::new([0.0, 0.0], RES_WORLD).unwrap(),
@@ -75,7 +81,7 @@ fn simulate(n_scans: usize) -> Run {
         odom.push(noise.sample(odom[k - 1], u, 1, &mut rng));
     }
     let mut flat = vec![0.0; n_scans * angles.len()];
-    w.cast(&truth, &angles, 8.0, &mut flat).unwrap();
+    w.cast(&truth, &angles, max_range, &mut flat).unwrap();
     let ranges = flat.chunks(angles.len()).map(|c| c.to_vec()).collect();
     Run {
         truth,
@@ -637,4 +643,57 @@ fn weighed_set_is_the_set_behind_the_estimate() {
         (first[0] - run.truth[0][0]).abs() < 1e-12 && (first[1] - run.truth[0][1]).abs() < 1e-12
     );
     assert!(f.ancestor_means(3, true).is_none());
+}
+
+/// The scan-match proposal with the endpoint matcher reading `range`.
+fn scan_match_range(range: MatchRange) -> ClamProposal {
+    ClamProposal::ScanMatch(ScanMatchSettings {
+        match_range: range,
+        ..ScanMatchSettings::default()
+    })
+}
+
+#[test]
+fn a_full_range_matcher_never_matches_a_no_return() {
+    // Nothing returns from beyond z_max (8 m). A laser reports a no-return as inf or as one fixed
+    // reading, its maximum (FLASER logs: 81.83 m on Intel, 8 m here): either way the full-range
+    // matcher sees what the paper's sees, so the filters agree to the bit.
+    let run = simulate(40);
+    let paper = run_filter(&run, config(scan_match_range(MatchRange::ZMax)));
+    for saturated in [f64::INFINITY, 8.0, 81.83] {
+        let mut r = Run {
+            ranges: run.ranges.clone(),
+            ..simulate(40)
+        };
+        for z in r.ranges.iter_mut().flatten() {
+            if !z.is_finite() {
+                *z = saturated;
+            }
+        }
+        assert!(r.ranges.iter().flatten().any(|z| *z == saturated));
+        for range in [MatchRange::Full, MatchRange::Metres(30.0)] {
+            assert_eq!(
+                run_filter(&r, config(scan_match_range(range))),
+                paper,
+                "no-returns at {saturated} m, {range:?}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_full_range_matcher_uses_the_returns_beyond_z_max() {
+    // Readings up to 12 m, maps and weights at 8 m: the far returns change the search, and the
+    // filter still beats odometry by far.
+    let run = simulate_to(150, 12.0);
+    assert!(run.ranges.iter().flatten().any(|z| (8.5..12.0).contains(z)));
+    let odo_err = mean_position_error(&run.odom, &run.truth);
+    let cfg = |range| ClamConfig {
+        n_particles: 8,
+        ..config(scan_match_range(range))
+    };
+    let full = run_filter(&run, cfg(MatchRange::Full));
+    assert_ne!(full, run_filter(&run, cfg(MatchRange::ZMax)));
+    let err = mean_position_error(&full, &run.truth);
+    assert!(err < 0.5 * odo_err, "full range {err:.3} m vs odometry {odo_err:.3} m");
 }

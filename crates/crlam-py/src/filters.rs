@@ -10,6 +10,7 @@ use crlam_core::rbpf::{
     OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput,
     ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
 };
+use crlam_core::rbpf::MatchRange;
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -19,6 +20,24 @@ use pyo3::types::PyDict;
 
 use crate::convert::{guard, pose3, poses_n3, shape_err, slice1, IntoPy};
 use crate::maps::{CrmMap, LogOddsMap, SensorModel};
+
+/// `match_range` as Python gives it: a name (`"z_max"`, `"full"`) or a range in metres.
+#[derive(FromPyObject)]
+pub enum MatchRangeArg {
+    Name(String),
+    Metres(f64),
+}
+
+impl MatchRangeArg {
+    fn parse(self) -> PyResult<MatchRange> {
+        let range = match self {
+            Self::Name(name) => MatchRange::parse(&name).py_err()?,
+            Self::Metres(m) => MatchRange::Metres(m),
+        };
+        range.validate().py_err()?;
+        Ok(range)
+    }
+}
 
 /// Parses the motion model name and its parameters.
 pub fn motion_model(name: &str, params: Option<Vec<f64>>) -> PyResult<MotionModel> {
@@ -323,7 +342,7 @@ filter_pymethods!(ClamFilter {
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
         batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
-        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm", seed=0))]
+        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm", match_range=MatchRangeArg::Name("z_max".to_owned()), seed=0))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -354,6 +373,7 @@ filter_pymethods!(ClamFilter {
         lattice_step: (f64, f64),
         motion_outlier: f64,
         scan_match_weight: &str,
+        match_range: MatchRangeArg,
         seed: u64,
     ) -> PyResult<Self> {
         guard("ClamFilter.new", || {
@@ -372,6 +392,7 @@ filter_pymethods!(ClamFilter {
         };
         let pose_rule = ProposalPose::parse(proposal_pose).py_err()?;
         let scan_match_weight = ScanMatchWeight::parse(scan_match_weight).py_err()?;
+        let match_range = match_range.parse()?;
         let proposal = match (proposal, pose_rule) {
             ("odometry", ProposalPose::Sample) => ClamProposal::Odometry,
             ("odometry", ProposalPose::Match) => {
@@ -410,6 +431,7 @@ filter_pymethods!(ClamFilter {
                         ..defaults.lattice
                     },
                     weight: scan_match_weight,
+                    match_range,
                     ..defaults
                 })
             }

@@ -111,8 +111,14 @@ def _coerce(value: Any, hint: Any, where: str) -> Any:
     if origin in (typing.Union, types.UnionType):
         if value is None and type(None) in args:
             return None
-        (inner,) = [a for a in args if a is not type(None)]
-        return _coerce(value, inner, where)
+        inner = [a for a in args if a is not type(None)]
+        if len(inner) == 1:
+            return _coerce(value, inner[0], where)
+        # A choice of kinds (``match_range``: a name or a number): the one the value is.
+        for kind in inner:
+            if (kind is str) == isinstance(value, str):
+                return _coerce(value, kind, where)
+        raise ConfigError(f"{where}: expected one of {', '.join(k.__name__ for k in inner)}, got {value!r}")
     if value is None:
         raise ConfigError(f"{where}: may not be unset")
     if origin is tuple:

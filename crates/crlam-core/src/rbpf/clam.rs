@@ -46,6 +46,9 @@ pub struct RbpfClam {
     n_resamples: usize,
     n_processed: usize,
     paths: PathTree,
+    /// The largest finite reading of every scan given so far (−∞ before any): the no-return rule
+    /// of a full-range matcher ([`crate::rbpf::MatchRange::Full`]).
+    largest_reading: f64,
 }
 
 /// The particles' poses with uniform weights.
@@ -119,6 +122,7 @@ impl RbpfClam {
             n_resamples: 0,
             n_processed: 0,
             paths,
+            largest_reading: f64::NEG_INFINITY,
         })
     }
 
@@ -190,6 +194,11 @@ impl RbpfClam {
     /// Feeds one scan; processes it when the update trigger fires.
     pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
         scan.validate()?;
+        self.largest_reading = scan
+            .ranges
+            .iter()
+            .filter(|z| z.is_finite())
+            .fold(self.largest_reading, |m, &z| m.max(z));
         let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
         if !self.started {
             self.started = true;
@@ -226,7 +235,9 @@ impl RbpfClam {
         };
         // The matcher's view of the scan, shared by every particle.
         let prepared: Option<PreparedScan> = match &cfg.proposal {
-            ClamProposal::ScanMatch(settings) => Some(prepare_scan(cfg, settings, scan)?),
+            ClamProposal::ScanMatch(settings) => {
+                Some(prepare_scan(cfg, settings, scan, self.largest_reading)?)
+            }
             _ => None,
         };
         // Each particle's proposal mean, for the path tree.

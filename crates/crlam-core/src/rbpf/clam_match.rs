@@ -28,7 +28,9 @@ use crate::crm::{CrmMap, CrmScratch};
 use crate::error::Result;
 use crate::pose::{compose, wrap, Pose};
 use crate::rbpf::clam_config::ClamConfig;
-pub use crate::rbpf::clam_config::{ScanMatchSettings, ScanMatchWeight};
+pub use crate::rbpf::clam_config::{
+    MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
+};
 use crate::rbpf::clam_particle::weigh_at_pose;
 use crate::rbpf::common::{ProposalPose, ScanInput};
 use crate::rbpf::motion_prior::MotionPrior;
@@ -40,18 +42,22 @@ use crate::rng::Rng;
 /// so that a robot standing still (zero variance under Thrun's model) still has a proper prior.
 const MOTION_FLOOR: [f64; 3] = [0.01, 0.01, 0.01];
 
-/// The scan's beams as the matcher uses them: every `matcher.beam_stride`-th reading below the
-/// weight model's z_max (longer ones are no-returns and leave nothing in the map to match).
+/// The scan's beams as the matcher uses them: every `matcher.beam_stride`-th reading that
+/// `settings.match_range` selects (the paper's: below the weight and mapping models' z_max, where
+/// the maps are), with `largest` the largest finite reading given to the filter so far (the
+/// no-return rule of [`MatchRange::Full`]).
 pub(crate) fn prepare_scan(
     cfg: &ClamConfig,
     settings: &ScanMatchSettings,
     scan: &ScanInput,
+    largest: f64,
 ) -> Result<PreparedScan> {
-    PreparedScan::new(
+    let z_max = cfg.weight_model.z_max.min(cfg.mapping_model.z_max);
+    PreparedScan::select(
         scan.angles,
         scan.ranges,
         scan.laser_offset,
-        cfg.weight_model.z_max.min(cfg.mapping_model.z_max),
+        settings.match_range.selection(z_max, largest),
         settings.matcher.beam_stride,
     )
 }

@@ -309,8 +309,11 @@ impl<'a> MatchSurface<'a> {
     }
 }
 
-/// The rectangle of cells that `scan` reaches from `pose` (endpoints and free points, the
-/// window around either, plus a margin), if it has at most `cells_per_beam` cells per beam.
+/// The rectangle of cells that the beams of `scan` below its near range (z_max) reach from
+/// `pose` (endpoints and free points, the window around either, plus a margin), if it has at
+/// most `cells_per_beam` cells per such beam. The farther beams (a full-range matcher's) read
+/// the tiles: their endpoints spread over an area that grows with the square of their length,
+/// so a patch sized by them would cost memory and filling for cells never read.
 fn patch_rect(
     g: &GridGeometry,
     scan: &PreparedScan,
@@ -318,12 +321,12 @@ fn patch_rect(
     kernel_size: usize,
     cells_per_beam: usize,
 ) -> Option<CellRect> {
-    if scan.is_empty() || !pose.iter().all(|v| v.is_finite()) {
+    if scan.n_near() == 0 || !pose.iter().all(|v| v.is_finite()) {
         return None;
     }
     let (s, c) = pose[2].sin_cos();
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for e in scan.endpoints() {
+    for e in scan.near_endpoints() {
         let w = [pose[0] + c * e[0] - s * e[1], pose[1] + s * e[0] + c * e[1]];
         for k in 0..2 {
             lo[k] = lo[k].min(w[k]);
@@ -343,7 +346,7 @@ fn patch_rect(
         cell(hi[1] + pad, g.origin[1]),
     );
     let (nx, ny) = (fx1 - fx0 + 1.0, fy1 - fy0 + 1.0);
-    let budget = cells_per_beam as f64 * scan.len() as f64;
+    let budget = cells_per_beam as f64 * scan.n_near() as f64;
     // Also refuses non-finite extents and anything beyond the i64 range (a budget of cells is
     // far below it).
     (nx >= 1.0 && ny >= 1.0 && nx * ny <= budget).then_some(CellRect {

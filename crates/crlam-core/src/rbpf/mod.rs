@@ -35,7 +35,7 @@ pub mod scanmatch;
 mod scanmatch_params;
 
 pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
-pub use clam_match::{ScanMatchSettings, ScanMatchWeight};
+pub use clam_match::{MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE};
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,
     UpdateTrigger,
@@ -45,4 +45,5 @@ pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use local_match::{LocalMapMatcher, LocalMatch};
 pub use match_surface::MatchSurface;
 pub use ogm::{MotionDraws, OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
+pub use prepared_scan::BeamSelection;
 pub use scanmatch::{FreeTest, MatcherParams, PreparedScan, ProposalParams, ScanFit, ScanMatcher};
