@@ -695,5 +695,8 @@ fn a_full_range_matcher_uses_the_returns_beyond_z_max() {
     let full = run_filter(&run, cfg(MatchRange::Full));
     assert_ne!(full, run_filter(&run, cfg(MatchRange::ZMax)));
     let err = mean_position_error(&full, &run.truth);
-    assert!(err < 0.5 * odo_err, "full range {err:.3} m vs odometry {odo_err:.3} m");
+    assert!(
+        err < 0.5 * odo_err,
+        "full range {err:.3} m vs odometry {odo_err:.3} m"
+    );
 }

@@ -4,13 +4,13 @@ use crlam_core::crm::{BatchKernel, CrmConfig, LevelPlacement, ScanUpdateMode};
 use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
+use crlam_core::rbpf::MatchRange;
 use crlam_core::rbpf::{
     mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamProposal, FilterStep,
     LocalMapMatcher as CoreLocalMapMatcher, MatcherParams, ModeBandwidth, MotionDraws,
     OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput,
     ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
 };
-use crlam_core::rbpf::MatchRange;
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,

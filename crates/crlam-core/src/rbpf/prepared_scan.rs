@@ -186,7 +186,17 @@ mod tests {
 
     #[test]
     fn below_a_range_keeps_the_positive_finite_readings_under_it() {
-        let z = [0.5, 8.0, 7.99, f64::INFINITY, f64::NAN, 0.0, -1.0, 30.0, 3.0];
+        let z = [
+            0.5,
+            8.0,
+            7.99,
+            f64::INFINITY,
+            f64::NAN,
+            0.0,
+            -1.0,
+            30.0,
+            3.0,
+        ];
         let (got, near) = kept(&z, BeamSelection::below(8.0), 1);
         assert_eq!(got, vec![0.5, 7.99, 3.0]);
         assert_eq!(near, 3);
@@ -212,7 +222,10 @@ mod tests {
         assert_eq!(near, 2);
         // Below z_max a reading is kept even at the no-return value: the map takes it for a hit.
         let small_room = MatchRange::Full.selection(8.0, 5.0);
-        assert_eq!(kept(&[5.0, 4.99, 3.0], small_room, 1).0, vec![5.0, 4.99, 3.0]);
+        assert_eq!(
+            kept(&[5.0, 4.99, 3.0], small_room, 1).0,
+            vec![5.0, 4.99, 3.0]
+        );
         // Before any reading there is no no-return value: every finite reading is kept.
         let first = MatchRange::Full.selection(8.0, f64::NEG_INFINITY);
         assert_eq!(first.no_return_from, f64::INFINITY);
