@@ -152,8 +152,9 @@ PROPOSAL_POSE_HELP = (
 )
 MATCH_RANGE_HELP = (
     "RBPF-CLAM scan_match: the readings the endpoint matcher uses: below z_max (z_max, paper), every reading that "
-    "returned at its measured range (full), or those below a range in metres; the map update and the weights use "
-    "z_max either way; no-returns are never matched (default: the preset's)"
+    "returned at its measured range (full), or those below a range in metres; the weight scores those beyond z_max "
+    "with the endpoint likelihood; the map update and the CRM likelihood use z_max either way; no-returns are never "
+    "used (default: the preset's)"
 )
 MATCH_STRIDE_HELP = (
     "RBPF-CLAM likelihood_mode: climb to the mode on every n-th beam (paper: 3; default: the preset's); the lattice "

@@ -105,11 +105,14 @@ class SlamConfig:
         density the proposal was fitted to; the CRM is then the map only).
     match_range : str or float
         RBPF-CLAM's ``scan_match`` proposal: the readings its endpoint matcher uses (the map
-        update and the CRM weight always use those below ``max_range``). ``"z_max"`` (paper):
-        readings below ``max_range``. ``"full"``: every reading that returned, at its measured
-        range; beyond ``max_range`` the far endpoints land on cells mapped earlier from closer by
-        (a corridor's end on a revisit) or on unknown cells that match nothing. A number: as
-        ``"full"`` up to that range (m). No-returns are never matched: readings at or above the
+        update and the CRM likelihood always use those below ``max_range``). ``"z_max"``
+        (paper): readings below ``max_range``. ``"full"``: every reading that returned, at its
+        measured range; beyond ``max_range`` the far endpoints land on cells mapped earlier from
+        closer by (a corridor's end on a revisit) or on unknown cells that match nothing, and the
+        weight scores them with GMapping's endpoint likelihood (the CRM likelihood scores the
+        readings below ``max_range``; with ``scan_match_weight="endpoint"`` every used reading is
+        scored by the endpoint model already). A number: as ``"full"`` up to that range (m).
+        No-returns are never used: readings at or above the
         scan's stated maximum range (CARMEN ROBOTLASER1, a ROS ``range_max``; FLASER states none,
         81 m is taken) and, beyond ``max_range``, readings within 5 cm of the largest reading
         of the log so far (a laser reports a no-return as one fixed value, its maximum).

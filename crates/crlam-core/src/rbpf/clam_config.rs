@@ -253,8 +253,8 @@ impl ScanMatchWeight {
 pub const NO_RETURN_TOLERANCE: f64 = 0.05;
 
 /// Which readings the scan-match proposal's endpoint matcher uses. The map update and the CRM
-/// weight use the readings below z_max whatever this says: it changes what the search for the
-/// pose sees, not what is mapped or how a particle is weighed.
+/// likelihood use the readings below z_max whatever this says: memory and the map update's cost
+/// do not change.
 #[derive(Clone, Copy, Debug, PartialEq, Default)]
 pub enum MatchRange {
     /// The paper's range: readings below z_max (the smaller of the mapping and weight models').
@@ -266,7 +266,11 @@ pub enum MatchRange {
     /// at or above a scan's stated maximum range are given as `inf` by the readers and never
     /// used.) The far endpoints land on cells mapped earlier from closer by (a corridor's end on a
     /// revisit, which tells a periodic corridor's positions apart) or on unknown cells, which
-    /// match nothing, as in GMapping.
+    /// match nothing, as in GMapping. The weight scores them too, with the endpoint likelihood
+    /// (the CRM's is for the readings below z_max, where the map is): the target then holds the
+    /// evidence the proposal was fitted to, and a particle whose far endpoints fall on the mapped
+    /// end of a corridor outweighs one a door period off, which the CRM within 8 m cannot tell
+    /// apart.
     Full,
     /// As `Full`, up to this range (m): readings below it.
     Metres(f64),

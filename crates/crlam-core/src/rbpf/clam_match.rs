@@ -12,7 +12,10 @@
 //!    the match, fit a Gaussian, draw the new pose from it (or keep the match);
 //! 4. weight: the importance weight of the new pose x under the paper's target, with the CRM
 //!    predictive log-likelihood of the scan (`weight_model`, every `weight_stride`-th beam):
-//!    log p(z | x, m) + log p(x | x', u) − log q(x), divided by the tempering τ. The proposal q
+//!    log p(z | x, m) + log p(x | x', u) − log q(x), divided by the tempering τ. The readings
+//!    the matcher uses beyond z_max (`match_range`, none by default) are part of z: the CRM,
+//!    updated only below z_max, scores the readings below it, GMapping's endpoint likelihood
+//!    the ones beyond (see [`MatchRange::Full`]). The proposal q
 //!    is fitted to the endpoint likelihood, not to the CRM's, so the weight must correct for
 //!    the draw: a draw that lands off the CRM's peak loses weight. With `Match` (no draw, q a
 //!    point mass at the match) it is the target's height at the match.
@@ -98,7 +101,7 @@ pub(crate) fn propose_by_scan_match(
             settings.occupied_above,
         );
         let (matched, score) = matcher.optimize(&surface, prepared, start)?;
-        if score > params.min_score {
+        let outcome = if score > params.min_score {
             let draw = matcher.improved_proposal(
                 &surface,
                 prepared,
@@ -129,14 +132,25 @@ pub(crate) fn propose_by_scan_match(
             };
             let endpoint_ll = matcher.evaluate(&surface, prepared, pose)?.log_likelihood;
             Outcome::Unmatched { pose, endpoint_ll }
-        }
+        };
+        // The returns beyond z_max that the matcher used are part of the measurement: the
+        // weight scores them with the endpoint model (the CRM scores those below z_max).
+        let far_ll = match (settings.weight, &outcome) {
+            (
+                ScanMatchWeight::Crm,
+                Outcome::Matched { pose, .. } | Outcome::Unmatched { pose, .. },
+            ) => matcher.far_log_likelihood(&surface, prepared, *pose)?,
+            (ScanMatchWeight::Endpoint, _) => 0.0,
+        };
+        (outcome, far_ll)
     };
+    let (outcome, far_ll) = outcome;
     let tau = cfg.tempering;
     Ok(match (outcome, settings.weight) {
         (Outcome::Unmatched { pose, .. }, ScanMatchWeight::Crm) => Proposed {
             pose,
             mean: pose,
-            dlogw: weigh_at_pose(cfg, map, pose, scan, sc)? / tau,
+            dlogw: (weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll) / tau,
         },
         (Outcome::Unmatched { pose, endpoint_ll }, ScanMatchWeight::Endpoint) => Proposed {
             pose,
@@ -149,7 +163,7 @@ pub(crate) fn propose_by_scan_match(
             },
             ScanMatchWeight::Crm,
         ) => {
-            let ll = weigh_at_pose(cfg, map, pose, scan, sc)?;
+            let ll = weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll;
             Proposed {
                 pose,
                 mean,

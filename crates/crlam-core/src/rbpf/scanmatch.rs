@@ -214,6 +214,34 @@ impl ScanMatcher {
         scan: &PreparedScan,
         pose: Pose,
     ) -> Result<ScanFit> {
+        self.fit_beams::<SCORE, LIKE>(surface, &scan.beams, pose)
+    }
+
+    /// GMapping's endpoint log-likelihood of the beams of `scan` beyond its near range (z_max)
+    /// with the robot at `pose`: 0 when it has none. RBPF-CLAM's weight scores these readings
+    /// with it, the CRM likelihood scoring those below z_max (see [`super::clam_match`]).
+    pub fn far_log_likelihood(
+        &self,
+        surface: &MatchSurface,
+        scan: &PreparedScan,
+        pose: Pose,
+    ) -> Result<f64> {
+        let far = &scan.beams[scan.n_near()..];
+        if far.is_empty() {
+            return Ok(0.0);
+        }
+        Ok(self
+            .fit_beams::<false, true>(surface, far, pose)?
+            .log_likelihood)
+    }
+
+    /// [`Self::fit`] over `beams`.
+    fn fit_beams<const SCORE: bool, const LIKE: bool>(
+        &self,
+        surface: &MatchSurface,
+        beams: &[super::prepared_scan::PreparedBeam],
+        pose: Pose,
+    ) -> Result<ScanFit> {
         // A valid pose (|x|, |y| ≤ 1e7) and a bounded usable range keep all cell indices far
         // from integer overflow.
         check_pose(pose)?;
@@ -226,7 +254,7 @@ impl ScanMatcher {
             log_likelihood: 0.0,
             matched: 0,
         };
-        for b in &scan.beams {
+        for b in beams {
             let e = [
                 pose[0] + c * b.end[0] - s * b.end[1],
                 pose[1] + s * b.end[0] + c * b.end[1],
@@ -482,5 +510,46 @@ mod tests {
         assert_eq!(s.len(), 2); // beams 0 and 2; 4 is beyond the usable range
         assert!(PreparedScan::new(&a, &z[..3], [0.0; 3], 5.0, 1).is_err());
         assert!(PreparedScan::new(&a, &z, [0.0; 3], f64::NAN, 1).is_err());
+    }
+
+    #[test]
+    fn the_far_log_likelihood_is_that_of_the_far_beams_alone() {
+        use crate::ogm::{LogOddsGrid, LogOddsParams};
+        use crate::rbpf::clam_config::MatchRange;
+        // A map written from the origin up to 12 m; a scan from 1 m further on whose readings
+        // reach 2-11 m, with the map's z_max at 6 m.
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let mut map = LogOddsGrid::new(g, LogOddsParams::new(12.0), 16, None).unwrap();
+        let angles: Vec<f64> = (0..60).map(|i| -1.2 + i as f64 * 0.04).collect();
+        let ranges: Vec<f64> = (0..60).map(|i| 3.0 + (i % 9) as f64).collect();
+        map.update_scan([0.0, 0.0, 0.0], &angles, &ranges).unwrap();
+        let seen: Vec<f64> = ranges.iter().map(|z| z - 0.5).collect();
+        let m = ScanMatcher::new(MatcherParams::default()).unwrap();
+        let surface = MatchSurface::tiles(&map, FreeTest::NotOccupied);
+        let pose = [0.5, 0.0, 0.0];
+        let full = MatchRange::Full.selection(6.0, 20.0);
+        let scan = PreparedScan::select(&angles, &seen, [0.0; 3], full, 1).unwrap();
+        assert!(scan.n_near() > 0 && scan.n_near() < scan.len());
+        // The far readings alone, as a scan of their own.
+        let far_z: Vec<f64> = seen
+            .iter()
+            .map(|&z| if z >= 6.0 { z } else { f64::INFINITY })
+            .collect();
+        let far = PreparedScan::new(&angles, &far_z, [0.0; 3], 100.0, 1).unwrap();
+        assert_eq!(far.len(), scan.len() - scan.n_near());
+        let want = m.evaluate(&surface, &far, pose).unwrap();
+        assert!(want.matched > 0, "the far endpoints must hit mapped cells");
+        let got = m.far_log_likelihood(&surface, &scan, pose).unwrap();
+        assert_eq!(got, want.log_likelihood);
+        // The paper's range has no far beams.
+        let near = PreparedScan::select(
+            &angles,
+            &seen,
+            [0.0; 3],
+            MatchRange::ZMax.selection(6.0, 20.0),
+            1,
+        )
+        .unwrap();
+        assert_eq!(m.far_log_likelihood(&surface, &near, pose).unwrap(), 0.0);
     }
 }
