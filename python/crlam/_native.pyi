@@ -222,7 +222,7 @@ class ClamFilter:
         lattice_step: tuple[float, float] = ...,  # (0.05, 0.025)
         motion_outlier: float = 0.0,
         scan_match_weight: str = "crm",
-        match_range: str | float = "z_max",
+        match_range: str | float = ...,  # "z_max"
         seed: int = 0,
     ) -> ClamFilter: ...
     def process(
