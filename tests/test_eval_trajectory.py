@@ -306,7 +306,7 @@ def test_gmapping_corrected_with_odometry_fill_oracle(real: dict[str, object], n
 
 
 def eval_parser() -> argparse.ArgumentParser:
-    from crlam.cli_eval import add_eval_parser
+    from crlam.cli.eval import add_eval_parser
 
     parser = argparse.ArgumentParser(prog="crlam")
     add_eval_parser(parser.add_subparsers(dest="command"))

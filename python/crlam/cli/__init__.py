@@ -11,9 +11,9 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from crlam import __version__
-from crlam.cli_executor import add_executor_options, executor_from_args
-from crlam.cli_failures import EXPECTED_FAILURES, describe_failure
-from crlam.cli_options import (
+from crlam.cli.executor import add_executor_options, executor_from_args
+from crlam.cli.failures import EXPECTED_FAILURES, describe_failure
+from crlam.cli.options import (
     BATCH_KERNEL_HELP,
     BATCH_KERNELS,
     CAUSE_KERNEL_HELP,
@@ -481,15 +481,15 @@ def build_parser() -> argparse.ArgumentParser:
     add_odometry_options(p)
     p.set_defaults(func=cmd_slam)
 
-    from crlam.cli_eval import add_data_parser, add_eval_parser
+    from crlam.cli.eval import add_data_parser, add_eval_parser
 
     add_eval_parser(sub)
     add_data_parser(sub)
 
-    from crlam.cli_convert import add_convert_parser
-    from crlam.cli_diagnose import add_diagnose_parser
-    from crlam.cli_explore import add_explore_parser
-    from crlam.cli_info import add_info_parser
+    from crlam.cli.convert import add_convert_parser
+    from crlam.cli.diagnose import add_diagnose_parser
+    from crlam.cli.explore import add_explore_parser
+    from crlam.cli.info import add_info_parser
 
     add_info_parser(sub)
     add_explore_parser(sub)

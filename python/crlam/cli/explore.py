@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from crlam.cli_options import add_force_option, finite_float, positive_float, positive_int, staged_output
+from crlam.cli.options import add_force_option, finite_float, positive_float, positive_int, staged_output
 
 __all__ = ["add_explore_parser", "cmd_explore"]
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crlam.cli_options import add_force_option, positive_float, positive_int, staged_output
+from crlam.cli.options import add_force_option, positive_float, positive_int, staged_output
 
 if TYPE_CHECKING:
     from crlam.experiments.known_poses import KnownPoseScan

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from crlam.cli_options import add_force_option, positive_float, positive_int, staged_output
+from crlam.cli.options import add_force_option, positive_float, positive_int, staged_output
 
 __all__ = ["add_info_parser", "cmd_info"]
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from crlam.cli_options import add_bag_options, add_force_option, bag_options
+from crlam.cli.options import add_bag_options, add_force_option, bag_options
 
 __all__ = ["add_convert_parser", "cmd_convert"]
 
