@@ -144,7 +144,7 @@ def test_cli_info_writes_surface_figure_and_json(tmp_path: Path, name: str) -> N
     out = tmp_path / name
     args = [str(pgm), "--function", name, "--out", str(out)]
     if name == "ucrmi":
-        args += ["--particles", "20"]
+        args += ["--ucrmi-particles", "20"]
     assert main(["info", *args]) == 0
     surface = np.load(out / "surface.npy")
     info = json.loads((out / "info.json").read_text())

@@ -113,7 +113,7 @@ def run_iig_experiment(
     :mod:`crlam.experiments.resume`. A run whose ``result.json`` or ``tree.npz`` cannot be read is
     run again."""
     if not functions:
-        raise ConfigError("no information function given (e.g. --functions crmi,ucrmi)")
+        raise ConfigError("no information function given (e.g. --functions crmi ucrmi)")
     for name in functions:
         function_for(name, mode=mode, ogmi=ogmi, particles=particles)  # validate before any run
     if map_path is None:
