@@ -38,7 +38,9 @@ def _leaves(parser: argparse.ArgumentParser, prog: str = "crlam") -> list[tuple[
     return [leaf for a in subs for name, child in a.choices.items() for leaf in _leaves(child, f"{prog} {name}")]
 
 
-LEAVES = _leaves(build_parser())
+#: One parser for the checks that only parse (building one takes a moment).
+PARSER = build_parser()
+LEAVES = _leaves(PARSER)
 
 
 def _visible(parser: argparse.ArgumentParser) -> list[argparse.Action]:
@@ -119,8 +121,10 @@ RENAMED = [
 
 
 @pytest.mark.parametrize("argv,dest,value", RENAMED, ids=[" ".join(r[0][:2]) + " " + r[0][-2] for r in RENAMED])
-def test_old_spellings_still_parse_and_warn(argv: list[str], dest: str, value: object, capsys: pytest.CaptureFixture[str]) -> None:
-    args = build_parser().parse_args(argv)
+def test_old_spellings_still_parse_and_warn(
+    argv: list[str], dest: str, value: object, capsys: pytest.CaptureFixture[str]
+) -> None:
+    args = PARSER.parse_args(argv)
     assert getattr(args, dest) == value
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("crlam: warning: ") and argv[-2] in err[0] and "deprecated" in err[0], err
@@ -134,27 +138,27 @@ def test_old_spellings_are_hidden_from_help() -> None:
 
 
 def test_convert_takes_its_output_by_flag_and_still_reads_the_old_positional(capsys: pytest.CaptureFixture[str]) -> None:
-    args = build_parser().parse_args(["convert", "a.clf", "b.mcap"])
+    args = PARSER.parse_args(["convert", "a.clf", "b.mcap"])
     assert args.legacy_output == "b.mcap" and args.out is None
-    args = build_parser().parse_args(["convert", "a.clf", "-o", "b.mcap"])
+    args = PARSER.parse_args(["convert", "a.clf", "-o", "b.mcap"])
     assert args.out == "b.mcap" and args.legacy_output is None
 
 
 def test_the_older_comma_lists_still_parse_with_a_warning(capsys: pytest.CaptureFixture[str]) -> None:
-    spaced = build_parser().parse_args(["experiment", "iig", "-o", "o", "--functions", "crmi", "ucrmi"])
+    spaced = PARSER.parse_args(["experiment", "iig", "-o", "o", "--functions", "crmi", "ucrmi"])
     assert spaced.functions == ["crmi", "ucrmi"] and capsys.readouterr().err == ""
-    comma = build_parser().parse_args(["experiment", "iig", "-o", "o", "--functions", "crmi,ucrmi"])
+    comma = PARSER.parse_args(["experiment", "iig", "-o", "o", "--functions", "crmi,ucrmi"])
     assert comma.functions == ["crmi", "ucrmi"]
     err = capsys.readouterr().err
     assert "comma-separated lists are deprecated" in err and "--functions crmi ucrmi" in err
-    alphas = build_parser().parse_args(["experiment", "explore", "-o", "o", "--alphas", "0,0.5", "1"])
+    alphas = PARSER.parse_args(["experiment", "explore", "-o", "o", "--alphas", "0,0.5", "1"])
     assert alphas.alphas == [0.0, 0.5, 1.0]
-    methods = build_parser().parse_args(["experiment", "table1", "-o", "o", "--methods", "ogm,clam"])
+    methods = PARSER.parse_args(["experiment", "table1", "-o", "o", "--methods", "ogm,clam"])
     assert methods.methods == ["ogm", "clam"]
     with pytest.raises(SystemExit):
-        build_parser().parse_args(["experiment", "table1", "-o", "o", "--methods", "ogm,bogus"])
+        PARSER.parse_args(["experiment", "table1", "-o", "o", "--methods", "ogm,bogus"])
     with pytest.raises(SystemExit):
-        build_parser().parse_args(["experiment", "explore", "-o", "o", "--alphas", "0", "nan"])
+        PARSER.parse_args(["experiment", "explore", "-o", "o", "--alphas", "0", "nan"])
 
 
 def test_commands_import_the_shared_modules_never_each_other() -> None:
@@ -233,21 +237,15 @@ def _carmen(n: int = 12) -> bytes:
     return "".join(f"FLASER 180 {ranges} {0.05 * i} 0 0 {0.05 * i} 0 0 {i}.0 host {i}.0\n" for i in range(n)).encode()
 
 
-def test_map_reads_a_compressed_log_from_standard_input(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    _stdin(monkeypatch, gzip.compress(_carmen()))
-    assert main(["map", "-", "-o", str(tmp_path / "m"), "-q", "--resolution", "0.1"]) == 0
-    assert json.loads((tmp_path / "m" / "mapping.json").read_text())["n_scans"] == 12
-
-
-def test_standard_input_through_a_real_pipe(tmp_path: Path) -> None:
+def test_map_reads_a_compressed_log_from_a_pipe_with_python_dash_m_crlam_cli(tmp_path: Path) -> None:
     r = subprocess.run(
-        [sys.executable, "-m", "crlam.cli", "map", "-", "-o", str(tmp_path / "m"), "--quiet"],
-        input=_carmen(5),
+        [sys.executable, "-m", "crlam.cli", "map", "-", "-o", str(tmp_path / "m"), "--quiet", "--resolution", "0.1"],
+        input=gzip.compress(_carmen()),
         capture_output=True,
-        timeout=300,
+        timeout=600,
     )
     assert r.returncode == 0, r.stderr.decode()
-    assert (tmp_path / "m" / "map.pgm").stat().st_size > 0
+    assert json.loads((tmp_path / "m" / "mapping.json").read_text())["n_scans"] == 12
 
 
 # ------------------------------------------------------------------ outputs
@@ -261,7 +259,12 @@ def inputs(tmp_path: Path) -> dict[str, str]:
     taken.mkdir()
     (taken / "keep.txt").write_text("not crlam's")
     (tmp_path / "taken.json").write_text("{}")
-    return {"log": str(tmp_path / "log.clf"), "tum": str(tmp_path / "t.tum"), "dir": str(taken), "file": str(tmp_path / "taken.json")}
+    return {
+        "log": str(tmp_path / "log.clf"),
+        "tum": str(tmp_path / "t.tum"),
+        "dir": str(taken),
+        "file": str(tmp_path / "taken.json"),
+    }
 
 
 EXISTING = [
@@ -301,6 +304,50 @@ def test_verbose_prints_the_settings_and_quiet_only_the_result(tmp_path: Path, c
         main(["eval", str(tmp_path / "t.tum"), "--reference", str(tmp_path / "t.tum"), "-v", "-q"])
 
 
-def test_python_dash_m_crlam_cli_works() -> None:
-    r = subprocess.run([sys.executable, "-m", "crlam.cli", "map", "--help"], capture_output=True, text=True, timeout=120)
-    assert r.returncode == 0 and "usage: crlam map" in r.stdout and "\noutput:" in r.stdout
+# ------------------------------------------------------------------ the documentation's commands
+
+
+def _documented_commands() -> list[tuple[str, str]]:
+    """Every ``crlam ...`` command of a bash block in the README, BENCHMARKS.md, docs/ and the
+    results' READMEs: (file, command line)."""
+    import re
+    import shlex
+
+    files = [ROOT / "README.md", ROOT / "BENCHMARKS.md", *sorted((ROOT / "docs").rglob("*.md"))]
+    files += sorted((ROOT / "results").rglob("README.md"))
+    out = []
+    for path in files:
+        for block in re.findall(r"^```(?:bash|sh|console)\n(.*?)^```", path.read_text(encoding="utf-8"), flags=re.S | re.M):
+            for line in block.replace("\\\n", " ").splitlines():
+                words = shlex.split(line, comments=True)
+                segment: list[str] = []
+                for word in [*words, ";"]:
+                    if word in ("|", "&&", ";", "||"):
+                        while segment and re.fullmatch(r"[A-Z_]+=\S*", segment[0]):
+                            segment.pop(0)  # an environment assignment before the command
+                        if segment[:1] == ["crlam"]:
+                            out.append((str(path.relative_to(ROOT)), " ".join(segment)))
+                        segment = []
+                    else:
+                        segment.append(word)
+    return out
+
+
+DOCUMENTED = _documented_commands()
+
+
+def test_the_documentation_has_commands_to_check() -> None:
+    assert len(DOCUMENTED) > 40
+    assert any(cmd.startswith("crlam slam intel ") for _, cmd in DOCUMENTED)
+
+
+@pytest.mark.parametrize("where,command", DOCUMENTED, ids=[f"{w}:{c[:60]}" for w, c in DOCUMENTED])
+def test_every_documented_command_parses_with_the_current_names(where: str, command: str, capsys) -> None:  # type: ignore[no-untyped-def]
+    import shlex
+
+    try:
+        PARSER.parse_args(shlex.split(command)[1:])
+    except SystemExit as e:
+        assert e.code == 0, f"{where}: {command}\n{capsys.readouterr().err}"
+    err = capsys.readouterr().err
+    assert "deprecated" not in err, f"{where}: {command}\n{err}"

@@ -121,8 +121,7 @@ def cli_reference(parser: argparse.ArgumentParser, prog: str | None = None, leve
         actions = [
             a
             for a in group._group_actions
-            if not isinstance(a, (argparse._HelpAction, argparse._SubParsersAction))
-            and a.help != argparse.SUPPRESS
+            if not isinstance(a, (argparse._HelpAction, argparse._SubParsersAction)) and a.help != argparse.SUPPRESS
         ]
         if not actions:
             continue
