@@ -351,3 +351,14 @@ def test_every_documented_command_parses_with_the_current_names(where: str, comm
         assert e.code == 0, f"{where}: {command}\n{capsys.readouterr().err}"
     err = capsys.readouterr().err
     assert "deprecated" not in err, f"{where}: {command}\n{err}"
+
+
+def test_progress_totals_count_the_scans_of_a_log(tmp_path: Path) -> None:
+    from crlam.io.logs import count_scans
+
+    (tmp_path / "log.clf.gz").write_bytes(gzip.compress(b"PARAM robot_front_laser_max 80\n" + _carmen(12) + b"ODOM 0 0 0 0 0 0 1 h 1\n"))
+    assert count_scans(tmp_path / "log.clf.gz") == 12
+    assert count_scans(tmp_path / "log.clf.gz", max_scans=5) == 5
+    (tmp_path / "bag").mkdir()
+    (tmp_path / "bag" / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n")
+    assert count_scans(tmp_path / "bag") is None and count_scans(tmp_path / "missing.log") is None

@@ -245,8 +245,14 @@ def _run_filter(
 ) -> tuple[SlamRun, float]:
     """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s)."""
     run: SlamRun | None = None
+    from crlam.io.logs import count_scans
+
     bar = tqdm(
-        desc=f"{config.method} x{config.particles} {Path(log_path).name}", unit="scan", disable=not progress, mininterval=1.0
+        total=count_scans(log_path, max_scans) if progress else None,
+        desc=f"{config.method} x{config.particles} {Path(log_path).name}",
+        unit="scan",
+        disable=not progress,
+        mininterval=1.0,
     )
     for rec in reader:
         if not isinstance(rec, LaserScan):
