@@ -356,7 +356,8 @@ def test_every_documented_command_parses_with_the_current_names(where: str, comm
 def test_progress_totals_count_the_scans_of_a_log(tmp_path: Path) -> None:
     from crlam.io.logs import count_scans
 
-    (tmp_path / "log.clf.gz").write_bytes(gzip.compress(b"PARAM robot_front_laser_max 80\n" + _carmen(12) + b"ODOM 0 0 0 0 0 0 1 h 1\n"))
+    text = b"PARAM robot_front_laser_max 80\n" + _carmen(12) + b"ODOM 0 0 0 0 0 0 1 h 1\n"
+    (tmp_path / "log.clf.gz").write_bytes(gzip.compress(text))
     assert count_scans(tmp_path / "log.clf.gz") == 12
     assert count_scans(tmp_path / "log.clf.gz", max_scans=5) == 5
     (tmp_path / "bag").mkdir()

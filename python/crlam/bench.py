@@ -134,7 +134,7 @@ def run_benchmarks(
     def done(name: str, steps: int = 1) -> None:
         bar.update(steps)
         if verbose and name in figures:
-            tqdm.write(f"{name}: {figures[name]}")
+            tqdm.write(f"{name}: {figures[name]}", file=sys.stderr)
 
     for spec in specs:
         best: dict[str, Any] | None = None

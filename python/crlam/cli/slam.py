@@ -84,6 +84,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
             bag_options=input_options,
             mcap=args.mcap,
             odometry=odometry,
+            verbose=args.verbose,
         )
     m = res.metrics
     say(args, f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")

@@ -19,6 +19,7 @@ import csv
 import json
 import math
 import os
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -411,7 +412,8 @@ def explore(
             break
         bar.update(max(0.0, round(min(travelled, cfg.budget_m), 1) - bar.n))
         if verbose:
-            tqdm.write(f"decision {k}: gain {row['best_gain']:.3g}, {travelled:.1f} m, explored {row['explored_m2']:.0f} m^2")
+            line = f"decision {k}: gain {row['best_gain']:.3g}, {travelled:.1f} m, explored {row['explored_m2']:.0f} m^2"
+            tqdm.write(line, file=sys.stderr)
     bar.close()
     return ExploreRun(
         config=cfg,

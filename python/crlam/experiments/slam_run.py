@@ -27,6 +27,7 @@ import json
 import math
 import os
 import resource
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -41,7 +42,7 @@ from crlam.errors import DataFormatError
 from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
-from crlam.io.logs import input_description, open_log
+from crlam.io.logs import count_scans, input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
@@ -153,6 +154,7 @@ def run_slam_log(
     bag_options: dict[str, Any] | None = None,
     mcap: bool = False,
     odometry: str = "auto",
+    verbose: bool = False,
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
@@ -205,7 +207,7 @@ def run_slam_log(
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0)
+        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0, verbose)
     except BaseException:
         if recorder is not None:
             recorder.close()
@@ -242,11 +244,11 @@ def _run_filter(
     progress: bool,
     recorder: Any,
     t0: float,
+    verbose: bool = False,
 ) -> tuple[SlamRun, float]:
-    """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s)."""
+    """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s).
+    ``verbose`` prints a line per processed scan (estimate, N_eff, resampling)."""
     run: SlamRun | None = None
-    from crlam.io.logs import count_scans
-
     bar = tqdm(
         total=count_scans(log_path, max_scans) if progress else None,
         desc=f"{config.method} x{config.particles} {Path(log_path).name}",
@@ -268,6 +270,13 @@ def _run_filter(
             assert run.filter is not None
             particles = np.asarray(run.filter.particle_poses(), dtype=np.float64) if step.processed else None
             recorder.scan(rec, step.processed, step.estimate, particles)
+        if verbose and step.processed:
+            x, y, th = (float(v) for v in step.estimate)
+            tqdm.write(
+                f"scan {run.n_scans - 1} t={rec.timestamp:.3f}: estimate ({x:.3f}, {y:.3f}, {th:.4f}), "
+                f"N_eff {step.neff:.1f}{', resampled' if step.resampled else ''}",
+                file=sys.stderr,
+            )
         bar.update(1)
         if max_scans is not None and run.n_scans >= max_scans:
             break  # before the next record is read (a front end would match one scan more)
