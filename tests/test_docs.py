@@ -36,7 +36,8 @@ def test_the_cli_reference_documents_every_command_and_option() -> None:
         assert f"`{prog}`" in text, prog
         for action in sub._actions:
             if action.help == argparse.SUPPRESS:  # a renamed flag's old spelling: in the renames table only
-                assert all(f"`{flag}`" in text for flag in action.option_strings), (prog, action.option_strings)
+                olds = action.option_strings or [f"{action.metavar} (positional)"]
+                assert all(f"`{flag}`" in text for flag in olds), (prog, olds)
                 continue
             for flag in action.option_strings:
                 if flag not in ("-h", "--help"):

@@ -148,7 +148,8 @@ def renamed_options(parser: argparse.ArgumentParser, prog: str | None = None) ->
         for action in p._actions:
             target = getattr(action, "target", None)
             if action.help == argparse.SUPPRESS and target is not None:
-                rows.extend((name, old, max(target.option_strings, key=len)) for old in action.option_strings)
+                olds = action.option_strings or [f"{action.metavar or action.dest.upper()} (positional)"]
+                rows.extend((name, old, max(target.option_strings, key=len)) for old in olds)
         sub = _subparsers(p)
         if sub is not None:
             for child_name, child in sub.choices.items():

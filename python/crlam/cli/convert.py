@@ -55,7 +55,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         required=False,
     )
     # The older form `crlam convert IN OUT`: still read, with a deprecation warning.
-    p.add_argument("legacy_output", nargs="?", default=None, help=argparse.SUPPRESS)
+    legacy = p.add_argument("legacy_output", nargs="?", default=None, metavar="OUT", help=argparse.SUPPRESS)
+    legacy.target = next(a for a in p._actions if "--out" in a.option_strings)  # type: ignore[attr-defined]  # the renames table
     add_bag_options(p)
     p.set_defaults(func=cmd_convert)
     return p
