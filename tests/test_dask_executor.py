@@ -200,26 +200,27 @@ def test_failed_runs_are_recorded_with_their_error(tmp_path: Path, cluster: Any)
 
 
 def test_an_interrupted_sweep_resumes(tmp_path: Path, cluster: Any) -> None:
-    """The client is interrupted (Ctrl-C) after its first finished run; the same command then runs
-    only the runs that were not finished."""
+    """The client is interrupted (Ctrl-C) after its first finished run; the same command with
+    --resume then runs only the runs that were not finished."""
     out = tmp_path / "t1"
     argv = ["experiment", "table1", "--out", str(out), "--runs", "4", "--scans", "40", "--particles", "3", "--methods", "clam"]
     argv += ["--executor", "dask", "--scheduler", cluster.scheduler_address, "--quiet"]
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
     client = subprocess.Popen([sys.executable, "-m", "crlam.cli", *argv], env=env, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 180
-    while not list(out.glob("runs/*/metrics.json")) and client.poll() is None and time.monotonic() < deadline:
+    while not list(out.glob("runs/*/COMPLETE")) and client.poll() is None and time.monotonic() < deadline:
         time.sleep(0.02)
     client.send_signal(signal.SIGINT)
     _, err = client.communicate(timeout=60)
     assert client.returncode == 130 and "interrupted" in err, err
-    finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("runs/*/metrics.json")}
+    finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("runs/*/COMPLETE")}
     assert 1 <= len(finished) < 4
     from crlam.cli import main
 
-    assert main(argv) == 0
-    assert {p.parent.name for p in out.glob("runs/*/metrics.json")} == {f"clam_run{k:02d}" for k in range(4)}
-    assert {n: (out / "runs" / n / "metrics.json").stat().st_mtime_ns for n in finished} == finished
+    assert main(argv) == 2  # an existing experiment folder is continued only when asked to
+    assert main([*argv, "--resume"]) == 0
+    assert {p.parent.name for p in out.glob("runs/*/COMPLETE")} == {f"clam_run{k:02d}" for k in range(4)}
+    assert {n: (out / "runs" / n / "COMPLETE").stat().st_mtime_ns for n in finished} == finished
     assert "| RBPF-CLAM | 4 |" in (out / "table.md").read_text()
 
 

@@ -149,7 +149,7 @@ def _run_spec(
     d = dict(spec_dict)
     cfg = SlamConfig(**d.pop("config"))
     # Staged: the run's folder appears (replacing an older, unfinished or corrupt one) only whole.
-    with staged_folder(Path(folder), command=f"crlam experiment run {d['name']}") as stage:
+    with staged_folder(Path(folder), command=f"crlam experiment run {Path(folder).name}") as stage:
         res = run_slam_log(
             log,
             stage,
