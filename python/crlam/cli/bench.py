@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from crlam.cli.conventions import ListAction, add_output_options, deprecated_alias, group, print_settings
+from crlam.cli.conventions import ListAction, add_output_options, check_file_output, deprecated_alias, group, print_settings
 from crlam.cli.options import positive_int
 
 __all__ = ["add_parser", "cmd_bench"]
@@ -14,9 +14,9 @@ __all__ = ["add_parser", "cmd_bench"]
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from crlam.bench import run_benchmarks, write_json
-    from crlam.run_folder import check_output, staged_file
+    from crlam.run_folder import staged_file
 
-    output = check_output(args.out, force=args.force, what="output") if args.out else None
+    output = check_file_output(args)
     print_settings(args)
     result = run_benchmarks(args.only, quick=args.quick, repeats=args.repeats, progress=not args.quiet, verbose=args.verbose)
     if not args.quiet:

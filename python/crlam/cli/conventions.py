@@ -32,6 +32,7 @@ __all__ = [
     "InputArg",
     "ListAction",
     "add_output_options",
+    "check_file_output",
     "deprecated_alias",
     "group",
     "input_file",
@@ -96,6 +97,19 @@ def add_output_options(
             "-v", "--verbose", action="store_true", help="more detail: the settings in force and per-step messages (stderr)"
         )
     return g
+
+
+def check_file_output(args: argparse.Namespace) -> Path | None:
+    """The up-front check of a command whose ``-o/--out`` is one file (a JSON summary): None
+    without ``--out``; an existing file is refused unless ``--force``, an existing folder always."""
+    if not args.out:
+        return None
+    from crlam.errors import ConfigError
+    from crlam.run_folder import check_output
+
+    if Path(args.out).is_dir():
+        raise ConfigError(f"output {args.out} is a folder; -o/--out takes the name of a file")
+    return check_output(args.out, force=args.force, what="output")
 
 
 def say(args: argparse.Namespace, *lines: str) -> None:

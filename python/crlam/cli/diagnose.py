@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crlam.cli.conventions import add_output_options, deprecated_alias, group, input_file, print_settings, say
+from crlam.cli.conventions import add_output_options, deprecated_alias, group, input_file, print_settings
 from crlam.cli.options import positive_float, positive_int, staged_output
 
 if TYPE_CHECKING:
@@ -93,7 +93,7 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
         paths = save_likelihood_bias(result, stage, title=f"{Path(args.log).name}: scan likelihood argmax ({len(result)} scans)")
     s = result.summary()
     if missing:
-        say(args, f"{missing} scans had no reference pose within {args.tolerance} s: left out of the map and the evaluation")
+        print(f"{missing} scans had no reference pose within {args.tolerance} s: left out of the map and the evaluation")
     print(f"{len(result)} scans evaluated of {len(scans)} mapped ({s['n_moving']} moving)")
     for axis, key, unit in (("along", "all", "m"), ("lateral", "all", "m"), ("heading", "all_deg", "deg")):
         st = s[axis][key]

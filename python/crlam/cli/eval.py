@@ -18,7 +18,7 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import NDArray
 
-from crlam.cli.conventions import add_output_options, deprecated_alias, group, input_file, print_settings, say
+from crlam.cli.conventions import add_output_options, check_file_output, deprecated_alias, group, input_file, print_settings, say
 from crlam.errors import ConfigError, DataFormatError
 
 if TYPE_CHECKING:
@@ -103,13 +103,13 @@ def cmd_eval(args: argparse.Namespace) -> int:
         relations_error,
     )
     from crlam.io.relations import read_relations
-    from crlam.run_folder import check_output, staged_file
+    from crlam.run_folder import staged_file
 
     if args.tolerance < 0 or not math.isfinite(args.tolerance):
         raise ConfigError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     if args.relations and args.align != "none":
         raise ConfigError("--align applies to --reference: the relations metric does not change under a rigid motion")
-    output = check_output(args.out, force=args.force, what="output") if args.out else None
+    output = check_file_output(args)
     print_settings(args)
     traj = load_trajectory(args.trajectory)
     report: dict[str, Any] = {"trajectory": str(args.trajectory), "trajectory_format": traj.fmt, "raw_log": args.raw_log}

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from typing import TYPE_CHECKING, Any
 
-from crlam.cli.conventions import add_output_options, group, input_file, print_settings, say
+from crlam.cli.conventions import add_output_options, group, input_file, print_settings
 from crlam.cli.options import (
     SLAM_FLAGS,
     add_bag_options,
@@ -87,9 +87,9 @@ def cmd_slam(args: argparse.Namespace) -> int:
             verbose=args.verbose,
         )
     m = res.metrics
-    say(args, f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
+    print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
-    say(args, f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
+    print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
         f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {args.out}"
