@@ -40,10 +40,10 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     p: argparse.ArgumentParser = sub.add_parser(
         "convert",
         help="convert a CARMEN log to a ROS 2 bag (MCAP) or a ROS bag to a CARMEN log",
-        description="The direction follows IN. A CARMEN log becomes a ROS 2 bag with MCAP storage (OUT: a new "
-        "folder, or a single file if OUT ends in .mcap): sensor_msgs/LaserScan on /scan, nav_msgs/Odometry on /odom "
+        description="The direction follows IN. A CARMEN log becomes a ROS 2 bag with MCAP storage (--out: a new "
+        "folder, or a single file if it ends in .mcap): sensor_msgs/LaserScan on /scan, nav_msgs/Odometry on /odom "
         "(each scan's own odometry at the scan's stamp, and the ODOM records), base_link -> laser on /tf_static. A ROS "
-        "bag (a folder with metadata.yaml, a .bag or a .mcap file) becomes a CARMEN log (OUT: plain, .gz or .bz2), "
+        "bag (a folder with metadata.yaml, a .bag or a .mcap file) becomes a CARMEN log (--out: plain, .gz or .bz2), "
         "read as crlam slam reads it: scans with their odometry, and every odometry reading as an ODOM line.",
     )
     group(p, "input").add_argument(
