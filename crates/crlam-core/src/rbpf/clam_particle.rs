@@ -15,7 +15,7 @@ pub struct ClamParticle {
     pub pose: Pose,
     pub log_w: f64,
     pub map: CrmMap,
-    /// The particle's pose at the last processed scan in the filter's [`PathTree`].
+    /// The particle's pose at the last processed scan in the filter's [`PathTree`](crate::rbpf::PathTree).
     pub path: NodeId,
 }
 
