@@ -21,6 +21,7 @@ where
 }
 
 /// f64's own operations: the scalar lane.
+#[allow(clippy::type_complexity)] // closure types have no names to alias
 #[inline(always)]
 pub(super) fn scalar() -> Lanes<
     f64,
