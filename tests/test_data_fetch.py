@@ -94,8 +94,9 @@ def test_an_unreachable_url_is_a_clean_error_naming_it(tmp_path: Path) -> None:
     assert leftovers(tmp_path / "out") == []
 
 
-def test_an_http_url_goes_through_pooch_and_a_refused_connection_is_a_clean_error(tmp_path: Path) -> None:
+def test_an_http_url_to_a_refused_connection_is_a_clean_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     # Port 9 (discard) on the loopback address: nothing listens, the connection is refused at once.
+    monkeypatch.setattr(fetch_mod, "_urlopen", _real_urlopen)  # the loopback address only
     url = "http://127.0.0.1:9/intel.clf"
     with pytest.raises(DownloadError, match="127.0.0.1:9/intel.clf"):
         download(url, tmp_path / "out" / "intel.clf", sha256="0" * 64, progress=False, timeout=5.0)

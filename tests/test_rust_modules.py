@@ -21,7 +21,7 @@ SRC = Path(__file__).resolve().parents[1] / "crates" / "crlam-core" / "src"
 # other files of its own top-level module, never a module of its own layer or of a higher one.
 LAYERS: list[set[str]] = [
     {"error", "simd", "rng", "pose"},
-    {"numeric"},
+    {"limits", "numeric"},
     {"grid", "motion", "resample"},
     {"raycast"},
     {"sensor", "ogm", "sim"},

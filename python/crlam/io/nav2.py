@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -26,7 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import ConfigError, DataFormatError, ResourceLimitError
 from crlam.io.lines import read_small_text
-from crlam.limits import check_limit, limits
+from crlam.limits import check_limit
 
 __all__ = ["Nav2Map", "read_image", "read_nav2_map", "read_pgm", "write_nav2_map", "write_pgm"]
 
@@ -79,8 +78,8 @@ def check_image_size(path: str | os.PathLike[str], width: int, height: int) -> N
 
 def open_pil_image(path: str | os.PathLike[str], field: str = "image"):  # type: ignore[no-untyped-def]
     """A Pillow image, opened (header read, nothing decoded) and checked against the
-    ``image_pixels`` limit; Pillow's own decompression-bomb guard becomes the same error.
-    A file Pillow cannot read raises DataFormatError naming ``field``."""
+    ``image_pixels`` limit (ResourceLimitError naming its size). A file Pillow cannot read raises
+    DataFormatError naming ``field``."""
     from PIL import Image, UnidentifiedImageError
 
     p = Path(path)
@@ -88,20 +87,16 @@ def open_pil_image(path: str | os.PathLike[str], field: str = "image"):  # type:
         if not p.exists():
             raise FileNotFoundError(f"{p}: no such image file")
         raise DataFormatError("not a regular file", path=str(p), field="image")
-    # Pillow's own guard (a warning above MAX_IMAGE_PIXELS, an error above twice that) follows
-    # crlam's limit, which is checked below on the size the header declares.
-    Image.MAX_IMAGE_PIXELS = limits().image_pixels
+    # Pillow's own decompression-bomb guard is off while the header is read: crlam's limit is
+    # checked right after, on the size the header declares, before anything is decoded.
+    saved = Image.MAX_IMAGE_PIXELS
+    Image.MAX_IMAGE_PIXELS = None
     try:
         img = Image.open(p)
-    except Image.DecompressionBombError as exc:
-        size = re.search(r"\((\d+) pixels\)", str(exc))
-        try:
-            check_limit("image_pixels", int(size.group(1)) if size else math.inf, f"image {p}")
-        except ResourceLimitError as limit_error:
-            raise limit_error from exc
-        raise  # not reached: Pillow refuses only images above the limit
     except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"cannot read image ({exc})", path=str(p), field=field) from exc
+    finally:
+        Image.MAX_IMAGE_PIXELS = saved
     try:
         check_image_size(p, *img.size)
     except ResourceLimitError:
