@@ -330,11 +330,14 @@ def test_table1_reports_every_setting_that_differs_from_the_paper() -> None:
 
 
 @pytest.mark.slow
-def test_table1_command_takes_the_grid_and_reports_it(tmp_path: Path) -> None:
+def test_table1_command_takes_the_grid_and_reports_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from crlam.cli import main
 
     argv = ["experiment", "table1", "--out", str(tmp_path), "--runs", "1", "--scans", "20", "--particles", "2"]
-    assert main([*argv, "--methods", "clam", "--resolution", "0.1", "--workers", "1", "--quiet"]) == 0
+    assert main([*argv, "--methods", "clam", "--resolution", "0.1", "--workers", "1", "--verbose"]) == 0
+    err = capsys.readouterr().err  # -v: the settings, the base configuration and each finished run
+    assert "crlam experiment table1: base settings" in err and "  resolution = 0.1" in err
+    assert "clam_run00 finished (1 of 1)" in err
     config = (tmp_path / "runs" / "clam_run00" / "config.toml").read_text()
     assert "resolution = 0.1\n" in config
     assert "resolution = 0.1 (paper: 0.2)" in (tmp_path / "table.md").read_text()

@@ -89,6 +89,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             executor=executor,
             resume=args.resume,
             force=args.force,
+            verbose=args.verbose,
         )
         print(f"{len(res.rows)} runs finished, {len(res.errors)} failed; report: {res.files['report']}")
         return 0 if not res.errors else 1
@@ -110,6 +111,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             executor=executor,
             resume=args.resume,
             force=args.force,
+            verbose=args.verbose,
         )
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
@@ -136,6 +138,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             executor=executor,
             resume=args.resume,
             force=args.force,
+            verbose=args.verbose,
         )
     else:
         from crlam.experiments.real_logs import run_real_logs
@@ -159,6 +162,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             executor=executor,
             resume=args.resume,
             force=args.force,
+            verbose=args.verbose,
         )
     print((out / "table.md").read_text())
     return 0
@@ -194,7 +198,11 @@ def _add_table1(exp: argparse._SubParsersAction) -> None:  # type: ignore[type-a
     run.add_argument("--runs", type=positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
     run.add_argument("--scans", type=positive_int, default=5500, help="scans of the simulated log (default: 5500)")
     run.add_argument(
-        "--methods", action=ListAction, choices=list_choices(("ogm", "clam")), default=["ogm", "clam"], help="filters to run"
+        "--methods",
+        action=ListAction,
+        choices=list_choices(("ogm", "clam")),
+        default=["ogm", "clam"],
+        help="filters to run (default: ogm clam)",
     )
     _workers(t1, threads=True)
     add_preset_option(group(t1, "settings", "a preset; every flag of the groups below overrides it"), PAPER_PRESET)
@@ -221,20 +229,39 @@ def _add_real_logs(exp: argparse._SubParsersAction) -> None:  # type: ignore[typ
     )
     inp = group(rl, "input")
     inp.add_argument(
-        "--datasets", action=ListAction, choices=list_choices(("intel", "aces")), default=["intel", "aces"], help="logs"
+        "--datasets",
+        action=ListAction,
+        metavar="NAME",
+        choices=list_choices(("intel", "aces")),
+        default=["intel", "aces"],
+        help="the raw logs: intel and/or aces, with their relations (default: intel aces)",
     )
     inp.add_argument("--max-scans", type=positive_int, default=None, help="only the first N scans of each log")
     _sweep_output(rl, report_only=True)
     grid = group(rl, "run control", "the grid of runs")
     grid.add_argument(
-        "--methods", action=ListAction, choices=list_choices(("ogm", "clam")), default=["ogm", "clam"], help="filters"
+        "--methods",
+        action=ListAction,
+        choices=list_choices(("ogm", "clam")),
+        default=["ogm", "clam"],
+        help="filters (default: ogm clam)",
     )
     grid.add_argument(
-        "--particles", dest="particles_list", action=ListAction, type=positive_int, default=[30, 100], help="particle counts"
+        "--particles",
+        dest="particles_list",
+        action=ListAction,
+        type=positive_int,
+        metavar="N",
+        default=[30, 100],
+        help="particle counts (default: 30 100)",
     )
     grid.add_argument("--runs", type=positive_int, default=3, help="seeds per setting (default: 3)")
     grid.add_argument(
-        "--ranges", action=ListAction, default=["full", "8"], help="z_max settings: 'full' and/or metres (default: full 8)"
+        "--ranges",
+        action=ListAction,
+        metavar="RANGE",
+        default=["full", "8"],
+        help="z_max settings: 'full' and/or metres (default: full 8)",
     )
     deprecated_alias(rl, "--seeds", "--runs")
     _workers(rl, threads=True)
@@ -282,6 +309,7 @@ def _add_iig(exp: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     fn.add_argument(
         "--functions",
         action=ListAction,
+        metavar="NAME",
         default=["ogmi", "crmi", "ucrmi", "gpvr", "ugpvr"],
         help="information functions (default: ogmi crmi ucrmi gpvr ugpvr)",
     )
@@ -307,19 +335,26 @@ def _add_explore(exp: argparse._SubParsersAction) -> None:  # type: ignore[type-
     )
     inp = group(ex, "world")
     inp.add_argument(
-        "--worlds", nargs="+", type=world_arg, default=["office"], help="museum | office | map files (default: office)"
+        "--worlds",
+        nargs="+",
+        type=world_arg,
+        metavar="WORLD",
+        default=["office"],
+        help="museum | office | map files (default: office)",
     )
     _sweep_output(ex, report_only=False)
     fn = group(ex, "planner")
     fn.add_argument(
         "--functions",
         action=ListAction,
+        metavar="NAME",
         default=["crmi", "ucrmi", "fsmi", "frontier"],
         help="information functions (default: crmi ucrmi fsmi frontier)",
     )
     fn.add_argument(
         "--alphas",
         action=ListAction,
+        metavar="ALPHA",
         type=finite_float,
         default=[0.0, 0.25, 0.5, 0.75, 1.0],
         help="UCRMI weights of the map term (default: 0 0.25 0.5 0.75 1)",
