@@ -1,0 +1,502 @@
+//! Monte Carlo localization on a fixed confidence-rich map (Thrun, Burgard, Fox, *Probabilistic
+//! Robotics*, Table 8.3, with KLD sampling, Fox 2003): AMCL's algorithm with the CRM predictive
+//! likelihood as the measurement model.
+//!
+//! Per processed scan: move every particle by a draw of the odometry motion model, multiply its
+//! weight by the scan's likelihood (tempered: Σ log η / τ), form the clusters of the weighted set
+//! and report the heaviest one's mean; then, when N_eff falls below the threshold or recovery
+//! asks for random particles, draw a new set by KLD sampling: particles are drawn one by one,
+//! multinomially from the weights or, with probability p = max(0, 1 − w_fast / w_slow), uniformly
+//! over the map's free space, until the particles drawn from the weights reach Fox's bound for the
+//! number of histogram bins they occupy (within [n_min, n_max]), or the set reaches n_max. The
+//! random particles come on top of the bound, a share p of the set: AMCL counts their bins too,
+//! and then a dip of the fit to a few percent of random particles, each in a bin of its own, sends
+//! a tracking filter to n_max.
+//!
+//! Recovery (Augmented MCL): w_slow and w_fast follow a measure of how well the scans fit the map
+//! with rates α_slow < α_fast, and the random share is max(0, 1 − w_fast / w_slow). AMCL's measure
+//! is the mean likelihood of the scan over the particles; with the CRM likelihood that mean is
+//! ruled by the scene (a beam to a near wall has a likelihood many times that of a beam to a far
+//! one, the reach through free cells decaying with distance), so moving from a corridor into a
+//! hall reads as a lost robot. The measure here is the share of the scan the map explains: per
+//! beam the posterior probability that a cell of the map (not the mixture's noise terms) returned
+//! it ([`super::likelihood::BeamEta::explained`]), averaged over the beams and over the particles
+//! with their posterior weights. It is near its usual level wherever the robot is placed right,
+//! and falls when the scans stop fitting (a kidnapping, a wrong convergence). Both averages start
+//! at the first scan's value (AMCL starts them at 0, which delays any recovery until w_slow has
+//! grown over ~1/α_slow scans).
+//!
+//! Determinism: particle j's motion draw at processed scan k comes from
+//! `Rng::stream(seed, 3k, j)`, the i-th draw of the resampling from `Rng::stream(seed, 3k + 1, i)`
+//! and the initial particles from `Rng::stream(seed, 0, j)`; weights are computed per particle
+//! and combined in index order, so the results do not depend on the number of threads.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use crate::error::{config_err, Result};
+use crate::mcl::cluster::{clusters, Cluster};
+use crate::mcl::field::MeanField;
+use crate::mcl::kld::{BinCounter, KldSettings};
+use crate::mcl::likelihood::{scan_log_likelihood, select_beams, LikelihoodSettings, ScanFit};
+use crate::motion::MotionModel;
+use crate::pose::{between, compose, wrap, Pose};
+use crate::rbpf::{OdometryTracker, ScanInput, UpdateTrigger};
+use crate::resample::{effective_sample_size, normalize_log_weights};
+use crate::rng::Rng;
+
+/// Settings of the localizer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MclConfig {
+    pub likelihood: LikelihoodSettings,
+    pub motion: MotionModel,
+    pub trigger: UpdateTrigger,
+    pub kld: KldSettings,
+    /// Rate of the long-term average of the fit (AMCL's `recovery_alpha_slow`); 0 with
+    /// `alpha_fast` 0 turns recovery off.
+    pub alpha_slow: f64,
+    /// Rate of the short-term average (`recovery_alpha_fast`), above `alpha_slow`.
+    pub alpha_fast: f64,
+    /// Weight tempering τ: a scan multiplies the weights by exp(Σ log η / τ).
+    pub tempering: f64,
+    /// Every n-th beam of a scan.
+    pub beam_stride: usize,
+    /// At most this many of those, spread evenly (0: all).
+    pub max_beams: usize,
+    /// Resample when N_eff < threshold · n (1: at every processed scan) or when recovery injects.
+    pub resample_threshold: f64,
+    pub seed: u64,
+}
+
+impl MclConfig {
+    pub fn validate(&self) -> Result<()> {
+        self.likelihood.validate()?;
+        self.motion.validate()?;
+        self.trigger.validate()?;
+        self.kld.validate()?;
+        let unit = |v: f64| v.is_finite() && (0.0..=1.0).contains(&v);
+        if !(unit(self.alpha_slow) && unit(self.alpha_fast)) {
+            return Err(config_err(
+                "recovery_alpha",
+                "alpha_slow and alpha_fast must be in [0, 1]",
+            ));
+        }
+        if self.alpha_slow > 0.0 && self.alpha_fast <= self.alpha_slow {
+            return Err(config_err(
+                "recovery_alpha",
+                format!(
+                    "alpha_fast ({}) must exceed alpha_slow ({})",
+                    self.alpha_fast, self.alpha_slow
+                ),
+            ));
+        }
+        if !(self.tempering.is_finite() && self.tempering > 0.0) {
+            return Err(config_err(
+                "tempering",
+                format!("must be > 0, got {}", self.tempering),
+            ));
+        }
+        if self.beam_stride == 0 {
+            return Err(config_err("beam_stride", "must be >= 1"));
+        }
+        if !unit(self.resample_threshold) {
+            return Err(config_err("resample_threshold", "must be in [0, 1]"));
+        }
+        Ok(())
+    }
+
+    /// True when recovery can inject particles.
+    pub fn recovery(&self) -> bool {
+        self.alpha_slow > 0.0
+    }
+}
+
+/// How the particles start.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MclInit {
+    /// `n_max` particles drawn from N(mean, cov) (cov: 3 × 3, symmetric, positive semidefinite;
+    /// m², m·rad, rad²).
+    Pose { mean: Pose, cov: [[f64; 3]; 3] },
+    /// `n_max` particles uniformly over the map's free space, uniform headings.
+    Global,
+}
+
+/// What one call of [`Mcl::process`] did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MclStep {
+    /// Whether the scan was processed (the update trigger fired) or only carried by odometry.
+    pub processed: bool,
+    /// The heaviest cluster's mean (processed scans), else the last one composed with the
+    /// odometry since.
+    pub estimate: Pose,
+    /// Particles weighed at this scan (before resampling).
+    pub n_particles: usize,
+    /// Particles after this scan (after resampling, if any).
+    pub n_after: usize,
+    /// Effective sample size of the weights (before resampling); NaN when not processed.
+    pub neff: f64,
+    pub resampled: bool,
+    /// Particles drawn from the free space by recovery.
+    pub n_injected: usize,
+    /// max(0, 1 − w_fast / w_slow) at this scan.
+    pub inject_probability: f64,
+    /// The scan's fit: the share the map explains (see the module documentation), in [0, 1];
+    /// NaN when no beam was used.
+    pub fit: f64,
+    /// Beams the likelihood used.
+    pub n_beams: usize,
+    /// The heaviest cluster of the weighted set, and how many clusters there were.
+    pub cluster: Cluster,
+    pub n_clusters: usize,
+}
+
+/// The localizer: particles over a fixed map.
+#[derive(Debug)]
+pub struct Mcl {
+    cfg: MclConfig,
+    field: Arc<MeanField>,
+    poses: Vec<Pose>,
+    log_w: Vec<f64>,
+    tracker: OdometryTracker,
+    step: u64,
+    started: bool,
+    estimate: Pose,
+    estimate_odom: Pose,
+    /// (w_slow, w_fast) in the fit's linear units; `None` before the first fit.
+    averages: Option<(f64, f64)>,
+    beams: (usize, Vec<usize>),
+    last: Option<MclStep>,
+}
+
+/// The lower-triangular L with L Lᵀ = cov (a semidefinite cov gets zero columns).
+fn cholesky3(cov: &[[f64; 3]; 3]) -> Result<[[f64; 3]; 3]> {
+    for i in 0..3 {
+        for j in 0..3 {
+            if !cov[i][j].is_finite()
+                || (cov[i][j] - cov[j][i]).abs() > 1e-9 * (1.0 + cov[i][j].abs())
+            {
+                return Err(config_err(
+                    "initial_cov",
+                    "must be a finite symmetric 3 x 3 matrix",
+                ));
+            }
+        }
+    }
+    let mut l = [[0.0; 3]; 3];
+    for j in 0..3 {
+        let mut d = cov[j][j];
+        for k in 0..j {
+            d -= l[j][k] * l[j][k];
+        }
+        if d < -1e-9 * (1.0 + cov[j][j].abs()) {
+            return Err(config_err("initial_cov", "must be positive semidefinite"));
+        }
+        let d = d.max(0.0).sqrt();
+        l[j][j] = d;
+        for i in j + 1..3 {
+            let mut s = cov[i][j];
+            for k in 0..j {
+                s -= l[i][k] * l[j][k];
+            }
+            l[i][j] = if d > 0.0 { s / d } else { 0.0 };
+        }
+    }
+    Ok(l)
+}
+
+impl Mcl {
+    /// A localizer on `field` with particles placed by `init`.
+    pub fn new(cfg: MclConfig, field: Arc<MeanField>, init: MclInit) -> Result<Self> {
+        cfg.validate()?;
+        let mut m = Self {
+            cfg,
+            field,
+            poses: Vec::new(),
+            log_w: Vec::new(),
+            tracker: OdometryTracker::default(),
+            step: 0,
+            started: false,
+            estimate: [0.0; 3],
+            estimate_odom: [0.0; 3],
+            averages: None,
+            beams: (usize::MAX, Vec::new()),
+            last: None,
+        };
+        m.reset(init)?;
+        Ok(m)
+    }
+
+    /// Places the particles anew (uniform weights); the recovery averages restart. The odometry
+    /// tracking goes on: the next scan is processed with the odometry since the last one.
+    pub fn reset(&mut self, init: MclInit) -> Result<()> {
+        let n = self.cfg.kld.n_max;
+        let seed = self.cfg.seed;
+        // A reset after some scans draws from streams of its own step.
+        let stream_step = if self.step == 0 { 0 } else { 3 * self.step + 2 };
+        self.poses = match init {
+            MclInit::Pose { mean, cov } => {
+                crate::grid::check_pose(mean)?;
+                let l = cholesky3(&cov)?;
+                (0..n)
+                    .map(|j| {
+                        let mut rng = Rng::stream(seed, stream_step, j as u64);
+                        let e = [rng.normal(), rng.normal(), rng.normal()];
+                        let mut p = mean;
+                        for i in 0..3 {
+                            for k in 0..=i {
+                                p[i] += l[i][k] * e[k];
+                            }
+                        }
+                        p[2] = wrap(p[2]);
+                        p
+                    })
+                    .collect()
+            }
+            MclInit::Global => {
+                if self.field.n_free() == 0 {
+                    return Err(config_err(
+                        "map",
+                        format!(
+                            "no free cell (m̂ <= {}) to place particles on",
+                            self.field.free_threshold()
+                        ),
+                    ));
+                }
+                (0..n)
+                    .map(|j| {
+                        let mut rng = Rng::stream(seed, stream_step, j as u64);
+                        // n_free > 0 was checked above.
+                        self.field.sample_free(&mut rng).unwrap_or([0.0; 3])
+                    })
+                    .collect()
+            }
+        };
+        self.log_w = vec![0.0; n];
+        self.averages = None;
+        let w = vec![1.0 / n as f64; n];
+        self.estimate = clusters(&self.poses, &w, &self.cfg.kld)
+            .first()
+            .map(|c| c.mean)
+            .unwrap_or([0.0; 3]);
+        Ok(())
+    }
+
+    pub fn config(&self) -> &MclConfig {
+        &self.cfg
+    }
+
+    pub fn field(&self) -> &MeanField {
+        &self.field
+    }
+
+    pub fn poses(&self) -> &[Pose] {
+        &self.poses
+    }
+
+    /// Normalised weights of the current particles.
+    pub fn weights(&self) -> Vec<f64> {
+        normalize_log_weights(&self.log_w)
+    }
+
+    pub fn estimate(&self) -> Pose {
+        self.estimate
+    }
+
+    pub fn n_processed(&self) -> u64 {
+        self.step
+    }
+
+    /// (w_slow, w_fast) of the recovery, once a scan has been weighed.
+    pub fn averages(&self) -> Option<(f64, f64)> {
+        self.averages
+    }
+
+    /// The last processed scan's summary.
+    pub fn last_step(&self) -> Option<MclStep> {
+        self.last
+    }
+
+    /// The clusters of the current set with its current weights, heaviest first.
+    pub fn clusters(&self) -> Vec<Cluster> {
+        clusters(&self.poses, &self.weights(), &self.cfg.kld)
+    }
+
+    /// Feeds one scan; processes it when the update trigger fires.
+    pub fn process(&mut self, scan: &ScanInput) -> Result<MclStep> {
+        scan.validate()?;
+        let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
+        let first = !self.started;
+        self.started = true;
+        if !fires {
+            let carried = compose(self.estimate, between(self.estimate_odom, scan.odom));
+            let n = self.poses.len();
+            return Ok(MclStep {
+                processed: false,
+                estimate: carried,
+                n_particles: n,
+                n_after: n,
+                neff: f64::NAN,
+                resampled: false,
+                n_injected: 0,
+                inject_probability: 0.0,
+                fit: f64::NAN,
+                n_beams: 0,
+                cluster: self.last.map(|s| s.cluster).unwrap_or(Cluster {
+                    weight: 1.0,
+                    count: n,
+                    mean: carried,
+                    cov_xy: [0.0; 3],
+                    std_theta: 0.0,
+                }),
+                n_clusters: self.last.map(|s| s.n_clusters).unwrap_or(1),
+            });
+        }
+        self.step += 1;
+        let step = self.step;
+        let cfg = &self.cfg;
+        if self.beams.0 != scan.angles.len() {
+            self.beams = (
+                scan.angles.len(),
+                select_beams(scan.angles.len(), cfg.beam_stride, cfg.max_beams),
+            );
+        }
+        let beams = &self.beams.1;
+        let field = &*self.field;
+        // Move (not at the first scan: nothing moved yet) and weigh, particle by particle.
+        let moved: Vec<Result<(Pose, ScanFit)>> = self
+            .poses
+            .par_iter()
+            .enumerate()
+            .map(|(j, &p)| {
+                let pose = if first {
+                    p
+                } else {
+                    let mut rng = Rng::stream(cfg.seed, 3 * step, j as u64);
+                    cfg.motion.sample(p, u, n_steps, &mut rng)
+                };
+                let sensor = compose(pose, scan.laser_offset);
+                let fit = scan_log_likelihood(
+                    field,
+                    &cfg.likelihood,
+                    sensor,
+                    scan.angles,
+                    scan.ranges,
+                    beams,
+                )?;
+                Ok((pose, fit))
+            })
+            .collect();
+        let moved = moved.into_iter().collect::<Result<Vec<_>>>()?;
+        let n = moved.len();
+        let n_beams = moved.first().map(|m| m.1.n_beams).unwrap_or(0);
+        for (j, m) in moved.iter().enumerate() {
+            self.poses[j] = m.0;
+            self.log_w[j] += m.1.log_likelihood / cfg.tempering;
+        }
+        let w = normalize_log_weights(&self.log_w);
+        // The share of the scan the map explains, over the posterior.
+        let fit = if n_beams > 0 {
+            w.iter()
+                .zip(&moved)
+                .map(|(w, m)| w * m.1.explained)
+                .sum::<f64>()
+                / n_beams as f64
+        } else {
+            f64::NAN
+        };
+        let inject_probability = self.update_averages(fit);
+        let neff = effective_sample_size(&w);
+        let found = clusters(&self.poses, &w, &self.cfg.kld);
+        let cluster = found[0];
+        self.estimate = cluster.mean;
+        self.estimate_odom = scan.odom;
+        self.tracker.processed(scan.odom);
+        let resample = neff < self.cfg.resample_threshold * n as f64 || inject_probability > 0.0;
+        let n_injected = if resample {
+            self.resample(&w, inject_probability)
+        } else {
+            // Keep the log-weights bounded (they are only relative).
+            let mx = self.log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            if mx.is_finite() {
+                self.log_w.iter_mut().for_each(|l| *l -= mx);
+            }
+            0
+        };
+        let out = MclStep {
+            processed: true,
+            estimate: self.estimate,
+            n_particles: n,
+            n_after: self.poses.len(),
+            neff,
+            resampled: resample,
+            n_injected,
+            inject_probability,
+            fit,
+            n_beams,
+            cluster,
+            n_clusters: found.len(),
+        };
+        self.last = Some(out);
+        Ok(out)
+    }
+
+    /// Updates w_slow and w_fast with the scan's fit; returns the probability of a random particle.
+    fn update_averages(&mut self, fit: f64) -> f64 {
+        if !self.cfg.recovery() || !fit.is_finite() {
+            return 0.0;
+        }
+        let (a_slow, a_fast) = (self.cfg.alpha_slow, self.cfg.alpha_fast);
+        let (slow, fast) = match self.averages {
+            None => (fit, fit),
+            Some((s, f)) => (s + a_slow * (fit - s), f + a_fast * (fit - f)),
+        };
+        self.averages = Some((slow, fast));
+        if slow > 0.0 {
+            (1.0 - fast / slow).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// KLD sampling from the weights `w` with random particles at `inject` probability; returns
+    /// how many were injected.
+    fn resample(&mut self, w: &[f64], inject: f64) -> usize {
+        let kld = self.cfg.kld;
+        let mut cumulative = Vec::with_capacity(w.len());
+        let mut s = 0.0;
+        for &x in w {
+            s += x;
+            cumulative.push(s);
+        }
+        let total = s;
+        let draw_step = 3 * self.step + 1;
+        let mut out = Vec::with_capacity(kld.n_min.max(self.poses.len()));
+        let mut bins = BinCounter::default();
+        let (mut injected, mut drawn) = (0, 0);
+        while out.len() < kld.n_max {
+            let mut rng = Rng::stream(self.cfg.seed, draw_step, out.len() as u64);
+            let random = inject > 0.0 && rng.uniform() < inject;
+            match random.then(|| self.field.sample_free(&mut rng)).flatten() {
+                Some(p) => {
+                    injected += 1;
+                    out.push(p);
+                }
+                None => {
+                    let u = rng.uniform() * total;
+                    let i = cumulative.partition_point(|&c| c <= u).min(w.len() - 1);
+                    let pose = self.poses[i];
+                    drawn += 1;
+                    let k = bins.add(&kld, &pose);
+                    out.push(pose);
+                    if drawn >= kld.limit(k) {
+                        break;
+                    }
+                }
+            }
+        }
+        self.log_w = vec![0.0; out.len()];
+        self.poses = out;
+        injected
+    }
+}

@@ -1,0 +1,409 @@
+//! The CRM predictive likelihood of a scan on a fixed map (crm-spec 4.1), read from a
+//! [`MeanField`].
+//!
+//! For one beam, η = Σ_l R_l m̂_l L_l(z) + R_{N+1} L_∞(z) with R_l = Π_{j<l} (1 − m̂_j): the
+//! probability that the beam is returned by cell l times the likelihood of the reading if it is,
+//! summed over the cells of the ray and the "nothing in range" cause. It is the exact predictive
+//! likelihood of the reading under the map's beliefs, and it needs only m̂ along the ray, which
+//! the field holds. The walk is the forward walk of the SLAM filters
+//! (`crm::forward`), with two differences:
+//!
+//! - the means come from the field's flat array (no tiles, no pmf sums);
+//! - it stops once the rest of the ray can change η by at most a relative `tail_tolerance`:
+//!   every cause still ahead of cell l has a likelihood at most `sup` (a bound that holds beyond
+//!   the reading's hit window, [`MixtureReading::bound_beyond`]) and they share a probability
+//!   of at most R_l, so stopping when R_l · sup ≤ tolerance · η_so_far leaves out less than
+//!   that fraction of η. Each beam's log η is then low by less than `tail_tolerance` (and never
+//!   high): the stated error of the localizer's likelihood. With 2^-60 the result is the SLAM
+//!   filter's to rounding.
+//!
+//! Causes farther than [`SensorModel::negligible_hit_distance`] before the reading have a hit
+//! term below 2^-60 of the likelihood floor w_r/z_max and no short term, so together they
+//! contribute (1 − R_a)·w_r/z_max, R_a being the reach where the hit window starts: only the
+//! cells of the window and past it evaluate likelihoods.
+
+use crate::crm::beam::{plan_beam, ScanOptions};
+use crate::error::{config_err, CrlamError, Result};
+use crate::mcl::field::MeanField;
+use crate::pose::Pose;
+use crate::raycast::{FastWalk, RayCell};
+use crate::sensor::{CauseKernel, MixtureReading, SensorModel, SensorModelKind};
+
+/// How the localizer's likelihood is computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LikelihoodSettings {
+    /// The beam model: Thrun's mixture (the SLAM filters' weight model) with w_rand > 0 and
+    /// w_max > 0, so that every reading has a likelihood of at least w_rand/z_max or w_max.
+    pub model: SensorModel,
+    /// Relative part of η a walk may leave out (see the module documentation), in (0, 0.01].
+    pub tail_tolerance: f64,
+}
+
+impl LikelihoodSettings {
+    /// Checks the model and the tolerance.
+    pub fn validate(&self) -> Result<()> {
+        self.model.validate()?;
+        if self.model.kind != SensorModelKind::Mixture {
+            return Err(config_err(
+                "weight_model",
+                format!(
+                    "localization weighs with the mixture model, got {}",
+                    self.model.kind.name()
+                ),
+            ));
+        }
+        if !(self.model.w_rand > 0.0 && self.model.w_max > 0.0) {
+            return Err(config_err(
+                "weight_model",
+                "localization needs w_rand > 0 and w_max > 0 (every reading must have a likelihood)",
+            ));
+        }
+        if !(self.tail_tolerance > 0.0 && self.tail_tolerance <= 0.01) {
+            return Err(config_err(
+                "tail_tolerance",
+                format!("must be in (0, 0.01], got {}", self.tail_tolerance),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// One beam's likelihood and how much of it the map explains.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BeamEta {
+    /// log η.
+    pub log_eta: f64,
+    /// The part of η from the w_hit terms (a cell of the map returning the beam at the reading,
+    /// or, for a no-return, nothing in range) over η: the posterior probability that the map,
+    /// not noise, explains the reading.
+    pub explained: f64,
+}
+
+/// log η of one beam from `origin` along `angle` with the reading `reading` (a mixture reading
+/// of `ray_length` metres of ray: z_max for the mixture).
+pub fn beam_log_eta(
+    field: &MeanField,
+    reading: &MixtureReading,
+    origin: [f64; 2],
+    angle: f64,
+    ray_length: f64,
+    tail_tolerance: f64,
+) -> BeamEta {
+    let model = reading.model();
+    let g = *field.geometry();
+    let no_return = reading.is_no_return();
+    let z = reading.z();
+    let hit_reach = model.negligible_hit_distance();
+    let lo = z - hit_reach;
+    let far_like = reading.far_before();
+    // Past `stop_from` every later cause's L and L_∞ are below `sup`.
+    let (stop_from, sup) = if no_return {
+        (0.0, reading.bound_beyond(0.0))
+    } else {
+        (z + hit_reach, reading.bound_beyond(z + hit_reach))
+    };
+    let chord = model.kernel == CauseKernel::Chord;
+    // (L, its w_hit part) of a cause in the window or past it.
+    let like = |t_in: f64, t_out: f64, d: f64| {
+        if chord {
+            (
+                reading.cell(t_in, t_out),
+                model.w_hit * model.chord_hit_density(z, t_in, t_out),
+            )
+        } else {
+            let hit = if (d - z).abs() <= hit_reach {
+                model.hit_density_fast(z, d)
+            } else {
+                0.0
+            };
+            (reading.range_cell_fast(d, hit), model.w_hit * hit)
+        }
+    };
+    let (mut reach, mut eta_near, mut eta_hit) = (1.0f64, 0.0f64, 0.0f64);
+    let mut reach_far: Option<f64> = None;
+    let mut stopped = false;
+    // The walk, with m̂ read at the walk's index when the whole ray is stored (the common case),
+    // else by cell with a bounds check.
+    let walk = FastWalk::new(&g, origin, angle, ray_length, field.window());
+    let mut visit = |c: RayCell, m: f64| {
+        let d = 0.5 * (c.t_in + c.t_out);
+        let far = no_return || if chord { c.t_out < lo } else { d < lo };
+        if !far {
+            reach_far.get_or_insert(reach);
+            let (l, hit) = like(c.t_in, c.t_out, d);
+            eta_near += reach * m * l;
+            eta_hit += reach * m * hit;
+        }
+        reach *= 1.0 - m;
+        if c.t_out >= stop_from {
+            let eta = (1.0 - reach_far.unwrap_or(reach)) * far_like + eta_near;
+            if reach * sup <= eta * tail_tolerance {
+                stopped = true;
+                return false;
+            }
+        }
+        true
+    };
+    if field.holds_ray(origin, ray_length) {
+        let values = field.values();
+        for wc in walk {
+            // holds_ray: every index of this walk lies in `values`.
+            if !visit(wc.cell, values[wc.index as usize]) {
+                break;
+            }
+        }
+    } else {
+        for wc in walk {
+            if !visit(wc.cell, field.mean_at(wc.cell.ix, wc.cell.iy)) {
+                break;
+            }
+        }
+    }
+    let mut eta = (1.0 - reach_far.unwrap_or(reach)) * far_like + eta_near;
+    if !stopped {
+        eta += reach * reading.infinity();
+        if no_return {
+            eta_hit += reach * model.w_hit;
+        }
+    }
+    BeamEta {
+        log_eta: eta.ln(),
+        explained: (eta_hit / eta).clamp(0.0, 1.0),
+    }
+}
+
+/// The beams of a scan the localizer reads: every `stride`-th, then at most `max_beams` of
+/// those spread evenly (AMCL's `laser_max_beams`; 0 keeps all).
+pub fn select_beams(n_beams: usize, stride: usize, max_beams: usize) -> Vec<usize> {
+    let strided: Vec<usize> = (0..n_beams).step_by(stride.max(1)).collect();
+    if max_beams == 0 || strided.len() <= max_beams {
+        return strided;
+    }
+    if max_beams == 1 {
+        return vec![strided[0]];
+    }
+    // Evenly spread, first and last included.
+    let step = (strided.len() - 1) as f64 / (max_beams - 1) as f64;
+    (0..max_beams)
+        .map(|i| strided[((i as f64 * step).round() as usize).min(strided.len() - 1)])
+        .collect()
+}
+
+/// A scan's likelihood at one pose.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ScanFit {
+    /// Σ log η over the beams used.
+    pub log_likelihood: f64,
+    /// Σ of the beams' explained parts ([`BeamEta::explained`]).
+    pub explained: f64,
+    /// Beams used (readings below z_min, or ≤ 0, are dropped as in the map update).
+    pub n_beams: usize,
+}
+
+/// The likelihood of the beams `beams` of a scan seen from the sensor pose `sensor`.
+pub fn scan_log_likelihood(
+    field: &MeanField,
+    settings: &LikelihoodSettings,
+    sensor: Pose,
+    angles: &[f64],
+    ranges: &[f64],
+    beams: &[usize],
+) -> Result<ScanFit> {
+    if angles.len() != ranges.len() {
+        return Err(CrlamError::Shape(format!(
+            "scan has {} beam angles but {} ranges",
+            angles.len(),
+            ranges.len()
+        )));
+    }
+    let model = &settings.model;
+    let opts = ScanOptions::default();
+    let res = field.geometry().resolution;
+    let mut fit = ScanFit::default();
+    for &b in beams {
+        let (Some(&a), Some(&r)) = (angles.get(b), ranges.get(b)) else {
+            return Err(CrlamError::Shape(format!(
+                "beam {b} of a scan of {} beams",
+                angles.len()
+            )));
+        };
+        let Ok(plan) = plan_beam(model, &opts, res, [sensor[0], sensor[1]], sensor[2] + a, r)
+        else {
+            continue;
+        };
+        let z = if plan.no_return {
+            f64::INFINITY
+        } else {
+            plan.z
+        };
+        let Some(reading) = MixtureReading::new(model, z) else {
+            return Err(config_err("weight_model", "must be the mixture model"));
+        };
+        let beam = beam_log_eta(
+            field,
+            &reading,
+            plan.origin,
+            plan.angle,
+            plan.length,
+            settings.tail_tolerance,
+        );
+        fit.log_likelihood += beam.log_eta;
+        fit.explained += beam.explained;
+        fit.n_beams += 1;
+    }
+    Ok(fit)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::crm::{CrmConfig, CrmMap, CrmScratch};
+    use crate::grid::{CellRect, GridGeometry};
+
+    /// A map learned from scans of a square room, and its field over the room.
+    fn room() -> (CrmMap, MeanField, SensorModel, Vec<f64>) {
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let mut map = CrmMap::new(&CrmConfig::new(g)).unwrap();
+        let ijrr = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.1);
+        let angles: Vec<f64> = (0..90).map(|i| -1.5 + 3.0 * i as f64 / 89.0).collect();
+        let mut sc = CrmScratch::default();
+        // Walls of a 6 m x 4 m room around (3, 2); scans from the centre, turning.
+        let wall = |x: f64, y: f64, a: f64| {
+            let (c, s) = (a.cos(), a.sin());
+            let mut t = f64::INFINITY;
+            for (p, u, lo, hi) in [(x, c, 0.0, 6.0), (y, s, 0.0, 4.0)] {
+                if u > 0.0 {
+                    t = t.min((hi - p) / u);
+                } else if u < 0.0 {
+                    t = t.min((lo - p) / u);
+                }
+            }
+            t
+        };
+        for k in 0..40 {
+            let pose = [3.0 + 0.02 * k as f64, 2.0, 0.16 * k as f64];
+            let ranges: Vec<f64> = angles
+                .iter()
+                .map(|a| wall(pose[0], pose[1], pose[2] + a))
+                .collect();
+            map.update_scan(
+                pose,
+                &angles,
+                &ranges,
+                &ijrr,
+                &ScanOptions::default(),
+                &mut sc,
+            )
+            .unwrap();
+        }
+        let rect = CellRect {
+            ix0: -5,
+            iy0: -5,
+            nx: 70,
+            ny: 50,
+        };
+        let field = MeanField::from_crm(&map, rect, 0.25, 20).unwrap();
+        let mix = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.1);
+        let pose = [2.5, 1.7, 0.3];
+        let ranges = angles
+            .iter()
+            .map(|a| wall(pose[0], pose[1], pose[2] + a))
+            .collect();
+        (map, field, mix, ranges)
+    }
+
+    #[test]
+    fn field_likelihood_equals_the_maps() {
+        let (map, field, mix, ranges) = room();
+        let angles: Vec<f64> = (0..90).map(|i| -1.5 + 3.0 * i as f64 / 89.0).collect();
+        let mut sc = CrmScratch::default();
+        for pose in [[2.5, 1.7, 0.3], [1.0, 3.0, -2.0], [5.0, 0.5, 1.2]] {
+            let (want, n) = map
+                .scan_log_likelihood(
+                    pose,
+                    &angles,
+                    &ranges,
+                    &mix,
+                    &ScanOptions::default(),
+                    &mut sc,
+                )
+                .unwrap();
+            let beams: Vec<usize> = (0..angles.len()).collect();
+            for tol in [1.0 / (1u64 << 60) as f64, 1e-6, 1e-3] {
+                let s = LikelihoodSettings {
+                    model: mix,
+                    tail_tolerance: tol,
+                };
+                let fit = scan_log_likelihood(&field, &s, pose, &angles, &ranges, &beams).unwrap();
+                let got = fit.log_likelihood;
+                assert_eq!(fit.n_beams, n);
+                assert!(fit.explained > 0.8 * n as f64 || pose[0] != 2.5);
+                // Each beam's log η is low by less than the tolerance (plus rounding).
+                let err = want - got;
+                assert!(
+                    err > -1e-9 && err < n as f64 * tol + 1e-9,
+                    "tol {tol}: {got} vs {want}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_true_pose_is_likelier_than_shifted_ones() {
+        let (_, field, mix, ranges) = room();
+        let angles: Vec<f64> = (0..90).map(|i| -1.5 + 3.0 * i as f64 / 89.0).collect();
+        let s = LikelihoodSettings {
+            model: mix,
+            tail_tolerance: 1e-6,
+        };
+        let beams = select_beams(90, 1, 0);
+        let ll = |p: Pose| {
+            scan_log_likelihood(&field, &s, p, &angles, &ranges, &beams)
+                .unwrap()
+                .log_likelihood
+        };
+        let truth = ll([2.5, 1.7, 0.3]);
+        for d in [[0.2, 0.0, 0.0], [0.0, -0.2, 0.0], [0.0, 0.0, 0.1]] {
+            assert!(truth > ll([2.5 + d[0], 1.7 + d[1], 0.3 + d[2]]) + 5.0);
+        }
+    }
+
+    #[test]
+    fn beam_selection() {
+        assert_eq!(select_beams(5, 1, 0), vec![0, 1, 2, 3, 4]);
+        assert_eq!(select_beams(10, 3, 0), vec![0, 3, 6, 9]);
+        assert_eq!(select_beams(181, 1, 3), vec![0, 90, 180]);
+        assert_eq!(select_beams(10, 1, 1), vec![0]);
+        assert_eq!(select_beams(4, 1, 10).len(), 4);
+    }
+
+    #[test]
+    fn settings_are_checked() {
+        let mix = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.1);
+        let ok = LikelihoodSettings {
+            model: mix,
+            tail_tolerance: 1e-6,
+        };
+        assert!(ok.validate().is_ok());
+        let ijrr = LikelihoodSettings {
+            model: SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.1),
+            ..ok
+        };
+        assert!(ijrr.validate().is_err());
+        assert!(LikelihoodSettings {
+            tail_tolerance: 0.0,
+            ..ok
+        }
+        .validate()
+        .is_err());
+        let mut no_rand = mix;
+        no_rand.w_rand = 0.0;
+        no_rand.w_hit = 0.8;
+        assert!(LikelihoodSettings {
+            model: no_rand,
+            ..ok
+        }
+        .validate()
+        .is_err());
+    }
+}
