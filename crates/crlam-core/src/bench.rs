@@ -487,7 +487,8 @@ mod tests {
     #[test]
     #[ignore = "timing, run by hand"]
     fn mcl_timing() {
-        let f = super::mcl_scans(20, 1000, 180).unwrap();
+        let n = std::env::var("MCL_SCANS").ok().and_then(|v| v.parse().ok()).unwrap_or(20);
+        let f = super::mcl_scans(n, 1000, 180).unwrap();
         eprintln!("{f:?}");
     }
 }

@@ -58,6 +58,7 @@ pub fn run_benchmark<'py>(
                 Some(bench::rbpf_ogm_gmapping_scans(size, 30))
             }
             "rbpf_ogm_scans_per_s_1079x100" => Some(bench::rbpf_ogm_scans_table1(size)),
+            "mcl_scans_per_s_1000p" => Some(bench::mcl_scans(size, 1000, 180)),
             _ => None,
         })
         .ok_or_else(|| shape_err(format!("unknown benchmark {name:?}")))?

@@ -2,7 +2,7 @@
 
 mod batch;
 pub mod beam;
-mod far_simd;
+pub(crate) mod far_simd;
 mod forward;
 mod lanes;
 #[cfg(target_arch = "x86_64")]

@@ -41,7 +41,7 @@ use crate::mcl::field::MeanField;
 use crate::mcl::kld::{BinCounter, KldSettings};
 use crate::mcl::likelihood::{scan_log_likelihood, select_beams, LikelihoodSettings, ScanFit};
 use crate::motion::MotionModel;
-use crate::pose::{between, compose, wrap, Pose};
+use crate::pose::{between, compose, covariance_factor, draw_pose, Pose};
 use crate::rbpf::{OdometryTracker, ScanInput, UpdateTrigger};
 use crate::resample::{effective_sample_size, normalize_log_weights};
 use crate::rng::Rng;
@@ -169,42 +169,6 @@ pub struct Mcl {
     last: Option<MclStep>,
 }
 
-/// The lower-triangular L with L Lᵀ = cov (a semidefinite cov gets zero columns).
-fn cholesky3(cov: &[[f64; 3]; 3]) -> Result<[[f64; 3]; 3]> {
-    for i in 0..3 {
-        for j in 0..3 {
-            if !cov[i][j].is_finite()
-                || (cov[i][j] - cov[j][i]).abs() > 1e-9 * (1.0 + cov[i][j].abs())
-            {
-                return Err(config_err(
-                    "initial_cov",
-                    "must be a finite symmetric 3 x 3 matrix",
-                ));
-            }
-        }
-    }
-    let mut l = [[0.0; 3]; 3];
-    for j in 0..3 {
-        let mut d = cov[j][j];
-        for k in 0..j {
-            d -= l[j][k] * l[j][k];
-        }
-        if d < -1e-9 * (1.0 + cov[j][j].abs()) {
-            return Err(config_err("initial_cov", "must be positive semidefinite"));
-        }
-        let d = d.max(0.0).sqrt();
-        l[j][j] = d;
-        for i in j + 1..3 {
-            let mut s = cov[i][j];
-            for k in 0..j {
-                s -= l[i][k] * l[j][k];
-            }
-            l[i][j] = if d > 0.0 { s / d } else { 0.0 };
-        }
-    }
-    Ok(l)
-}
-
 impl Mcl {
     /// A localizer on `field` with particles placed by `init`.
     pub fn new(cfg: MclConfig, field: Arc<MeanField>, init: MclInit) -> Result<Self> {
@@ -237,20 +201,9 @@ impl Mcl {
         self.poses = match init {
             MclInit::Pose { mean, cov } => {
                 crate::grid::check_pose(mean)?;
-                let l = cholesky3(&cov)?;
+                let l = covariance_factor(&cov)?;
                 (0..n)
-                    .map(|j| {
-                        let mut rng = Rng::stream(seed, stream_step, j as u64);
-                        let e = [rng.normal(), rng.normal(), rng.normal()];
-                        let mut p = mean;
-                        for i in 0..3 {
-                            for k in 0..=i {
-                                p[i] += l[i][k] * e[k];
-                            }
-                        }
-                        p[2] = wrap(p[2]);
-                        p
-                    })
+                    .map(|j| draw_pose(mean, &l, &mut Rng::stream(seed, stream_step, j as u64)))
                     .collect()
             }
             MclInit::Global => {

@@ -23,10 +23,11 @@
 //! cells of the window and past it evaluate likelihoods.
 
 use crate::crm::beam::{plan_beam, ScanOptions};
+use crate::crm::far_simd::{far_phase, LANES};
 use crate::error::{config_err, CrlamError, Result};
 use crate::mcl::field::MeanField;
 use crate::pose::Pose;
-use crate::raycast::{FastWalk, RayCell};
+use crate::raycast::{FastWalk, WalkCell};
 use crate::sensor::{CauseKernel, MixtureReading, SensorModel, SensorModelKind};
 
 /// How the localizer's likelihood is computed.
@@ -89,19 +90,114 @@ pub fn beam_log_eta(
     ray_length: f64,
     tail_tolerance: f64,
 ) -> BeamEta {
+    let mut walk = FastWalk::new(field.geometry(), origin, angle, ray_length, field.window());
+    // m̂ read at the walk's index when the whole ray is stored (the common case), else by cell
+    // with a bounds check.
+    if field.holds_ray(origin, ray_length) {
+        let values = field.values();
+        // holds_ray: every index of this walk lies in `values`.
+        let mean = |wc: &WalkCell| values[wc.index as usize];
+        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
+        finish_beam(walk, far, &mean, reading, tail_tolerance)
+    } else {
+        let mean = |wc: &WalkCell| field.mean_at(wc.cell.ix, wc.cell.iy);
+        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
+        finish_beam(walk, far, &mean, reading, tail_tolerance)
+    }
+}
+
+/// Where a beam's far phase ended.
+#[derive(Clone, Copy, Debug)]
+struct FarEnd {
+    /// R at the first cause past the far phase.
+    reach: f64,
+    /// That cause's cell, taken from the walk (the lanes leave it in the walk instead).
+    first_near: Option<WalkCell>,
+    /// η, when the far phase found that the rest of the ray cannot matter.
+    done: Option<f64>,
+}
+
+/// Where the far phase of a reading ends: causes whose distance (chord midpoint, or the chord's
+/// end for the chord kernel) lies below this are far.
+fn far_end(reading: &MixtureReading) -> f64 {
+    if reading.is_no_return() {
+        f64::NEG_INFINITY
+    } else {
+        reading.z() - reading.model().negligible_hit_distance()
+    }
+}
+
+/// The far phase of a range reading, one cell at a time: R = Π (1 − m̂) over the causes far
+/// before the reading. With `early` (the tail tolerance), every 16 cells: every cause past here
+/// has a likelihood below `sup_all`, so once R · sup_all is below the tolerance times what the
+/// far causes already give, (1 − R)·far_like, the rest of the ray cannot matter (a particle
+/// whose beam runs into walls before its reading). The lanes have no such stop.
+#[inline(always)]
+fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
+    walk: &mut FastWalk,
+    mean: &M,
+    reading: &MixtureReading,
+    early: Option<f64>,
+) -> FarEnd {
+    let mut out = FarEnd {
+        reach: 1.0,
+        first_near: None,
+        done: None,
+    };
+    if reading.is_no_return() {
+        return out;
+    }
+    let lo = far_end(reading);
+    let chord = reading.model().kernel == CauseKernel::Chord;
+    let far_like = reading.far_before();
+    let sup_all = reading_bound(reading);
+    let mut count = 0u32;
+    let mut reach = 1.0f64;
+    for wc in walk.by_ref() {
+        let c = wc.cell;
+        let far = if chord {
+            c.t_out < lo
+        } else {
+            0.5 * (c.t_in + c.t_out) < lo
+        };
+        if !far {
+            out.first_near = Some(wc);
+            break;
+        }
+        reach *= 1.0 - mean(&wc);
+        count += 1;
+        if let Some(tol) = early {
+            if count % 16 == 0 && reach * sup_all <= tol * (1.0 - reach) * far_like {
+                out.done = Some((1.0 - reach) * far_like);
+                break;
+            }
+        }
+    }
+    out.reach = reach;
+    out
+}
+
+/// The window and the tail of a beam after its far phase: every cause's likelihood, until the
+/// stop rule holds or the ray ends.
+#[inline(always)]
+fn finish_beam<M: Fn(&WalkCell) -> f64>(
+    walk: FastWalk,
+    far: FarEnd,
+    mean: &M,
+    reading: &MixtureReading,
+    tail_tolerance: f64,
+) -> BeamEta {
+    if let Some(eta) = far.done {
+        return BeamEta {
+            log_eta: eta.ln(),
+            explained: 0.0,
+        };
+    }
     let model = reading.model();
-    let g = *field.geometry();
     let no_return = reading.is_no_return();
     let z = reading.z();
     let hit_reach = model.negligible_hit_distance();
-    let lo = z - hit_reach;
     let far_like = reading.far_before();
-    // Past `stop_from` every later cause's L and L_∞ are below `sup`.
-    let (stop_from, sup) = if no_return {
-        (0.0, reading.bound_beyond(0.0))
-    } else {
-        (z + hit_reach, reading.bound_beyond(z + hit_reach))
-    };
     let chord = model.kernel == CauseKernel::Chord;
     // (L, its w_hit part) of a cause in the window or past it.
     let like = |t_in: f64, t_out: f64, d: f64| {
@@ -119,47 +215,43 @@ pub fn beam_log_eta(
             (reading.range_cell_fast(d, hit), model.w_hit * hit)
         }
     };
-    let (mut reach, mut eta_near, mut eta_hit) = (1.0f64, 0.0f64, 0.0f64);
-    let mut reach_far: Option<f64> = None;
+    // Past `stop_from` every later cause's L and L_∞ are below `sup`.
+    let (stop_from, sup) = if no_return {
+        (0.0, reading.bound_beyond(0.0))
+    } else {
+        (z + hit_reach, reading.bound_beyond(z + hit_reach))
+    };
+    let reach_far = far.reach;
+    let mut reach = far.reach;
+    let (mut eta_near, mut eta_hit) = (0.0f64, 0.0f64);
     let mut stopped = false;
-    // The walk, with m̂ read at the walk's index when the whole ray is stored (the common case),
-    // else by cell with a bounds check.
-    let walk = FastWalk::new(&g, origin, angle, ray_length, field.window());
-    let mut visit = |c: RayCell, m: f64| {
-        let d = 0.5 * (c.t_in + c.t_out);
-        let far = no_return || if chord { c.t_out < lo } else { d < lo };
-        if !far {
-            reach_far.get_or_insert(reach);
-            let (l, hit) = like(c.t_in, c.t_out, d);
+    for wc in far.first_near.into_iter().chain(walk) {
+        let c = wc.cell;
+        let m = mean(&wc);
+        if !no_return {
+            let (l, hit) = like(c.t_in, c.t_out, 0.5 * (c.t_in + c.t_out));
             eta_near += reach * m * l;
             eta_hit += reach * m * hit;
         }
         reach *= 1.0 - m;
         if c.t_out >= stop_from {
-            let eta = (1.0 - reach_far.unwrap_or(reach)) * far_like + eta_near;
+            // A no-return's causes are all far: (1 − R)·w_max so far.
+            let eta = if no_return {
+                (1.0 - reach) * far_like
+            } else {
+                (1.0 - reach_far) * far_like + eta_near
+            };
             if reach * sup <= eta * tail_tolerance {
                 stopped = true;
-                return false;
-            }
-        }
-        true
-    };
-    if field.holds_ray(origin, ray_length) {
-        let values = field.values();
-        for wc in walk {
-            // holds_ray: every index of this walk lies in `values`.
-            if !visit(wc.cell, values[wc.index as usize]) {
-                break;
-            }
-        }
-    } else {
-        for wc in walk {
-            if !visit(wc.cell, field.mean_at(wc.cell.ix, wc.cell.iy)) {
                 break;
             }
         }
     }
-    let mut eta = (1.0 - reach_far.unwrap_or(reach)) * far_like + eta_near;
+    let mut eta = if no_return {
+        (1.0 - reach) * far_like
+    } else {
+        (1.0 - reach_far) * far_like + eta_near
+    };
     if !stopped {
         eta += reach * reading.infinity();
         if no_return {
@@ -170,6 +262,17 @@ pub fn beam_log_eta(
         log_eta: eta.ln(),
         explained: (eta_hit / eta).clamp(0.0, 1.0),
     }
+}
+
+/// An upper bound of L_l(z) for every on-ray cause and of L_∞(z), for a range reading z: the
+/// hit density at most twice its untruncated peak (the truncation normaliser is at least 1/2),
+/// the short density at its largest (a cause at the reading), the floor.
+fn reading_bound(reading: &MixtureReading) -> f64 {
+    let m = reading.model();
+    let hit = 2.0 / (m.sigma_hit * crate::sensor::SQRT_2PI);
+    let short = reading.short_numerator() / -(-m.lambda_short * reading.z()).exp_m1();
+    let short = if short.is_finite() { short } else { f64::INFINITY };
+    m.w_hit * hit + m.w_short * short + reading.rand_floor()
 }
 
 /// The beams of a scan the localizer reads: every `stride`-th, then at most `max_beams` of
@@ -200,8 +303,33 @@ pub struct ScanFit {
     pub n_beams: usize,
 }
 
+/// A range beam whose far phase runs in lanes: its walk, reading and place in the scan.
+struct LaneBeam<'a> {
+    walk: FastWalk,
+    reading: MixtureReading<'a>,
+    slot: usize,
+}
+
 /// The likelihood of the beams `beams` of a scan seen from the sensor pose `sensor`.
+///
+/// Range readings of the midpoint kernel whose rays the field holds run their far phase sixteen
+/// beams at a time in vector lanes (`crm::far_simd`, the SLAM filters' kernel, at the level of
+/// [`crate::simd::level`]); the lanes end every walk as the scalar loop would, bit for bit, and
+/// the beams are summed in scan order, so the result does not depend on the level.
 pub fn scan_log_likelihood(
+    field: &MeanField,
+    settings: &LikelihoodSettings,
+    sensor: Pose,
+    angles: &[f64],
+    ranges: &[f64],
+    beams: &[usize],
+) -> Result<ScanFit> {
+    scan_log_likelihood_at(crate::simd::level(), field, settings, sensor, angles, ranges, beams)
+}
+
+/// [`scan_log_likelihood`] with the lanes at `level` (lowered to what the CPU runs).
+fn scan_log_likelihood_at(
+    level: crate::simd::SimdLevel,
     field: &MeanField,
     settings: &LikelihoodSettings,
     sensor: Pose,
@@ -217,10 +345,42 @@ pub fn scan_log_likelihood(
         )));
     }
     let model = &settings.model;
+    let tol = settings.tail_tolerance;
     let opts = ScanOptions::default();
-    let res = field.geometry().resolution;
-    let mut fit = ScanFit::default();
-    for &b in beams {
+    let g = field.geometry();
+    let res = g.resolution;
+    let midpoint = model.kernel == CauseKernel::Midpoint;
+    let values = field.values();
+    let mean = |wc: &WalkCell| values[wc.index as usize];
+    // One result per beam, summed in order at the end.
+    let mut per_beam: Vec<Option<BeamEta>> = vec![None; beams.len()];
+    let mut lanes: Vec<LaneBeam> = Vec::with_capacity(LANES);
+    let flush = |lanes: &mut Vec<LaneBeam>, per_beam: &mut [Option<BeamEta>]| {
+        let mut walks: [FastWalk; LANES] = [const { FastWalk::ended() }; LANES];
+        let (mut lo, mut reach) = ([0.0; LANES], [1.0; LANES]);
+        let n = lanes.len();
+        for (i, b) in lanes.iter().enumerate() {
+            walks[i] = b.walk.clone();
+            lo[i] = far_end(&b.reading);
+        }
+        let in_lanes = far_phase(level, &mut walks[..n], &lo[..n], &mut reach[..n], values);
+        for (i, b) in lanes.drain(..).enumerate() {
+            let (walk, far) = if in_lanes {
+                let far = FarEnd {
+                    reach: reach[i],
+                    first_near: None,
+                    done: None,
+                };
+                (walks[i].clone(), far)
+            } else {
+                let mut walk = b.walk;
+                let far = far_phase_scalar(&mut walk, &mean, &b.reading, None);
+                (walk, far)
+            };
+            per_beam[b.slot] = Some(finish_beam(walk, far, &mean, &b.reading, tol));
+        }
+    };
+    for (slot, &b) in beams.iter().enumerate() {
         let (Some(&a), Some(&r)) = (angles.get(b), ranges.get(b)) else {
             return Err(CrlamError::Shape(format!(
                 "beam {b} of a scan of {} beams",
@@ -239,14 +399,32 @@ pub fn scan_log_likelihood(
         let Some(reading) = MixtureReading::new(model, z) else {
             return Err(config_err("weight_model", "must be the mixture model"));
         };
-        let beam = beam_log_eta(
-            field,
-            &reading,
-            plan.origin,
-            plan.angle,
-            plan.length,
-            settings.tail_tolerance,
-        );
+        if midpoint && !plan.no_return && field.holds_ray(plan.origin, plan.length) {
+            let walk = FastWalk::new(g, plan.origin, plan.angle, plan.length, field.window());
+            lanes.push(LaneBeam {
+                walk,
+                reading,
+                slot,
+            });
+            if lanes.len() == LANES {
+                flush(&mut lanes, &mut per_beam);
+            }
+        } else {
+            per_beam[slot] = Some(beam_log_eta(
+                field,
+                &reading,
+                plan.origin,
+                plan.angle,
+                plan.length,
+                tol,
+            ));
+        }
+    }
+    if !lanes.is_empty() {
+        flush(&mut lanes, &mut per_beam);
+    }
+    let mut fit = ScanFit::default();
+    for beam in per_beam.into_iter().flatten() {
         fit.log_likelihood += beam.log_eta;
         fit.explained += beam.explained;
         fit.n_beams += 1;
@@ -345,6 +523,26 @@ mod tests {
                     "tol {tol}: {got} vs {want}"
                 );
             }
+        }
+    }
+
+    #[test]
+    fn every_vector_level_gives_the_same_likelihood() {
+        use crate::simd::SimdLevel;
+        let (_, field, mix, ranges) = room();
+        let angles: Vec<f64> = (0..90).map(|i| -1.5 + 3.0 * i as f64 / 89.0).collect();
+        let s = LikelihoodSettings {
+            model: mix,
+            tail_tolerance: 1e-6,
+        };
+        let beams = select_beams(90, 1, 0);
+        for pose in [[2.5, 1.7, 0.3], [1.0, 3.0, -2.0], [5.0, 0.5, 1.2], [-3.0, 9.0, 0.0]] {
+            let at = |level| {
+                scan_log_likelihood_at(level, &field, &s, pose, &angles, &ranges, &beams).unwrap()
+            };
+            let scalar = at(SimdLevel::Scalar);
+            assert_eq!(scalar, at(SimdLevel::Avx2));
+            assert_eq!(scalar, at(SimdLevel::Avx512));
         }
     }
 
