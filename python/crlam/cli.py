@@ -136,7 +136,19 @@ def slam_config_of(args: argparse.Namespace) -> tuple[SlamConfig, int | None]:
 def cmd_slam(args: argparse.Namespace) -> int:
     from crlam.experiments.slam_run import run_slam_log
 
+    prior = None
+    saved_settings = False
+    if args.continue_from is not None:
+        from crlam.slam_continue import load_slam_prior
+
+        prior = load_slam_prior(args.continue_from)
+        # The continued run keeps the saved run's settings unless a preset or a config is given.
+        saved = Path(args.continue_from) / "config.toml"
+        if args.config is None and args.preset is None and saved.is_file():
+            args.config, saved_settings = str(saved), True
     config, max_scans = slam_config_of(args)
+    if saved_settings and args.max_scans is None:
+        max_scans = None  # the saved run's scan limit was for its own log
     res = run_slam_log(
         args.log,
         args.out,
@@ -147,6 +159,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         bag_options=bag_options(args),
         mcap=args.mcap,
+        prior=prior,
     )
     m = res.metrics
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
@@ -357,6 +370,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="start from the [slam] settings (and [run] max_scans) of FILE, a run folder's config.toml, instead of a "
         "preset: re-runs that configuration; flags given beside it still override it",
     )
+    p.add_argument(
+        "--continue",
+        dest="continue_from",
+        metavar="DIR",
+        help="continue a saved crlam slam run: every particle starts with DIR's map, around DIR's final estimate (its "
+        "covariance), and the run goes on mapping LOG (which takes up where DIR's log ended); DIR's settings unless "
+        "--preset or --config is given; DIR is only read",
+    )
     p.add_argument("--method", choices=("clam", "ogm"), default=None, help=f"filter (paper: clam; {FROM_PRESET})")
     p.add_argument("--particles", type=positive_int, default=None, help=f"number of particles (paper: 100; {FROM_PRESET})")
     p.add_argument("--seed", type=nonnegative_int, default=None, help=f"random seed ({FROM_PRESET}; 0 unless it sets one)")
@@ -433,8 +454,10 @@ def build_parser() -> argparse.ArgumentParser:
     from crlam.cli_diagnose import add_diagnose_parser
     from crlam.cli_explore import add_explore_parser
     from crlam.cli_info import add_info_parser
+    from crlam.cli_localize import add_localize_parser
 
     add_info_parser(sub)
+    add_localize_parser(sub)
     add_explore_parser(sub)
     add_diagnose_parser(sub)
     add_convert_parser(sub)

@@ -50,6 +50,20 @@ class LocalizeConfig:
     tempering : float
         τ: a scan multiplies the weights by exp(Σ log η / τ). The CRM likelihood treats the beams
         as independent; neighbouring beams see the same map errors.
+    sigma_max, anneal : float
+        Annealing of the hit term: a scan is weighed with σ_hit = clamp(anneal · s, σ, sigma_max),
+        s being the heaviest cluster's spread at the last scan (its position spread plus 1 m times
+        its heading spread in rad) and σ the model's (``sigma_hit``). Particles spread over the
+        map (a global start, a recovery) see a hit term as wide as AMCL's 0.2 m, which a particle
+        decimetres from the true pose still fits; gathered, they see the model's. ``sigma_max``
+        at or below σ turns it off.
+    min_neff : float
+        Smallest share of the effective sample size a scan may leave: a scan whose weights at τ
+        would bring N_eff below this fraction of its value before the scan (the particle count
+        right after resampling) is tempered more, until they do not (0: off). The CRM
+        likelihood is sharp (σ_hit of a few cm); right after a global start the particle nearest
+        the true pose is decimetres away, and one scan at τ would give all the weight to whichever
+        particle happens to fit best, wrong or right.
     beam_stride, max_beams : int
         Every n-th beam, then at most ``max_beams`` of those spread evenly (0: all; AMCL: 60).
     max_range : float or None
@@ -64,7 +78,11 @@ class LocalizeConfig:
     motion_params : tuple of float or None
         The motion model's parameters (None: its own).
     linear_update, angular_update : float
-        Process a scan after this travel (m) or rotation (rad); 0 and 0 process every scan.
+        Process a scan after this travel (m) or rotation (rad) since the last processed one
+        (default 5 mm, 0.005 rad: every scan while the robot moves; 0 and 0: every scan). Standing
+        still, the same view scanned again and again would multiply the same evidence into the
+        weights, and resampling with no motion noise would shrink the set to a few poses. The
+        scans in between get the last estimate carried by odometry.
     resample_threshold : float
         Resample when N_eff < threshold · n (and whenever recovery injects).
     free_threshold : float
@@ -90,6 +108,9 @@ class LocalizeConfig:
     alpha_slow: float = 0.001
     alpha_fast: float = 0.1
     tempering: float = 10.0
+    min_neff: float = 0.3
+    sigma_max: float = 0.2
+    anneal: float = 0.5
     beam_stride: int = 1
     max_beams: int = 0
     max_range: float | None = None
@@ -101,8 +122,8 @@ class LocalizeConfig:
     lambda_short: float = 0.2
     motion: str = "gmapping"
     motion_params: tuple[float, ...] | None = None
-    linear_update: float = 0.0
-    angular_update: float = 0.0
+    linear_update: float = 0.005
+    angular_update: float = 0.005
     resample_threshold: float = 0.5
     free_threshold: float = 0.25
     tail_tolerance: float = 1e-6
@@ -130,6 +151,8 @@ class LocalizeConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise bad(name, "must be finite and > 0")
+        if not (math.isfinite(self.min_neff) and 0.0 <= self.min_neff < 1.0):
+            raise bad("min_neff", "must be in [0, 1)")
         for name in ("alpha_slow", "alpha_fast", "resample_threshold", "convergence_weight"):
             v = getattr(self, name)
             if not (math.isfinite(v) and 0.0 <= v <= 1.0):
@@ -138,6 +161,9 @@ class LocalizeConfig:
             raise bad("kld_bin", "needs 2 bin sizes > 0 (m, rad)")
         if self.motion not in ("gaussian", "thrun", "gmapping"):
             raise bad("motion", "must be 'gaussian', 'thrun' or 'gmapping'")
+        for name in ("sigma_max", "anneal"):
+            if not (math.isfinite(getattr(self, name)) and getattr(self, name) >= 0):
+                raise bad(name, "must be finite and >= 0")
         for name in ("max_range", "sigma_hit"):
             v = getattr(self, name)
             if v is not None and not (math.isfinite(v) and v > 0):
@@ -194,6 +220,10 @@ class LocalizeStep:
         max(0, 1 − w_fast / w_slow).
     fit : float
         The share of the scan the map explains, in [0, 1] (NaN when not processed).
+    tempering : float
+        The tempering the scan was weighed with (``tempering``, or more for ``min_neff``).
+    sigma_hit : float
+        The σ of the hit term the scan was weighed with (the annealing of ``sigma_max``).
     cluster_weight, spread_xy, spread_theta : float
         The heaviest cluster's weight, position spread (m, RMS) and heading spread (rad).
     n_clusters : int
@@ -211,6 +241,8 @@ class LocalizeStep:
     n_injected: int
     inject_probability: float
     fit: float
+    tempering: float
+    sigma_hit: float
     cluster_weight: float
     spread_xy: float
     spread_theta: float
@@ -290,6 +322,9 @@ class Localizer:
                 alpha_slow=c.alpha_slow,
                 alpha_fast=c.alpha_fast,
                 tempering=c.tempering,
+                min_neff=c.min_neff,
+                sigma_max=c.sigma_max,
+                anneal=c.anneal,
                 beam_stride=c.beam_stride,
                 max_beams=c.max_beams,
                 motion=c.motion,
@@ -339,6 +374,8 @@ class Localizer:
             n_injected=int(d["n_injected"]),
             inject_probability=float(d["inject_probability"]),
             fit=float(d["fit"]),
+            tempering=float(d["tempering"]),
+            sigma_hit=float(d["sigma_hit"]),
             cluster_weight=float(cl["weight"]),
             spread_xy=float(cl["spread_xy"]),
             spread_theta=float(cl["std_theta"]),
@@ -375,6 +412,11 @@ class Localizer:
         """Odometry path length since the first scan (m)."""
         return self._travelled
 
+    @property
+    def distances(self) -> list[float]:
+        """Odometry path length (m) from the first scan to each scan."""
+        return self._distance
+
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(stamps (n,), poses (n, 3)), one per scan in order."""
         return np.array(self.stamps), np.array([s.estimate for s in self.steps]).reshape(-1, 3)
@@ -383,7 +425,3 @@ class Localizer:
         """The current particle poses (n, 3) and normalised weights (n,)."""
         assert self.filter is not None
         return np.asarray(self.filter.particle_poses()), np.asarray(self.filter.weights())
-
-    def carried(self, pose: NDArray[np.float64], i: int, j: int) -> NDArray[np.float64]:
-        """``pose`` at scan i carried by the odometry increment from scan i to scan j."""
-        return np.asarray(compose(pose, between(self.odometry[i], self.odometry[j])))

@@ -57,6 +57,8 @@ fn step_dict<'py>(py: Python<'py>, s: &MclStep) -> PyResult<Bound<'py, PyDict>> 
     d.set_item("inject_probability", s.inject_probability)?;
     d.set_item("fit", s.fit)?;
     d.set_item("n_beams", s.n_beams)?;
+    d.set_item("tempering", s.tempering)?;
+    d.set_item("sigma_hit", s.sigma_hit)?;
     d.set_item("cluster", cluster_dict(py, &s.cluster)?)?;
     d.set_item("n_clusters", s.n_clusters)?;
     Ok(d)
@@ -84,7 +86,7 @@ impl MclFilter {
     #[new]
     #[pyo3(signature = (crm, rect, model, *, initial_pose=None, initial_cov=None, free_threshold=0.25, margin=0,
         n_min=100, n_max=5000, kld_err=0.01, kld_z=2.326_347_874_040_840_8, bin_xy=0.5, bin_theta=0.174_532_925_199_432_95,
-        alpha_slow=0.001, alpha_fast=0.1, tempering=1.0, beam_stride=1, max_beams=0, motion="gmapping",
+        alpha_slow=0.001, alpha_fast=0.1, tempering=1.0, min_neff=0.0, sigma_max=0.0, anneal=0.5, beam_stride=1, max_beams=0, motion="gmapping",
         motion_params=None, linear_update=0.0, angular_update=0.0, resample_threshold=0.5, tail_tolerance=1e-6, seed=0))]
     fn new(
         py: Python<'_>,
@@ -104,6 +106,9 @@ impl MclFilter {
         alpha_slow: f64,
         alpha_fast: f64,
         tempering: f64,
+        min_neff: f64,
+        sigma_max: f64,
+        anneal: f64,
         beam_stride: usize,
         max_beams: usize,
         motion: &str,
@@ -149,6 +154,9 @@ impl MclFilter {
             alpha_slow,
             alpha_fast,
             tempering,
+            min_neff,
+            sigma_max,
+            anneal,
             beam_stride,
             max_beams,
             resample_threshold,

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from crlam import __version__
-from crlam.errors import DataFormatError
+from crlam.errors import ConfigError, DataFormatError
 from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
@@ -50,6 +50,7 @@ from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
 from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
+from crlam.slam_continue import SlamPrior, pose_covariance
 
 __all__ = ["SlamResult", "run_slam_log", "write_toml", "FILL_RULE"]
 
@@ -148,6 +149,7 @@ def run_slam_log(
     figures: bool = True,
     bag_options: dict[str, Any] | None = None,
     mcap: bool = False,
+    prior: SlamPrior | None = None,
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
@@ -155,10 +157,13 @@ def run_slam_log(
     ``bag_options`` go to the bag reader (:func:`crlam.io.logs.open_log`: ``scan_topic``,
     ``odom_topic``, ``base_frame``, ``laser_mount``, ``upside_down``). ``mcap`` also writes
     ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: scans, TF, particles, path and map as
-    standard ROS 2 messages)."""
+    standard ROS 2 messages). ``prior`` continues a saved run (:mod:`crlam.slam_continue`): its
+    folder is only read, and must not be ``out_dir``."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
+    if prior is not None and out.resolve() == Path(prior.source).resolve():
+        raise ConfigError(f"--out {out} is the run being continued: write the continued run to a new folder")
     out.mkdir(parents=True, exist_ok=True)
     # The wall time includes the odometry-noise pre-pass, which is part of the run.
     t0 = time.perf_counter()
@@ -184,12 +189,12 @@ def run_slam_log(
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(reader, config, log_path, max_scans, progress, recorder, t0)
+        run_wall = _run_filter(reader, config, log_path, max_scans, progress, recorder, t0, prior)
     except BaseException:
         if recorder is not None:
             recorder.close()
         raise
-    return _write_outputs(run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder, noise_estimate)
+    return _write_outputs(run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder, noise_estimate, prior)
 
 
 def _run_filter(
@@ -200,6 +205,7 @@ def _run_filter(
     progress: bool,
     recorder: Any,
     t0: float,
+    prior: SlamPrior | None = None,
 ) -> tuple[SlamRun, float]:
     """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s)."""
     run: SlamRun | None = None
@@ -211,7 +217,7 @@ def _run_filter(
             continue
         if run is None:
             config = within_sensor_range(config, rec.max_range)
-            run = SlamRun(config)
+            run = SlamRun(config, prior=prior)
         if max_scans is not None and run.n_scans >= max_scans:
             break
         angles, ranges = _scan_inputs(rec)
@@ -239,6 +245,7 @@ def _write_outputs(
     figures: bool,
     recorder: Any,
     noise_estimate: MotionNoiseEstimate | None = None,
+    prior: SlamPrior | None = None,
 ) -> SlamResult:
     run, wall = run_wall
     config = run.config
@@ -311,6 +318,7 @@ def _write_outputs(
         "deviations_from_paper": config.deviations(),
         "motion_noise_estimate": None if noise_estimate is None else noise_estimate.to_dict(),
         "input": input_description(reader),
+        "continued_from": None if prior is None else prior.describe(),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
@@ -358,7 +366,11 @@ def _write_outputs(
     std = None
     if isinstance(best, ConfidenceRichMap):
         mean, var, ent = best.layers()
-        save_belief(out / "belief.npz", best.to_archive())
+        archive = best.to_archive()
+        # The final estimate and the spread of the last weighed set: what --continue starts from.
+        archive.estimate = np.array(poses[-1], dtype=np.float64)
+        archive.estimate_cov = pose_covariance(*run.filter.weighed_set(), archive.estimate)
+        save_belief(out / "belief.npz", archive)
         unknown = unknown_mask(best, ent)
         std = MapLayer(np.sqrt(np.maximum(var.values, 0.0)), var.origin, var.resolution, "standard deviation")
     else:
@@ -382,6 +394,7 @@ def _write_outputs(
                 "relations": str(relations) if relations else None,
                 "max_scans": max_scans,
                 "crlam_version": __version__,
+                "continue": None if prior is None else prior.source,
             },
             "input": input_description(reader),
             "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},

@@ -45,6 +45,7 @@ use crate::pose::{between, compose, covariance_factor, draw_pose, Pose};
 use crate::rbpf::{OdometryTracker, ScanInput, UpdateTrigger};
 use crate::resample::{effective_sample_size, normalize_log_weights};
 use crate::rng::Rng;
+use crate::sensor::SensorModel;
 
 /// Settings of the localizer.
 #[derive(Clone, Debug, PartialEq)]
@@ -60,6 +61,19 @@ pub struct MclConfig {
     pub alpha_fast: f64,
     /// Weight tempering τ: a scan multiplies the weights by exp(Σ log η / τ).
     pub tempering: f64,
+    /// Annealing of the hit term: a scan is weighed with σ_hit = clamp(`anneal` · s, σ, `sigma_max`)
+    /// where σ is the model's and s the spread of the weighted set at the last scan (the RMS
+    /// distance of the particles from their mean position plus 1 m times their circular heading
+    /// spread in radians; a set split in several places has the spread of all). Particles spread over metres
+    /// (a global start) are weighed with a wide hit term, which a particle decimetres from the
+    /// true pose still fits; once they gather, σ returns to the model's. `sigma_max` ≤ σ turns
+    /// it off.
+    pub sigma_max: f64,
+    pub anneal: f64,
+    /// Smallest share of the effective sample size a scan may leave: when the weights at τ would
+    /// bring N_eff below `min_neff` times its value before the scan (the particle count right after
+    /// resampling), the scan is tempered more (τ raised until they do not). 0 turns this off.
+    pub min_neff: f64,
     /// Every n-th beam of a scan.
     pub beam_stride: usize,
     /// At most this many of those, spread evenly (0: all).
@@ -99,6 +113,18 @@ impl MclConfig {
         }
         if self.beam_stride == 0 {
             return Err(config_err("beam_stride", "must be >= 1"));
+        }
+        if !(self.sigma_max.is_finite() && self.sigma_max >= 0.0 && self.anneal.is_finite() && self.anneal >= 0.0) {
+            return Err(config_err(
+                "sigma_max",
+                "sigma_max and anneal must be finite and >= 0",
+            ));
+        }
+        if !(self.min_neff.is_finite() && (0.0..1.0).contains(&self.min_neff)) {
+            return Err(config_err(
+                "min_neff",
+                format!("must be in [0, 1), got {}", self.min_neff),
+            ));
         }
         if !unit(self.resample_threshold) {
             return Err(config_err("resample_threshold", "must be in [0, 1]"));
@@ -146,6 +172,12 @@ pub struct MclStep {
     pub fit: f64,
     /// Beams the likelihood used.
     pub n_beams: usize,
+    /// The tempering the scan was weighed with (τ, or more to keep N_eff at `min_neff`).
+    pub tempering: f64,
+    /// The σ_hit the scan was weighed with (see [`MclConfig::sigma_max`]).
+    pub sigma_hit: f64,
+    /// Spread of the weighted set (see [`MclConfig::sigma_max`]): m.
+    pub set_spread: f64,
     /// The heaviest cluster of the weighted set, and how many clusters there were.
     pub cluster: Cluster,
     pub n_clusters: usize,
@@ -295,6 +327,9 @@ impl Mcl {
                 inject_probability: 0.0,
                 fit: f64::NAN,
                 n_beams: 0,
+                tempering: f64::NAN,
+                sigma_hit: f64::NAN,
+                set_spread: f64::NAN,
                 cluster: self.last.map(|s| s.cluster).unwrap_or(Cluster {
                     weight: 1.0,
                     count: n,
@@ -316,6 +351,23 @@ impl Mcl {
         }
         let beams = &self.beams.1;
         let field = &*self.field;
+        // The hit term of this scan, widened while the particles are spread.
+        let spread = match self.last {
+            Some(s) => s.set_spread,
+            None => {
+                let n = self.poses.len();
+                set_spread(&self.poses, &vec![1.0 / n as f64; n])
+            }
+        };
+        let base = cfg.likelihood.model.sigma_hit;
+        let sigma_hit = (cfg.anneal * spread).min(cfg.sigma_max).max(base);
+        let likelihood = LikelihoodSettings {
+            model: SensorModel {
+                sigma_hit,
+                ..cfg.likelihood.model
+            },
+            ..cfg.likelihood
+        };
         // Move (not at the first scan: nothing moved yet) and weigh, particle by particle.
         let moved: Vec<Result<(Pose, ScanFit)>> = self
             .poses
@@ -331,7 +383,7 @@ impl Mcl {
                 let sensor = compose(pose, scan.laser_offset);
                 let fit = scan_log_likelihood(
                     field,
-                    &cfg.likelihood,
+                    &likelihood,
                     sensor,
                     scan.angles,
                     scan.ranges,
@@ -343,9 +395,11 @@ impl Mcl {
         let moved = moved.into_iter().collect::<Result<Vec<_>>>()?;
         let n = moved.len();
         let n_beams = moved.first().map(|m| m.1.n_beams).unwrap_or(0);
+        let ll: Vec<f64> = moved.iter().map(|m| m.1.log_likelihood).collect();
+        let tempering = adaptive_tempering(&self.log_w, &ll, cfg.tempering, cfg.min_neff);
         for (j, m) in moved.iter().enumerate() {
             self.poses[j] = m.0;
-            self.log_w[j] += m.1.log_likelihood / cfg.tempering;
+            self.log_w[j] += m.1.log_likelihood / tempering;
         }
         let w = normalize_log_weights(&self.log_w);
         // The share of the scan the map explains, over the posterior.
@@ -362,6 +416,7 @@ impl Mcl {
         let neff = effective_sample_size(&w);
         let found = clusters(&self.poses, &w, &self.cfg.kld);
         let cluster = found[0];
+        let weighed_spread = set_spread(&self.poses, &w);
         self.estimate = cluster.mean;
         self.estimate_odom = scan.odom;
         self.tracker.processed(scan.odom);
@@ -387,6 +442,9 @@ impl Mcl {
             inject_probability,
             fit,
             n_beams,
+            tempering,
+            sigma_hit,
+            set_spread: weighed_spread,
             cluster,
             n_clusters: found.len(),
         };
@@ -452,4 +510,58 @@ impl Mcl {
         self.poses = out;
         injected
     }
+}
+
+/// The tempering of a scan: `base`, or, when the weights `prior + ll / base` would have an
+/// effective sample size below `min_neff` times that of `prior`, the smallest τ > base (to
+/// 0.1 %, by bisection on log τ; N_eff grows with τ towards the prior's) at which they have it.
+fn adaptive_tempering(prior: &[f64], ll: &[f64], base: f64, min_neff: f64) -> f64 {
+    let n = ll.len();
+    if min_neff <= 0.0 || n == 0 {
+        return base;
+    }
+    let target = min_neff * effective_sample_size(&normalize_log_weights(prior));
+    let neff = |tau: f64| {
+        let lw: Vec<f64> = prior.iter().zip(ll).map(|(p, l)| p + l / tau).collect();
+        effective_sample_size(&normalize_log_weights(&lw))
+    };
+    if neff(base) >= target {
+        return base;
+    }
+    let mut hi = base * 2.0;
+    while neff(hi) < target {
+        if hi > base * 1e12 {
+            return hi;
+        }
+        hi *= 2.0;
+    }
+    let mut lo = hi / 2.0;
+    while hi / lo > 1.001 {
+        let mid = (lo * hi).sqrt();
+        if neff(mid) >= target {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
+/// The weighted set's RMS distance from its mean position plus 1 m times its circular heading
+/// spread sqrt(−2 ln R) (rad).
+fn set_spread(poses: &[Pose], w: &[f64]) -> f64 {
+    let (mut x, mut y, mut c, mut s) = (0.0, 0.0, 0.0, 0.0);
+    for (p, &wi) in poses.iter().zip(w) {
+        x += wi * p[0];
+        y += wi * p[1];
+        c += wi * p[2].cos();
+        s += wi * p[2].sin();
+    }
+    let var: f64 = poses
+        .iter()
+        .zip(w)
+        .map(|(p, &wi)| wi * ((p[0] - x).powi(2) + (p[1] - y).powi(2)))
+        .sum();
+    let r = c.hypot(s).clamp(1e-300, 1.0);
+    var.max(0.0).sqrt() + (-2.0 * r.ln()).max(0.0).sqrt()
 }

@@ -1,0 +1,206 @@
+"""``crlam localize``: Monte Carlo localization of a log or a ROS bag on a saved map."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Any
+
+from crlam.cli_options import add_bag_options, bag_options, nonnegative_float, nonnegative_int, positive_float, positive_int
+
+__all__ = ["add_localize_parser", "cmd_localize", "localize_config_of"]
+
+
+def localize_config_of(args: argparse.Namespace) -> Any:
+    """The :class:`crlam.localize.LocalizeConfig` of the command line's flags."""
+    from crlam.localize import LocalizeConfig
+
+    given: dict[str, Any] = {}
+    for name in (
+        "min_particles",
+        "max_particles",
+        "kld_err",
+        "alpha_slow",
+        "alpha_fast",
+        "tempering",
+        "beam_stride",
+        "max_beams",
+        "max_range",
+        "sigma_hit",
+        "motion",
+        "linear_update",
+        "angular_update",
+        "resample_threshold",
+        "free_threshold",
+        "tail_tolerance",
+        "seed",
+    ):
+        v = getattr(args, name)
+        if v is not None:
+            given[name] = v
+    if args.motion_params is not None:
+        given["motion_params"] = tuple(args.motion_params)
+    return LocalizeConfig(**given)
+
+
+def _initial(args: argparse.Namespace) -> tuple[Any, Any]:
+    import numpy as np
+
+    from crlam.errors import ConfigError
+
+    if args.initial_pose is None:
+        if args.initial_cov is not None:
+            raise ConfigError("--initial-cov needs --initial-pose")
+        return None, None
+    if args.global_:
+        raise ConfigError("--global starts without a pose: drop --initial-pose (or --global)")
+    pose = np.array(args.initial_pose, dtype=np.float64)
+    if args.initial_cov is None:
+        return pose, None
+    c = np.array(args.initial_cov, dtype=np.float64)
+    if c.size == 3:
+        return pose, np.diag(c)
+    if c.size == 9:
+        return pose, c.reshape(3, 3)
+    raise ConfigError(f"--initial-cov takes 3 variances (xx yy aa) or the 9 entries of a 3 x 3 matrix, got {c.size} values")
+
+
+def cmd_localize(args: argparse.Namespace) -> int:
+    from crlam.localize_map import Nav2Prior
+
+    config = localize_config_of(args)
+    pose, cov = _initial(args)
+    prior = Nav2Prior(occupied_mean=args.nav2_occupied, free_mean=args.nav2_free)
+    if args.trials:
+        from crlam.experiments.localize_trials import run_global_trials
+
+        if pose is not None:
+            from crlam.errors import ConfigError
+
+            raise ConfigError("--trials runs global localizations: drop --initial-pose")
+        summary = run_global_trials(
+            args.log,
+            args.map,
+            args.out,
+            config,
+            n_trials=args.trials,
+            max_travel=args.trial_travel,
+            target_travel=args.target_travel,
+            trial_seed=args.trial_seed,
+            reference=args.reference,
+            nav2_prior=prior,
+            bag_options=bag_options(args),
+            progress=not args.quiet,
+        )
+        print(
+            f"{summary['n_trials']} global localizations: {summary['n_converged_correct']} converged to the reference, "
+            f"{summary['n_within_target']} within {args.target_travel:g} m of travel "
+            f"({100 * summary['fraction_within_target']:.0f} %) -> {args.out}"
+        )
+        return 0
+    from crlam.experiments.localize_run import run_localize_log
+
+    if pose is None:
+        print("no --initial-pose: global localization (particles over the map's free space)")
+    res = run_localize_log(
+        args.log,
+        args.map,
+        args.out,
+        config,
+        initial_pose=pose,
+        initial_cov=cov,
+        nav2_prior=prior,
+        relations=args.relations,
+        reference=args.reference,
+        max_scans=args.max_scans,
+        progress=not args.quiet,
+        bag_options=bag_options(args),
+    )
+    m = res.metrics
+    print(
+        f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, {m['scans_per_s']:.1f} scans/s "
+        f"(the log: {m['n_scans'] / max(m['log_duration_s'], 1e-9):.1f} scans/s); particles mean "
+        f"{m['particles'].get('mean', math.nan):.0f}, max {m['particles'].get('max', math.nan):.0f} -> {res.out_dir}"
+    )
+    conv = m["convergence"]
+    if conv is None:
+        print("did not converge")
+    else:
+        print(f"converged at scan {conv['scan_index']}, {conv['time_s']:.1f} s and {conv['distance_m']:.2f} m after the start")
+    ep = m["endpoints_within_0.1m"]
+    print(
+        "beam endpoints within 0.1 m of an occupied cell: "
+        + ", ".join(f"{k.replace('_', ' ')} {v:.3f}" for k, v in ep.items() if v is not None)
+    )
+    for key in ("relations", "reference"):
+        if key in m:
+            print(f"{key}: " + ", ".join(f"{k}={v:.4g}" for k, v in m[key].items() if isinstance(v, float)))
+    return 0
+
+
+def add_localize_parser(sub: Any) -> None:
+    """Adds ``crlam localize`` to the subcommands."""
+    p = sub.add_parser(
+        "localize",
+        help="Monte Carlo localization of a log or a ROS bag on a saved map (a crlam run folder, belief.npz or Nav2 map.yaml)",
+        description="AMCL's algorithm (KLD-adaptive particle count, random particles when the scans stop fitting the "
+        "map, clusters) weighing each scan with the CRM predictive likelihood. With --initial-pose the particles start "
+        "around it, else (--global) over the map's free space, and the run reports when the estimate converges. Writes "
+        "config.toml, trajectory.tum (one pose per scan), particles.csv, metrics.json and localization.png.",
+    )
+    p.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (folder with metadata.yaml, .bag or .mcap)")
+    p.add_argument("--map", required=True, help="a crlam map/slam run folder, its belief.npz, or a Nav2 map.yaml")
+    p.add_argument("--out", required=True, help="run folder")
+    start = p.add_argument_group("start")
+    start.add_argument("--initial-pose", type=float, nargs=3, default=None, metavar=("X", "Y", "YAW"), help="map frame (m, m, rad)")
+    start.add_argument(
+        "--initial-cov",
+        type=float,
+        nargs="+",
+        default=None,
+        metavar="C",
+        help="its covariance: 3 variances (m^2 m^2 rad^2) or the 9 entries of a 3 x 3 matrix (default: 0.25 0.25 0.0685, AMCL's)",
+    )
+    start.add_argument("--global", dest="global_", action="store_true", help="no initial pose: particles over the free space")
+    start.add_argument(
+        "--trials",
+        type=positive_int,
+        default=None,
+        metavar="N",
+        help="N global localizations from random scans of the log (the same N for a --trial-seed), each until it "
+        "converges and holds, or --trial-travel metres; writes trials.csv and a summary",
+    )
+    start.add_argument("--trial-travel", type=positive_float, default=30.0, help="travel after which a trial stops (m, default 30)")
+    start.add_argument(
+        "--target-travel", type=positive_float, default=10.0, help="the trials' target: converged within this travel (m, default 10)"
+    )
+    start.add_argument("--trial-seed", type=nonnegative_int, default=0, help="seed of the trials' start scans (default 0)")
+    f = p.add_argument_group("filter (defaults: AMCL's where it has one)")
+    f.add_argument("--min-particles", type=positive_int, default=None, help="KLD lower bound (default 100)")
+    f.add_argument("--max-particles", type=positive_int, default=None, help="KLD upper bound and global start (default 5000)")
+    f.add_argument("--kld-err", type=positive_float, default=None, help="KLD epsilon (default 0.01)")
+    f.add_argument("--alpha-slow", type=nonnegative_float, default=None, help="recovery: long-term rate (default 0.001; 0 0: off)")
+    f.add_argument("--alpha-fast", type=nonnegative_float, default=None, help="recovery: short-term rate (default 0.1)")
+    f.add_argument("--tempering", type=positive_float, default=None, help="weight tempering tau (default 10)")
+    f.add_argument("--beam-stride", type=positive_int, default=None, help="every n-th beam (default 1)")
+    f.add_argument("--max-beams", type=nonnegative_int, default=None, help="at most this many beams, spread evenly (default 0: all)")
+    f.add_argument("--max-range", type=positive_float, default=None, help="z_max in m (default: the map's, at most the laser's)")
+    f.add_argument("--sigma-hit", type=positive_float, default=None, help="hit sigma in m (default: the map's)")
+    f.add_argument("--motion", choices=("gaussian", "thrun", "gmapping"), default=None, help="odometry model (default gmapping)")
+    f.add_argument("--motion-params", type=float, nargs="+", default=None, help="its parameters (default: its own)")
+    f.add_argument("--linear-update", type=nonnegative_float, default=None, help="process after this travel in m (default 0.005: every scan while moving)")
+    f.add_argument("--angular-update", type=nonnegative_float, default=None, help="... or this rotation in rad (default 0.005)")
+    f.add_argument("--resample-threshold", type=nonnegative_float, default=None, help="resample when N_eff < this x n (default 0.5)")
+    f.add_argument("--free-threshold", type=nonnegative_float, default=None, help="free cells: expected occupancy <= this (default 0.25)")
+    f.add_argument("--tail-tolerance", type=positive_float, default=None, help="relative likelihood a beam walk may leave out (1e-6)")
+    f.add_argument("--seed", type=nonnegative_int, default=None, help="random seed (default 0)")
+    n = p.add_argument_group("Nav2 map as a CRM prior (a .yaml map)")
+    n.add_argument("--nav2-occupied", type=positive_float, default=0.9, help="expected occupancy of an occupied cell (0.9)")
+    n.add_argument("--nav2-free", type=positive_float, default=0.01, help="expected occupancy of a free cell (0.01)")
+    e = p.add_argument_group("evaluation")
+    e.add_argument("--relations", help="Kuemmerle relations file: report the relations metric")
+    e.add_argument("--reference", help="TUM trajectory in the map's frame: report errors against it (and judge --trials)")
+    p.add_argument("--max-scans", type=positive_int, default=None, help="stop after this many scans")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_bag_options(p)
+    p.set_defaults(func=cmd_localize)
