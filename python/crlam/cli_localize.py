@@ -40,6 +40,8 @@ def localize_config_of(args: argparse.Namespace) -> Any:
             given[name] = v
     if args.motion_params is not None:
         given["motion_params"] = tuple(args.motion_params)
+    if args.skip_no_returns:
+        given["skip_no_returns"] = True
     return LocalizeConfig(**given)
 
 
@@ -70,7 +72,7 @@ def cmd_localize(args: argparse.Namespace) -> int:
 
     config = localize_config_of(args)
     pose, cov = _initial(args)
-    prior = Nav2Prior(occupied_mean=args.nav2_occupied, free_mean=args.nav2_free)
+    prior = Nav2Prior(occupied_mean=args.nav2_occupied, free_mean=args.nav2_free, free_thresh=args.nav2_free_thresh)
     if args.trials:
         from crlam.experiments.localize_trials import run_global_trials
 
@@ -193,10 +195,22 @@ def add_localize_parser(sub: Any) -> None:
     f.add_argument("--resample-threshold", type=nonnegative_float, default=None, help="resample when N_eff < this x n (default 0.5)")
     f.add_argument("--free-threshold", type=nonnegative_float, default=None, help="free cells: expected occupancy <= this (default 0.25)")
     f.add_argument("--tail-tolerance", type=positive_float, default=None, help="relative likelihood a beam walk may leave out (1e-6)")
+    f.add_argument(
+        "--skip-no-returns",
+        action="store_true",
+        help="leave no-returns out of the likelihood (AMCL does): for lasers that report failed readings as no-returns",
+    )
     f.add_argument("--seed", type=nonnegative_int, default=None, help="random seed (default 0)")
     n = p.add_argument_group("Nav2 map as a CRM prior (a .yaml map)")
     n.add_argument("--nav2-occupied", type=positive_float, default=0.9, help="expected occupancy of an occupied cell (0.9)")
     n.add_argument("--nav2-free", type=positive_float, default=0.01, help="expected occupancy of a free cell (0.01)")
+    n.add_argument(
+        "--nav2-free-thresh",
+        type=nonnegative_float,
+        default=None,
+        help="read the image with this free_thresh instead of the YAML's (e.g. 0.196, map_saver's, when a YAML's 0.25 "
+        "makes the unknown grey 205 free)",
+    )
     e = p.add_argument_group("evaluation")
     e.add_argument("--relations", help="Kuemmerle relations file: report the relations metric")
     e.add_argument("--reference", help="TUM trajectory in the map's frame: report errors against it (and judge --trials)")

@@ -52,8 +52,9 @@ class LocalizeConfig:
         as independent; neighbouring beams see the same map errors.
     sigma_max, anneal : float
         Annealing of the hit term: a scan is weighed with σ_hit = clamp(anneal · s, σ, sigma_max),
-        s being the heaviest cluster's spread at the last scan (its position spread plus 1 m times
-        its heading spread in rad) and σ the model's (``sigma_hit``). Particles spread over the
+        s being the spread of the weighted set at the last scan (of its heaviest cluster when that
+        holds at least half the weight, else of the whole set; position spread plus 1 m times the
+        heading spread in rad) and σ the model's (``sigma_hit``). Particles spread over the
         map (a global start, a recovery) see a hit term as wide as AMCL's 0.2 m, which a particle
         decimetres from the true pose still fits; gathered, they see the model's. ``sigma_max``
         at or below σ turns it off.
@@ -83,12 +84,25 @@ class LocalizeConfig:
         still, the same view scanned again and again would multiply the same evidence into the
         weights, and resampling with no motion noise would shrink the set to a few poses. The
         scans in between get the last estimate carried by odometry.
+    spread_update : tuple of float
+        The triggers (m, rad) while the set is spread (its spread, as for the annealing, above
+        ``spread_limit``): AMCL's update_min_d 0.25 m, and GMapping's angularUpdate 0.5 rad (a
+        laser that sees all around learns nothing new by turning). Scans of nearly the same view
+        are not independent evidence, and a spread set that weighs each of them as such collapses
+        onto whichever place fits best by chance (a robot turning in place at a global start).
+        Once the set has gathered, ``linear_update`` / ``angular_update`` apply.
+    spread_limit : float
+        Spread (m) above which the set counts as spread.
     resample_threshold : float
         Resample when N_eff < threshold · n (and whenever recovery injects).
     free_threshold : float
         Cells with m̂ at most this are free: global starts and recovery place particles there.
     tail_tolerance : float
         Relative part of a beam's likelihood its walk may leave out (the stated error).
+    skip_no_returns : bool
+        Leave the no-returns out of the likelihood (AMCL's likelihood field does). For lasers that
+        report failed readings (dark or shiny surfaces) as no-returns: the CRM likelihood reads a
+        no-return as "nothing within range" and favours poses facing open space.
     convergence_xy, convergence_theta, convergence_weight : float
         The estimate is converged at a processed scan when the heaviest cluster holds at least
         ``convergence_weight`` of the weight and its particles' position and heading spreads are
@@ -124,9 +138,12 @@ class LocalizeConfig:
     motion_params: tuple[float, ...] | None = None
     linear_update: float = 0.005
     angular_update: float = 0.005
+    spread_update: tuple[float, float] = (0.25, 0.5)
+    spread_limit: float = 0.5
     resample_threshold: float = 0.5
     free_threshold: float = 0.25
     tail_tolerance: float = 1e-6
+    skip_no_returns: bool = False
     convergence_xy: float = 0.5
     convergence_theta: float = 0.2
     convergence_weight: float = 0.9
@@ -157,6 +174,10 @@ class LocalizeConfig:
             v = getattr(self, name)
             if not (math.isfinite(v) and 0.0 <= v <= 1.0):
                 raise bad(name, "must be in [0, 1]")
+        if not (len(self.spread_update) == 2 and all(math.isfinite(v) and v >= 0 for v in self.spread_update)):
+            raise bad("spread_update", "needs 2 thresholds >= 0 (m, rad)")
+        if not (math.isfinite(self.spread_limit) and self.spread_limit >= 0):
+            raise bad("spread_limit", "must be finite and >= 0")
         if not (len(self.kld_bin) == 2 and all(math.isfinite(v) and v > 0 for v in self.kld_bin)):
             raise bad("kld_bin", "needs 2 bin sizes > 0 (m, rad)")
         if self.motion not in ("gaussian", "thrun", "gmapping"):
@@ -331,8 +352,11 @@ class Localizer:
                 motion_params=params,
                 linear_update=c.linear_update,
                 angular_update=c.angular_update,
+                spread_update=(float(c.spread_update[0]), float(c.spread_update[1])),
+                spread_limit=c.spread_limit,
                 resample_threshold=c.resample_threshold,
                 tail_tolerance=c.tail_tolerance,
+                skip_no_returns=c.skip_no_returns,
                 seed=c.seed,
             )
         except ValueError as e:

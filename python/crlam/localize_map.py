@@ -47,12 +47,17 @@ class Nav2Prior:
         m̂ of an unknown cell (0.5: the uniform pmf).
     n_levels : int
         K: the pmfs live on the K + 1 endpoint levels 0, 1/K, ..., 1.
+    free_thresh : float or None
+        Classify the image with this ``free_thresh`` instead of the YAML's (None). A YAML with
+        ``free_thresh: 0.25`` makes map_saver's unknown grey (205, occupancy 0.196) free, as Nav2
+        reads it; 0.196 (map_saver's own) keeps it unknown.
     """
 
     occupied_mean: float = 0.9
     free_mean: float = 0.01
     unknown_mean: float = 0.5
     n_levels: int = 10
+    free_thresh: float | None = None
 
     def __post_init__(self) -> None:
         for name in ("occupied_mean", "free_mean", "unknown_mean"):
@@ -61,6 +66,8 @@ class Nav2Prior:
                 raise ConfigError(f"Nav2Prior.{name}: must be in (0, 1) (got {v!r})")
         if not self.free_mean < self.occupied_mean:
             raise ConfigError(f"Nav2Prior: free_mean ({self.free_mean}) must be below occupied_mean ({self.occupied_mean})")
+        if self.free_thresh is not None and not 0.0 <= self.free_thresh <= 1.0:
+            raise ConfigError(f"Nav2Prior.free_thresh: must be in [0, 1] (got {self.free_thresh!r})")
         if not (isinstance(self.n_levels, int) and 2 <= self.n_levels <= 63):
             raise ConfigError(f"Nav2Prior.n_levels: must be an integer in 2..63 (got {self.n_levels!r})")
 
@@ -187,8 +194,8 @@ def load_localization_map(
             description={"path": str(p), "kind": "belief", "levels": crm.config.levels, "resolution": crm.config.resolution},
         )
     if suffix in (".yaml", ".yml"):
-        nav = read_nav2_map(p)
         prior = nav2_prior or Nav2Prior()
+        nav = read_nav2_map(p, free_thresh=prior.free_thresh)
         crm, rect = crm_from_nav2(nav, prior, max_range=max_range)
         occ = nav.occupancy
         return LocalizationMap(
@@ -203,6 +210,7 @@ def load_localization_map(
                 "levels": "endpoints",
                 "n_levels": prior.n_levels + 1,
                 "prior": {"occupied_mean": prior.occupied_mean, "free_mean": prior.free_mean, "unknown_mean": prior.unknown_mean},
+                "free_thresh": nav.free_thresh,
                 "confidence": prior.confidence(),
                 "cells": {
                     "occupied": int(np.sum(occ == 1.0)),

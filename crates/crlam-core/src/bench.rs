@@ -437,9 +437,12 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         likelihood: LikelihoodSettings {
             model: SensorModel::with_defaults(SensorModelKind::Mixture, z_max, 0.05),
             tail_tolerance: 1e-6,
+            skip_no_returns: false,
         },
         motion: MotionModel::gmapping(),
         trigger: UpdateTrigger::every_scan(),
+        spread_trigger: UpdateTrigger::every_scan(),
+        spread_limit: 0.5,
         kld: crate::mcl::KldSettings {
             n_min: n_particles,
             n_max: n_particles,

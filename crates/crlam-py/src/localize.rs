@@ -87,7 +87,7 @@ impl MclFilter {
     #[pyo3(signature = (crm, rect, model, *, initial_pose=None, initial_cov=None, free_threshold=0.25, margin=0,
         n_min=100, n_max=5000, kld_err=0.01, kld_z=2.326_347_874_040_840_8, bin_xy=0.5, bin_theta=0.174_532_925_199_432_95,
         alpha_slow=0.001, alpha_fast=0.1, tempering=1.0, min_neff=0.0, sigma_max=0.0, anneal=0.5, beam_stride=1, max_beams=0, motion="gmapping",
-        motion_params=None, linear_update=0.0, angular_update=0.0, resample_threshold=0.5, tail_tolerance=1e-6, seed=0))]
+        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, tail_tolerance=1e-6, skip_no_returns=false, seed=0))]
     fn new(
         py: Python<'_>,
         crm: &CrmMap,
@@ -115,8 +115,11 @@ impl MclFilter {
         motion_params: Option<Vec<f64>>,
         linear_update: f64,
         angular_update: f64,
+        spread_update: (f64, f64),
+        spread_limit: f64,
         resample_threshold: f64,
         tail_tolerance: f64,
+        skip_no_returns: bool,
         seed: u64,
     ) -> PyResult<Self> {
         let (ix0, iy0, nx, ny) = rect;
@@ -137,12 +140,18 @@ impl MclFilter {
             likelihood: LikelihoodSettings {
                 model: model.inner,
                 tail_tolerance,
+                skip_no_returns,
             },
             motion: motion_model(motion, motion_params)?,
             trigger: UpdateTrigger {
                 linear: linear_update,
                 angular: angular_update,
             },
+            spread_trigger: UpdateTrigger {
+                linear: spread_update.0,
+                angular: spread_update.1,
+            },
+            spread_limit,
             kld: KldSettings {
                 n_min,
                 n_max,

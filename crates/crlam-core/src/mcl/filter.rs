@@ -19,8 +19,9 @@
 //! ruled by the scene (a beam to a near wall has a likelihood many times that of a beam to a far
 //! one, the reach through free cells decaying with distance), so moving from a corridor into a
 //! hall reads as a lost robot. The measure here is the share of the scan the map explains: per
-//! beam the posterior probability that a cell of the map (not the mixture's noise terms) returned
-//! it ([`super::likelihood::BeamEta::explained`]), averaged over the beams and over the particles
+//! beam the posterior probability that a cell the map holds occupied (not the mixture's noise
+//! terms, nor a cell of unknown occupancy, which would explain any reading) returned it
+//! ([`super::likelihood::BeamEta::explained`]), averaged over the beams and over the particles
 //! with their posterior weights. It is near its usual level wherever the robot is placed right,
 //! and falls when the scans stop fitting (a kidnapping, a wrong convergence). Both averages start
 //! at the first scan's value (AMCL starts them at 0, which delays any recovery until w_slow has
@@ -53,6 +54,13 @@ pub struct MclConfig {
     pub likelihood: LikelihoodSettings,
     pub motion: MotionModel,
     pub trigger: UpdateTrigger,
+    /// The trigger while the set is spread (its spread, as for the annealing of the hit term,
+    /// above `spread_limit`): scans of nearly the same view are not independent evidence, and a
+    /// spread set that weighs each of them as such collapses onto whichever place fits best by
+    /// chance. AMCL processes every scan this way (update_min_d 0.25 m, update_min_a 0.2 rad).
+    pub spread_trigger: UpdateTrigger,
+    /// Spread (m) above which the set counts as spread.
+    pub spread_limit: f64,
     pub kld: KldSettings,
     /// Rate of the long-term average of the fit (AMCL's `recovery_alpha_slow`); 0 with
     /// `alpha_fast` 0 turns recovery off.
@@ -62,9 +70,11 @@ pub struct MclConfig {
     /// Weight tempering τ: a scan multiplies the weights by exp(Σ log η / τ).
     pub tempering: f64,
     /// Annealing of the hit term: a scan is weighed with σ_hit = clamp(`anneal` · s, σ, `sigma_max`)
-    /// where σ is the model's and s the spread of the weighted set at the last scan (the RMS
+    /// where σ is the model's and s the spread of the weighted set at the last scan: of its
+    /// heaviest cluster when that holds at least half the weight, else of the whole set (the RMS
     /// distance of the particles from their mean position plus 1 m times their circular heading
-    /// spread in radians; a set split in several places has the spread of all). Particles spread over metres
+    /// spread in radians; a set split in several places has the spread of all). A few random
+    /// particles of recovery that gain some weight do not widen it. Particles spread over metres
     /// (a global start) are weighed with a wide hit term, which a particle decimetres from the
     /// true pose still fits; once they gather, σ returns to the model's. `sigma_max` ≤ σ turns
     /// it off.
@@ -88,6 +98,10 @@ impl MclConfig {
         self.likelihood.validate()?;
         self.motion.validate()?;
         self.trigger.validate()?;
+        self.spread_trigger.validate()?;
+        if !(self.spread_limit.is_finite() && self.spread_limit >= 0.0) {
+            return Err(config_err("spread_limit", "must be finite and >= 0"));
+        }
         self.kld.validate()?;
         let unit = |v: f64| v.is_finite() && (0.0..=1.0).contains(&v);
         if !(unit(self.alpha_slow) && unit(self.alpha_fast)) {
@@ -310,7 +324,13 @@ impl Mcl {
     /// Feeds one scan; processes it when the update trigger fires.
     pub fn process(&mut self, scan: &ScanInput) -> Result<MclStep> {
         scan.validate()?;
-        let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
+        let spread = self.spread();
+        let trigger = if spread > self.cfg.spread_limit {
+            self.cfg.spread_trigger
+        } else {
+            self.cfg.trigger
+        };
+        let (u, n_steps, fires) = self.tracker.observe(scan.odom, &trigger);
         let first = !self.started;
         self.started = true;
         if !fires {
@@ -352,13 +372,6 @@ impl Mcl {
         let beams = &self.beams.1;
         let field = &*self.field;
         // The hit term of this scan, widened while the particles are spread.
-        let spread = match self.last {
-            Some(s) => s.set_spread,
-            None => {
-                let n = self.poses.len();
-                set_spread(&self.poses, &vec![1.0 / n as f64; n])
-            }
-        };
         let base = cfg.likelihood.model.sigma_hit;
         let sigma_hit = (cfg.anneal * spread).min(cfg.sigma_max).max(base);
         let likelihood = LikelihoodSettings {
@@ -450,6 +463,23 @@ impl Mcl {
         };
         self.last = Some(out);
         Ok(out)
+    }
+
+    /// The spread of the set at the last scan: of its heaviest cluster when that holds at least
+    /// half the weight, else of the whole set (before the first scan: of the initial set).
+    fn spread(&self) -> f64 {
+        match self.last {
+            Some(s) if s.cluster.weight >= 0.5 => s.cluster.spread_xy() + s.cluster.std_theta,
+            Some(s) => s.set_spread,
+            None => {
+                let n = self.poses.len();
+                let w = vec![1.0 / n as f64; n];
+                match clusters(&self.poses, &w, &self.cfg.kld).first() {
+                    Some(c) if c.weight >= 0.5 => c.spread_xy() + c.std_theta,
+                    _ => set_spread(&self.poses, &w),
+                }
+            }
+        }
     }
 
     /// Updates w_slow and w_fast with the scan's fit; returns the probability of a random particle.

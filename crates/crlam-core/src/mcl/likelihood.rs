@@ -38,6 +38,9 @@ pub struct LikelihoodSettings {
     pub model: SensorModel,
     /// Relative part of η a walk may leave out (see the module documentation), in (0, 0.01].
     pub tail_tolerance: f64,
+    /// Leave no-returns out of the likelihood (AMCL's likelihood field does; for lasers whose
+    /// failed readings come as no-returns, e.g. on dark surfaces).
+    pub skip_no_returns: bool,
 }
 
 impl LikelihoodSettings {
@@ -74,9 +77,10 @@ impl LikelihoodSettings {
 pub struct BeamEta {
     /// log η.
     pub log_eta: f64,
-    /// The part of η from the w_hit terms (a cell of the map returning the beam at the reading,
-    /// or, for a no-return, nothing in range) over η: the posterior probability that the map,
-    /// not noise, explains the reading.
+    /// The part of η from the w_hit terms of the cells the map holds occupied (m̂ > 0.5)
+    /// returning the beam at the reading (or, for a no-return, of nothing in range), over η: the
+    /// posterior probability that the mapped walls, not noise or cells the map knows little about,
+    /// explain the reading.
     pub explained: f64,
 }
 
@@ -231,7 +235,9 @@ fn finish_beam<M: Fn(&WalkCell) -> f64>(
         if !no_return {
             let (l, hit) = like(c.t_in, c.t_out, 0.5 * (c.t_in + c.t_out));
             eta_near += reach * m * l;
-            eta_hit += reach * m * hit;
+            if m > 0.5 {
+                eta_hit += reach * m * hit;
+            }
         }
         reach *= 1.0 - m;
         if c.t_out >= stop_from {
@@ -391,6 +397,9 @@ fn scan_log_likelihood_at(
         else {
             continue;
         };
+        if plan.no_return && settings.skip_no_returns {
+            continue;
+        }
         let z = if plan.no_return {
             f64::INFINITY
         } else {
@@ -511,6 +520,7 @@ mod tests {
                 let s = LikelihoodSettings {
                     model: mix,
                     tail_tolerance: tol,
+                    skip_no_returns: false,
                 };
                 let fit = scan_log_likelihood(&field, &s, pose, &angles, &ranges, &beams).unwrap();
                 let got = fit.log_likelihood;
@@ -534,6 +544,7 @@ mod tests {
         let s = LikelihoodSettings {
             model: mix,
             tail_tolerance: 1e-6,
+            skip_no_returns: false,
         };
         let beams = select_beams(90, 1, 0);
         for pose in [[2.5, 1.7, 0.3], [1.0, 3.0, -2.0], [5.0, 0.5, 1.2], [-3.0, 9.0, 0.0]] {
@@ -553,6 +564,7 @@ mod tests {
         let s = LikelihoodSettings {
             model: mix,
             tail_tolerance: 1e-6,
+            skip_no_returns: false,
         };
         let beams = select_beams(90, 1, 0);
         let ll = |p: Pose| {
@@ -581,6 +593,7 @@ mod tests {
         let ok = LikelihoodSettings {
             model: mix,
             tail_tolerance: 1e-6,
+            skip_no_returns: false,
         };
         assert!(ok.validate().is_ok());
         let ijrr = LikelihoodSettings {

@@ -149,11 +149,14 @@ fn config(n_min: usize, n_max: usize) -> MclConfig {
         likelihood: LikelihoodSettings {
             model,
             tail_tolerance: 1e-6,
+            skip_no_returns: false,
         },
         motion: MotionModel::Thrun {
             alpha: [0.05, 0.05, 0.05, 0.05],
         },
         trigger: UpdateTrigger::every_scan(),
+        spread_trigger: UpdateTrigger::every_scan(),
+        spread_limit: 0.5,
         kld: KldSettings {
             n_min,
             n_max,
