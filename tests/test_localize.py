@@ -19,7 +19,7 @@ from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan, read_scans
 from crlam.io.tum import read_tum
-from crlam.localize import Localizer, LocalizeConfig
+from crlam.localize import LocalizeConfig, Localizer
 from crlam.localize_map import LocalizationMap, Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between, compose

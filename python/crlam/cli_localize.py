@@ -154,7 +154,9 @@ def add_localize_parser(sub: Any) -> None:
     p.add_argument("--map", required=True, help="a crlam map/slam run folder, its belief.npz, or a Nav2 map.yaml")
     p.add_argument("--out", required=True, help="run folder")
     start = p.add_argument_group("start")
-    start.add_argument("--initial-pose", type=float, nargs=3, default=None, metavar=("X", "Y", "YAW"), help="map frame (m, m, rad)")
+    start.add_argument(
+        "--initial-pose", type=float, nargs=3, default=None, metavar=("X", "Y", "YAW"), help="map frame (m, m, rad)"
+    )
     start.add_argument(
         "--initial-cov",
         type=float,
@@ -172,29 +174,49 @@ def add_localize_parser(sub: Any) -> None:
         help="N global localizations from random scans of the log (the same N for a --trial-seed), each until it "
         "converges and holds, or --trial-travel metres; writes trials.csv and a summary",
     )
-    start.add_argument("--trial-travel", type=positive_float, default=30.0, help="travel after which a trial stops (m, default 30)")
     start.add_argument(
-        "--target-travel", type=positive_float, default=10.0, help="the trials' target: converged within this travel (m, default 10)"
+        "--trial-travel", type=positive_float, default=30.0, help="travel after which a trial stops (m, default 30)"
+    )
+    start.add_argument(
+        "--target-travel",
+        type=positive_float,
+        default=10.0,
+        help="the trials' target: converged within this travel (m, default 10)",
     )
     start.add_argument("--trial-seed", type=nonnegative_int, default=0, help="seed of the trials' start scans (default 0)")
     f = p.add_argument_group("filter (defaults: AMCL's where it has one)")
     f.add_argument("--min-particles", type=positive_int, default=None, help="KLD lower bound (default 100)")
     f.add_argument("--max-particles", type=positive_int, default=None, help="KLD upper bound and global start (default 5000)")
     f.add_argument("--kld-err", type=positive_float, default=None, help="KLD epsilon (default 0.01)")
-    f.add_argument("--alpha-slow", type=nonnegative_float, default=None, help="recovery: long-term rate (default 0.001; 0 0: off)")
+    f.add_argument(
+        "--alpha-slow", type=nonnegative_float, default=None, help="recovery: long-term rate (default 0.001; 0 0: off)"
+    )
     f.add_argument("--alpha-fast", type=nonnegative_float, default=None, help="recovery: short-term rate (default 0.1)")
     f.add_argument("--tempering", type=positive_float, default=None, help="weight tempering tau (default 10)")
     f.add_argument("--beam-stride", type=positive_int, default=None, help="every n-th beam (default 1)")
-    f.add_argument("--max-beams", type=nonnegative_int, default=None, help="at most this many beams, spread evenly (default 0: all)")
+    f.add_argument(
+        "--max-beams", type=nonnegative_int, default=None, help="at most this many beams, spread evenly (default 0: all)"
+    )
     f.add_argument("--max-range", type=positive_float, default=None, help="z_max in m (default: the map's, at most the laser's)")
     f.add_argument("--sigma-hit", type=positive_float, default=None, help="hit sigma in m (default: the map's)")
     f.add_argument("--motion", choices=("gaussian", "thrun", "gmapping"), default=None, help="odometry model (default gmapping)")
     f.add_argument("--motion-params", type=float, nargs="+", default=None, help="its parameters (default: its own)")
-    f.add_argument("--linear-update", type=nonnegative_float, default=None, help="process after this travel in m (default 0.005: every scan while moving)")
+    f.add_argument(
+        "--linear-update",
+        type=nonnegative_float,
+        default=None,
+        help="process after this travel in m (default 0.005: every scan while moving)",
+    )
     f.add_argument("--angular-update", type=nonnegative_float, default=None, help="... or this rotation in rad (default 0.005)")
-    f.add_argument("--resample-threshold", type=nonnegative_float, default=None, help="resample when N_eff < this x n (default 0.5)")
-    f.add_argument("--free-threshold", type=nonnegative_float, default=None, help="free cells: expected occupancy <= this (default 0.25)")
-    f.add_argument("--tail-tolerance", type=positive_float, default=None, help="relative likelihood a beam walk may leave out (1e-6)")
+    f.add_argument(
+        "--resample-threshold", type=nonnegative_float, default=None, help="resample when N_eff < this x n (default 0.5)"
+    )
+    f.add_argument(
+        "--free-threshold", type=nonnegative_float, default=None, help="free cells: expected occupancy <= this (default 0.25)"
+    )
+    f.add_argument(
+        "--tail-tolerance", type=positive_float, default=None, help="relative likelihood a beam walk may leave out (1e-6)"
+    )
     f.add_argument(
         "--skip-no-returns",
         action="store_true",

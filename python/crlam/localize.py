@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike, NDArray
 from crlam import _native
 from crlam.errors import ConfigError
 from crlam.localize_map import LocalizationMap
-from crlam.pose import between, compose
+from crlam.pose import between
 
 __all__ = ["Convergence", "LocalizeConfig", "LocalizeStep", "Localizer"]
 

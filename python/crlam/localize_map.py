@@ -86,7 +86,8 @@ class Nav2Prior:
         for name, m in (("occupied", self.occupied_mean), ("free", self.free_mean), ("unknown", self.unknown_mean)):
             p = self.pmf(m)
             mean = float(p @ mu)
-            out[name] = {"mean": mean, "std": float(math.sqrt(max(0.0, p @ mu**2 - mean**2)))}
+            var = float(p @ mu**2) - mean**2
+            out[name] = {"mean": mean, "std": math.sqrt(max(0.0, var))}
         return out
 
 

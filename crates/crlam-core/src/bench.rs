@@ -493,7 +493,10 @@ mod tests {
     #[test]
     #[ignore = "timing, run by hand"]
     fn mcl_timing() {
-        let n = std::env::var("MCL_SCANS").ok().and_then(|v| v.parse().ok()).unwrap_or(20);
+        let n = std::env::var("MCL_SCANS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(20);
         let f = super::mcl_scans(n, 1000, 180).unwrap();
         eprintln!("{f:?}");
     }

@@ -118,12 +118,18 @@ mod tests {
         let l = covariance_factor(&cov).unwrap();
         let mut rng = Rng::new(1);
         let n = 20_000;
-        let draws: Vec<Pose> = (0..n).map(|_| draw_pose([1.0, 2.0, 0.0], &l, &mut rng)).collect();
+        let draws: Vec<Pose> = (0..n)
+            .map(|_| draw_pose([1.0, 2.0, 0.0], &l, &mut rng))
+            .collect();
         let mean = |i: usize| draws.iter().map(|p| p[i]).sum::<f64>() / n as f64;
         let m = [mean(0), mean(1), mean(2)];
         for i in 0..3 {
             for j in 0..3 {
-                let c = draws.iter().map(|p| (p[i] - m[i]) * (p[j] - m[j])).sum::<f64>() / n as f64;
+                let c = draws
+                    .iter()
+                    .map(|p| (p[i] - m[i]) * (p[j] - m[j]))
+                    .sum::<f64>()
+                    / n as f64;
                 assert!((c - cov[i][j]).abs() < 0.004, "{i} {j}: {c}");
             }
         }

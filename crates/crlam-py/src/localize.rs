@@ -124,18 +124,17 @@ impl MclFilter {
     ) -> PyResult<Self> {
         let (ix0, iy0, nx, ny) = rect;
         let rect = CellRect { ix0, iy0, nx, ny };
-        let init = match (initial_pose, initial_cov) {
-            (None, None) => MclInit::Global,
-            (Some(p), Some(c)) => MclInit::Pose {
-                mean: pose3(&p)?,
-                cov: cov3(&c)?,
-            },
-            _ => {
-                return Err(shape_err(
+        let init =
+            match (initial_pose, initial_cov) {
+                (None, None) => MclInit::Global,
+                (Some(p), Some(c)) => MclInit::Pose {
+                    mean: pose3(&p)?,
+                    cov: cov3(&c)?,
+                },
+                _ => return Err(shape_err(
                     "give both initial_pose and initial_cov (or neither, for global localization)",
-                ))
-            }
-        };
+                )),
+            };
         let cfg = MclConfig {
             likelihood: LikelihoodSettings {
                 model: model.inner,

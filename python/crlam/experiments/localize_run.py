@@ -34,7 +34,7 @@ from crlam.io.carmen import LaserScan
 from crlam.io.logs import input_description, open_log
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
-from crlam.localize import Localizer, LocalizeConfig, LocalizeStep
+from crlam.localize import LocalizeConfig, Localizer, LocalizeStep
 from crlam.localize_map import LocalizationMap, Nav2Prior, load_localization_map
 
 __all__ = ["LocalizeResult", "ENDPOINT_DISTANCE", "endpoint_fractions", "run_localize_log"]
@@ -99,7 +99,11 @@ def endpoint_fractions(near: NDArray[np.int64], total: NDArray[np.int64], split:
 
     if split is None:
         return {"before_convergence": share(slice(0, len(near))), "after_convergence": None, "all": share(slice(None))}
-    return {"before_convergence": share(slice(0, split)), "after_convergence": share(slice(split, None)), "all": share(slice(None))}
+    return {
+        "before_convergence": share(slice(0, split)),
+        "after_convergence": share(slice(split, None)),
+        "all": share(slice(None)),
+    }
 
 
 PARTICLE_COLUMNS = (
@@ -227,7 +231,9 @@ def run_localize_log(
     metrics = _metrics(loc, loc_map, log_path, wall, cpu, near_a, total_a, initial_pose, initial_cov, reader)
     stamps, poses = loc.trajectory()
     mode = "global" if initial_pose is None else "initial pose"
-    write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam localize ({mode}) of {Path(log_path).name} on {loc_map.source}")
+    write_tum(
+        out / "trajectory.tum", stamps, poses, header=f"crlam localize ({mode}) of {Path(log_path).name} on {loc_map.source}"
+    )
     write_particles_csv(out / "particles.csv", loc, near_a, total_a)
     ref_poses = None
     if reference is not None:
@@ -264,7 +270,9 @@ def run_localize_log(
     if figures:
         from crlam.viz.localization import save_localization_figure
 
-        save_localization_figure(out / "localization.png", loc, reference=ref_poses, title=f"{Path(log_path).name} on {Path(loc_map.source).name}")
+        save_localization_figure(
+            out / "localization.png", loc, reference=ref_poses, title=f"{Path(log_path).name} on {Path(loc_map.source).name}"
+        )
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
     tmp.replace(out / "metrics.json")

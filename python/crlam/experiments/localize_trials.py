@@ -32,7 +32,7 @@ from crlam.experiments.slam_run import _jsonable, _scan_inputs
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import open_log
 from crlam.io.tum import read_tum
-from crlam.localize import Localizer, LocalizeConfig
+from crlam.localize import LocalizeConfig, Localizer
 from crlam.localize_map import Nav2Prior, load_localization_map
 from crlam.pose import between
 
@@ -159,7 +159,9 @@ def run_global_trials(
     )
     from crlam.viz.localization import save_trials_figure
 
-    save_trials_figure(out / "trials.png", rows, target_travel, max_travel, title=f"{Path(log_path).name}: {n_trials} global localizations")
+    save_trials_figure(
+        out / "trials.png", rows, target_travel, max_travel, title=f"{Path(log_path).name}: {n_trials} global localizations"
+    )
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(summary, indent=2, sort_keys=True, default=_jsonable) + "\n")
     tmp.replace(out / "metrics.json")
@@ -235,7 +237,9 @@ def _summary(rows: list[dict[str, Any]], target: float, judged: bool) -> dict[st
         "n_converged_correct": len(ok),
         "n_within_target": len(within),
         "fraction_within_target": len(within) / n,
-        "distance_m": {} if dist.size == 0 else {"median": float(np.median(dist)), "max": float(dist.max()), "mean": float(dist.mean())},
+        "distance_m": {}
+        if dist.size == 0
+        else {"median": float(np.median(dist)), "max": float(dist.max()), "mean": float(dist.mean())},
         "time_s": {} if not ok else {"median": float(np.median([float(r["time_s"]) for r in ok]))},
         "judged_against_reference": judged,
     }

@@ -194,7 +194,9 @@ def run_slam_log(
         if recorder is not None:
             recorder.close()
         raise
-    return _write_outputs(run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder, noise_estimate, prior)
+    return _write_outputs(
+        run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder, noise_estimate, prior
+    )
 
 
 def _run_filter(

@@ -35,6 +35,7 @@ import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -155,6 +156,10 @@ def _validate_estimate(
 def save_belief(path: str | os.PathLike[str], archive: BeliefArchive) -> None:
     """Validate ``archive`` and write it to ``path`` (exactly that name; no suffix added)."""
     archive.validate(path)
+    # Any: numpy's stub would match these keywords against savez_compressed's allow_pickle.
+    estimate: dict[str, Any] = {}
+    if archive.estimate is not None and archive.estimate_cov is not None:
+        estimate = {"estimate": archive.estimate, "estimate_cov": archive.estimate_cov}
     with open(path, "wb") as fh:
         np.savez_compressed(
             fh,
@@ -165,11 +170,7 @@ def save_belief(path: str | os.PathLike[str], archive: BeliefArchive) -> None:
             origin=archive.origin,
             resolution=np.array(archive.resolution, dtype=np.float64),
             metadata=np.array(json.dumps(archive.metadata, sort_keys=True, allow_nan=False)),
-            **(
-                {}
-                if archive.estimate is None
-                else {"estimate": archive.estimate, "estimate_cov": archive.estimate_cov}
-            ),
+            **estimate,
         )
 
 

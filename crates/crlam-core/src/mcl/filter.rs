@@ -128,7 +128,11 @@ impl MclConfig {
         if self.beam_stride == 0 {
             return Err(config_err("beam_stride", "must be >= 1"));
         }
-        if !(self.sigma_max.is_finite() && self.sigma_max >= 0.0 && self.anneal.is_finite() && self.anneal >= 0.0) {
+        if !(self.sigma_max.is_finite()
+            && self.sigma_max >= 0.0
+            && self.anneal.is_finite()
+            && self.anneal >= 0.0)
+        {
             return Err(config_err(
                 "sigma_max",
                 "sigma_max and anneal must be finite and >= 0",
