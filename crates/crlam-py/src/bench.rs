@@ -70,6 +70,7 @@ pub fn run_benchmark<'py>(
     d.set_item("seconds", fig.seconds)?;
     d.set_item("unit", fig.unit)?;
     d.set_item("cells_per_ray", fig.cells_per_ray)?;
+    d.set_item("cpu_seconds", fig.cpu_seconds)?;
     Ok(d)
 }
 
