@@ -59,9 +59,11 @@ class LocalizeConfig:
         decimetres from the true pose still fits; gathered, they see the model's. ``sigma_max``
         at or below σ turns it off.
     min_neff : float
-        Smallest share of the effective sample size a scan may leave: a scan whose weights at τ
-        would bring N_eff below this fraction of its value before the scan (the particle count
-        right after resampling) is tempered more, until they do not (0: off). The CRM
+        Smallest share of the effective sample size a scan may leave while the set is spread
+        (above ``spread_limit``): a scan whose weights at τ would bring N_eff below this fraction
+        of its value before the scan (the particle count right after resampling) is tempered
+        more, until they do not (0: off). A gathered set keeps τ: there, the random particles of
+        recovery would otherwise count against N_eff and flatten the weights. The CRM
         likelihood is sharp (σ_hit of a few cm); right after a global start the particle nearest
         the true pose is decimetres away, and one scan at τ would give all the weight to whichever
         particle happens to fit best, wrong or right.

@@ -80,9 +80,10 @@ pub struct MclConfig {
     /// it off.
     pub sigma_max: f64,
     pub anneal: f64,
-    /// Smallest share of the effective sample size a scan may leave: when the weights at τ would
-    /// bring N_eff below `min_neff` times its value before the scan (the particle count right after
-    /// resampling), the scan is tempered more (τ raised until they do not). 0 turns this off.
+    /// Smallest share of the effective sample size a scan may leave while the set is spread (see
+    /// `spread_limit`): when the weights at τ would bring N_eff below `min_neff` times its value
+    /// before the scan (the particle count right after resampling), the scan is tempered more (τ
+    /// raised until they do not). A gathered set keeps τ. 0 turns this off.
     pub min_neff: f64,
     /// Every n-th beam of a scan.
     pub beam_stride: usize,
@@ -413,7 +414,14 @@ impl Mcl {
         let n = moved.len();
         let n_beams = moved.first().map(|m| m.1.n_beams).unwrap_or(0);
         let ll: Vec<f64> = moved.iter().map(|m| m.1.log_likelihood).collect();
-        let tempering = adaptive_tempering(&self.log_w, &ll, cfg.tempering, cfg.min_neff);
+        // Only a spread set is tempered further: a gathered one keeps τ, so that the random
+        // particles of recovery, which add nothing to N_eff, do not flatten its weights.
+        let min_neff = if spread > cfg.spread_limit {
+            cfg.min_neff
+        } else {
+            0.0
+        };
+        let tempering = adaptive_tempering(&self.log_w, &ll, cfg.tempering, min_neff);
         for (j, m) in moved.iter().enumerate() {
             self.poses[j] = m.0;
             self.log_w[j] += m.1.log_likelihood / tempering;
