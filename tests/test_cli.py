@@ -67,7 +67,12 @@ def test_map_of_a_missing_or_empty_log_is_a_clean_error(tmp_path: Path, capsys: 
 
 
 def _digest(folder: Path) -> dict[str, str]:
-    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir()) if p.suffix != ".png"}
+    # The figures and the COMPLETE marker (it names the time and process) are not part of the data.
+    return {
+        p.name: hashlib.sha256(p.read_bytes()).hexdigest()
+        for p in sorted(folder.iterdir())
+        if p.suffix != ".png" and p.name != "COMPLETE"
+    }
 
 
 def test_simulate_then_map_end_to_end(tmp_path: Path) -> None:
@@ -108,9 +113,13 @@ def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.Capture
 def test_demo_small_run_writes_a_complete_report(tmp_path: Path) -> None:
     assert main(["demo", "--out", str(tmp_path), "--scans", "150", "--quiet"]) == 0
     report = (tmp_path / "report.md").read_text()
-    for link in ("world.png", "map_groundtruth_poses/map.png", "map_odometry_poses/map.png"):
+    for link in ("world.png", "map_groundtruth_poses/map.png", "map_odometry_poses/map.png", "slam_map.png", "iig_trees.png"):
         assert link in report and (tmp_path / link).stat().st_size > 10_000
     results = json.loads((tmp_path / "results.json").read_text())
     s = results["scores"]["crm_true_poses"]
     assert s["free_accuracy"] > 0.95 and s["occupied_precision"] > 0.8
     assert results["scores"]["crm_odometry"]["accuracy"] <= s["accuracy"] + 1e-9
+    # The whole-run SLAM with the default preset, and all five information functions.
+    assert results["slam"]["preset"] == "robust" and results["slam"]["n_scans"] == 150
+    assert results["slam"]["rmse_position_m"] < results["slam"]["odometry_rmse_position_m"]
+    assert sorted(r["function"] for r in results["iig"]) == ["crmi", "gpvr", "ogmi", "ucrmi", "ugpvr"]

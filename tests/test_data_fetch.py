@@ -94,6 +94,15 @@ def test_an_unreachable_url_is_a_clean_error_naming_it(tmp_path: Path) -> None:
     assert leftovers(tmp_path / "out") == []
 
 
+def test_an_http_url_to_a_refused_connection_is_a_clean_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # Port 9 (discard) on the loopback address: nothing listens, the connection is refused at once.
+    monkeypatch.setattr(fetch_mod, "_urlopen", _real_urlopen)  # the loopback address only
+    url = "http://127.0.0.1:9/intel.clf"
+    with pytest.raises(DownloadError, match="127.0.0.1:9/intel.clf"):
+        download(url, tmp_path / "out" / "intel.clf", sha256="0" * 64, progress=False, timeout=5.0)
+    assert leftovers(tmp_path / "out") == []
+
+
 def test_cache_dir_follows_override_then_xdg_then_home(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
     assert cache_dir(tmp_path / "c") == tmp_path / "c"
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))

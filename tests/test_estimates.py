@@ -5,6 +5,11 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -142,12 +147,12 @@ def test_mode_records_follow_the_fill_rule_and_reach_the_run_folder(office: Path
 
     out = tmp_path / "run"
     run_slam_log(office / "log.clf", out, config, reference=office / "groundtruth.tum", max_scans=60, progress=False)
-    np.testing.assert_allclose(read_tum(out / "trajectory_mode.tum").poses, mode, atol=1e-6)
+    np.testing.assert_allclose(read_tum(out / "estimates/mode.tum").poses, mode, atol=1e-6)
     rows = np.genfromtxt(out / "steps.csv", delimiter=",", names=True)
     np.testing.assert_allclose(rows["mode_x"], mode[processed, 0], atol=1e-6)
     m = json.loads((out / "metrics.json").read_text())
     assert m["reference_mode"]["rmse_position_m"] > 0
-    assert "mode_bandwidth = [0.05, 0.025]" in (out / "config.toml").read_text()
+    assert tomllib.loads((out / "config.toml").read_text())["slam"]["mode_bandwidth"] == [0.05, 0.025]
 
 
 def test_ogm_records_the_mode_too(office: Path) -> None:
@@ -220,7 +225,7 @@ def test_smoothed_trajectories_reach_the_run_folder(office: Path, tmp_path: Path
     out = tmp_path / "run"
     cfg = SlamConfig(particles=6, seed=2, proposal="likelihood_mode", smoothing_lag=5, **TRIGGERS)
     run = run_slam_log(office / "log.clf", out, cfg, reference=office / "groundtruth.tum", max_scans=50, progress=False).run
-    for name, use_means in (("trajectory_smoothed.tum", False), ("trajectory_smoothed_means.tum", True)):
+    for name, use_means in (("estimates/smoothed.tum", False), ("estimates/smoothed_means.tum", True)):
         traj = run.smoothed_trajectory(proposal_means=use_means)
         assert traj is not None
         np.testing.assert_allclose(read_tum(out / name).poses, traj[1], atol=1e-6)

@@ -10,6 +10,11 @@ import signal
 import time
 from pathlib import Path
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
 import pytest
 
 from crlam.errors import ConfigError
@@ -164,9 +169,9 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(
     assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet"]) == 0
     (run,) = (tmp_path / "runs").iterdir()
     metrics = json.loads((run / "metrics.json").read_text())
-    config = (run / "config.toml").read_text()
-    assert "linear_update = 1.0" in config and "angular_update = 0.5" in config
-    assert 'motion = "thrun"' in config and "motion_params = [0.1, 0.1, 0.002, 0.1]" in config
+    slam = tomllib.loads((run / "config.toml").read_text())["slam"]
+    assert slam["linear_update"] == 1.0 and slam["angular_update"] == 0.5
+    assert slam["motion"] == "thrun" and slam["motion_params"] == [0.1, 0.1, 0.002, 0.1]
     assert 0 < metrics["n_processed"] < metrics["n_scans"] == 200
     # --report-only with one more seed: the table has the finished run, nothing new is run.
     argv[argv.index("--seeds") + 1] = "2"
@@ -232,6 +237,27 @@ def test_a_worker_killed_mid_job_fails_that_job_only(tmp_path: Path) -> None:
     assert done == {f"j{i}": {"value": i} for i in (0, 2, 3)}
     assert list(errors) == ["j1"]
     assert "SIGKILL" in errors["j1"] and "out of memory" in errors["j1"]
+
+
+def _die_once(value: int, marker: str) -> dict[str, int]:
+    if not Path(marker).exists():
+        Path(marker).write_text("")
+        os.kill(os.getpid(), signal.SIGKILL)
+    return {"value": value}
+
+
+def test_a_run_whose_process_died_is_started_again(tmp_path: Path) -> None:
+    from crlam.experiments.pool import LocalExecutor, run_jobs
+
+    jobs = [("j0", {"value": 0, "marker": str(tmp_path / "died")})]
+    done, errors = run_jobs(jobs, _die_once, lambda n: False, lambda n: {}, progress=False, fresh_process=True)
+    assert done == {"j0": {"value": 0}} and not errors
+    # Without retries the death is the run's result.
+    (tmp_path / "died").unlink()
+    done, errors = run_jobs(
+        jobs, _die_once, lambda n: False, lambda n: {}, progress=False, fresh_process=True, executor=LocalExecutor(retries=0)
+    )
+    assert not done and "SIGKILL" in errors["j0"] and "attempt 1 of 1" in errors["j0"]
 
 
 def _slow_job(pidfile: str) -> dict[str, int]:

@@ -77,6 +77,11 @@ class BagSpec:
     first_scan: float = 100.11
     odom_clock_offset: float = 0.0
     swap_odom_pairs: bool = False
+    # Transforms published on /tf with every odometry step (a fixed mount that is not on
+    # /tf_static); with tf_fixed_drift the last one moves by 1 mm a step.
+    tf_fixed: list[tuple[str, str, tuple[float, float, float], tuple[float, float, float]]] = field(default_factory=list)
+    tf_fixed_drift: bool = False
+    echo_intensities: tuple[float, float] = (0.0, 0.0)
 
 
 def odom_pose(t: float) -> np.ndarray:
@@ -121,11 +126,16 @@ def _messages(spec: BagSpec, ts: Any) -> list[tuple[str, str, float, Any]]:
         x, y, th = odom_pose(t)
         t += spec.odom_clock_offset  # the stamp (a clock other than the scans' when nonzero)
         t = round(t, 6)
+        tfs = []
         if spec.odom_in_tf:
             tfs = [
                 _transform_stamped(ts, t, "odom", spec.base_frame, (x, y, 0.0), (0.0, 0.0, th)),
                 _transform_stamped(ts, t, "odom", "base_footprint", (x + 5, y, 0.0), (0.0, 0.0, th)),
             ]
+        for i, (p, c, xyz, rpy) in enumerate(spec.tf_fixed):
+            shift = 0.001 * k if spec.tf_fixed_drift and i == len(spec.tf_fixed) - 1 else 0.0
+            tfs.append(_transform_stamped(ts, t, p, c, (xyz[0] + shift, xyz[1], xyz[2]), rpy))
+        if tfs:
             out.append(("/tf", TF, t_recv, T[TF](transforms=tfs)))
         if spec.odom_topic is not None:
             q = _quat(yaw=th)
@@ -163,7 +173,7 @@ def _messages(spec: BagSpec, ts: Any) -> list[tuple[str, str, float, Any]]:
                 msg = T[MULTI](
                     **common,
                     ranges=[Echo(echoes=np.array([r, r + 1.0], dtype=np.float32)) for r in ranges],
-                    intensities=[Echo(echoes=np.zeros(2, dtype=np.float32)) for _ in ranges],
+                    intensities=[Echo(echoes=np.array(spec.echo_intensities, dtype=np.float32)) for _ in ranges],
                 )
             else:
                 msg = T[LASER](**common, ranges=np.asarray(ranges, dtype=np.float32), intensities=np.zeros(0, dtype=np.float32))

@@ -193,7 +193,7 @@ def test_cli_writes_the_run_folder(sim: Sim, tmp_path: Path) -> None:
     t0 = sim.truth[0]
     args = ["localize", str(sim.folder / "log.clf"), "--map", str(sim.folder / "floor.yaml"), "--out", str(out)]
     args += ["--initial-pose", *(str(v) for v in t0), "--initial-cov", "0.01", "0.01", "0.005"]
-    args += ["--max-beams", "45", "--max-particles", "1000", "--reference", str(sim.folder / "groundtruth.tum"), "--quiet"]
+    args += ["--max-beams", "45", "--kld-max-particles", "1000", "--reference", str(sim.folder / "groundtruth.tum"), "--quiet"]
     args += ["--max-scans", str(N)]
     assert main(args) == 0
     for name in ("config.toml", "trajectory.tum", "particles.csv", "metrics.json", "localization.png"):
@@ -213,7 +213,7 @@ def test_cli_writes_the_run_folder(sim: Sim, tmp_path: Path) -> None:
 def test_cli_global_trials(sim: Sim, tmp_path: Path) -> None:
     out = tmp_path / "trials"
     args = ["localize", str(sim.folder / "log.clf"), "--map", str(sim.folder / "floor.yaml"), "--out", str(out), "--quiet"]
-    args += ["--trials", "2", "--trial-travel", "3", "--target-travel", "3", "--max-beams", "45", "--max-particles", "2000"]
+    args += ["--trials", "2", "--trial-travel", "3", "--target-travel", "3", "--max-beams", "45", "--kld-max-particles", "2000"]
     args += ["--reference", str(sim.folder / "groundtruth.tum")]
     assert main(args) == 0
     m = json.loads((out / "metrics.json").read_text())
@@ -222,6 +222,28 @@ def test_cli_global_trials(sim: Sim, tmp_path: Path) -> None:
         rows = list(csv.DictReader(fh))
     assert len(rows) == 2 and (out / "trials.png").stat().st_size > 0
     assert m["n_within_target"] == sum(1 for r in rows if r["correct"] == "1" and float(r["distance_m"]) <= 3.0)
+    assert (out / "COMPLETE").is_file() and (out / "experiment.json").is_file()
+    # An existing folder is refused; --resume keeps its finished trials (their rows, wall times
+    # included, come back unchanged) and refuses other settings.
+    assert main(args) == 2
+    (out / "trials.csv").write_text((out / "trials.csv").read_text().rsplit("\n", 2)[0] + "\n")  # trial 1 lost
+    assert main(args + ["--resume"]) == 0
+    with open(out / "trials.csv") as fh:
+        again = list(csv.DictReader(fh))
+    assert again[0] == rows[0] and len(again) == 2
+    assert main(args + ["--resume", "--tempering", "20"]) == 2
+
+
+def test_cli_run_folder_is_staged(sim: Sim, tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    args = ["localize", str(sim.folder / "log.clf"), "--map", str(sim.folder / "floor.yaml"), "--out", str(out), "--quiet"]
+    args += ["--initial-pose", *(str(v) for v in sim.truth[0]), "--max-beams", "45", "--max-scans", "20"]
+    assert main(args) == 0
+    assert (out / "COMPLETE").is_file() and not (tmp_path / "run.incomplete").exists()
+    first = (out / "trajectory.tum").read_bytes()
+    assert main(args) == 2  # refused: it exists
+    assert main(args + ["--force", "--seed", "3"]) == 0
+    assert (out / "trajectory.tum").read_bytes() != first
 
 
 def test_cli_refuses_contradictory_starts(sim: Sim, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -128,7 +128,7 @@ def test_world_geometry_helpers() -> None:
 # ------------------------------------------------------------------------------ file loading
 def test_pgm_p5_p2_and_16bit(tmp_path: Path) -> None:
     grey = np.array([[0, 100, 200], [255, 127, 128]], dtype=np.uint8)
-    write_pgm(tmp_path / "a.pgm", grey, comment="hello")
+    write_pgm(tmp_path / "a.pgm", grey)
     np.testing.assert_array_equal(read_pgm(tmp_path / "a.pgm"), grey)
     (tmp_path / "b.pgm").write_text("P2\n# comment\n3 2\n# another\n255\n0 100 200\n255 127 128\n")
     np.testing.assert_array_equal(read_pgm(tmp_path / "b.pgm"), grey)

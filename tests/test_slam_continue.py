@@ -91,7 +91,7 @@ def halves(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _digest(folder: Path) -> dict[str, str]:
-    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+    return {str(p.relative_to(folder)): hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.rglob("*")) if p.is_file()}
 
 
 def test_continue_maps_on_from_the_saved_run(halves: Path, tmp_path: Path) -> None:
@@ -123,6 +123,9 @@ def test_continue_refuses_to_write_into_the_saved_run(halves: Path, tmp_path: Pa
     assert main(["slam", str(halves / "first.clf"), "--out", str(first), "--particles", "5", "--quiet", "--max-scans", "30"]) == 0
     before = _digest(first)
     assert main(["slam", str(halves / "second.clf"), "--out", str(first), "--continue", str(first), "--quiet"]) == 2
+    assert "new folder" in capsys.readouterr().err
+    # not even with --force, which replaces an existing output
+    assert main(["slam", str(halves / "second.clf"), "--out", str(first), "--continue", str(first), "--quiet", "--force"]) == 2
     assert "new folder" in capsys.readouterr().err
     assert _digest(first) == before
     with pytest.raises(ConfigError, match="RBPF-CLAM"):

@@ -143,3 +143,38 @@ def test_slam_without_mcap_writes_none(sim_log: Path, tmp_path: Path) -> None:
     run = tmp_path / "run"
     assert main(["slam", str(sim_log), "--out", str(run), "--particles", "3", "--max-scans", "5", "--quiet"]) == 0
     assert not (run / "run.mcap").exists()
+
+
+def test_slam_mcap_reads_back_with_the_mcap_packages(sim_log: Path, tmp_path: Path) -> None:
+    """The reader Foxglove's own Python tools use (``mcap`` + ``mcap-ros2-support``) decodes
+    every message, with the same content as rosbags reads."""
+    mcap_reader = pytest.importorskip("mcap.reader")
+    mcap_ros2_reader = pytest.importorskip("mcap_ros2.reader")
+    run = tmp_path / "run"
+    argv = ["slam", str(sim_log), "--out", str(run), "--particles", "3", "--max-scans", "30", "--quiet", "--mcap"]
+    assert main(argv) == 0
+    path = run / "run.mcap"
+    with open(path, "rb") as fh:
+        reader = mcap_reader.make_reader(fh)
+        assert reader.get_header().profile == "ros2"
+        summary = reader.get_summary()
+        assert summary is not None and summary.statistics is not None
+        n_total = summary.statistics.message_count
+    decoded: dict[str, list[Any]] = {}
+    for m in mcap_ros2_reader.read_ros2_messages(str(path)):
+        assert m.channel.message_encoding == "cdr" and m.schema.encoding == "ros2msg"
+        decoded.setdefault(m.channel.topic, []).append((m.schema.name, m.ros_msg))
+    assert sum(len(v) for v in decoded.values()) == n_total
+    types, msgs = _messages(path)
+    assert {t: v[0][0] for t, v in decoded.items()} == types
+    assert {t: len(v) for t, v in decoded.items()} == {t: len(v) for t, v in msgs.items()}
+    grid, ref = decoded["/map"][0][1], msgs["/map"][0][1]
+    assert (grid.info.width, grid.info.height) == (ref.info.width, ref.info.height)
+    np.testing.assert_array_equal(np.asarray(grid.data), np.asarray(ref.data))
+    path_msg = decoded["/path"][0][1]
+    np.testing.assert_allclose(
+        [_pose(p.pose) for p in path_msg.poses], [_pose(p.pose) for p in msgs["/path"][0][1].poses], atol=1e-12
+    )
+    scans = decoded["/scan"]
+    assert len(scans) == 30
+    np.testing.assert_array_equal(np.asarray(scans[0][1].ranges), np.asarray(msgs["/scan"][0][1].ranges))

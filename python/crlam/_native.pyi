@@ -9,11 +9,13 @@ __core_version__: str
 
 __all__ = [
     "__core_version__",
+    "_guarded_panic",
     "ClamFilter",
     "CrmMap",
     "GpVarianceMap",
     "InfoFunction",
     "InfoUpdate",
+    "LocalMapMatcher",
     "LogOddsMap",
     "MclFilter",
     "OccupancyLattice",
@@ -27,6 +29,7 @@ __all__ = [
     "cast_ranges",
     "crm_update_ray",
     "run_benchmark",
+    "set_limits",
     "simd_info",
     "simd_level",
     "traverse_ray",
@@ -378,6 +381,39 @@ class OgmFilter:
     def best_map(self) -> LogOddsMap: ...
     def map_memory(self) -> tuple[int, int, int]: ...
 
+@final
+class LocalMapMatcher:
+    def __new__(
+        cls,
+        *,
+        resolution: float = 0.05,
+        usable_range: float = 8.0,
+        score_sigma: float = 0.05,
+        lstep: float = 0.05,
+        astep: float = 0.05,
+        iterations: int = 5,
+        kernel_size: int = 1,
+        beam_stride: int = 1,
+    ) -> LocalMapMatcher: ...
+    def match_scan(
+        self,
+        start: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> tuple[tuple[float, float, float], float, int, int]: ...
+    def insert(
+        self,
+        pose: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> None: ...
+    def clear(self) -> None: ...
+    @property
+    def n_inserted(self) -> int: ...
+    def map(self) -> LogOddsMap: ...
+
 def mode_seeking_pose(
     poses: NDArray[np.float64], weights: NDArray[np.float64], bandwidth: tuple[float, float]
 ) -> tuple[float, float, float]: ...
@@ -408,6 +444,8 @@ def crm_update_ray(
 def run_benchmark(name: str, size: int) -> dict[str, Any]: ...
 def simd_level() -> str: ...
 def simd_info() -> dict[str, Any]: ...
+def _guarded_panic(message: str) -> None: ...
+def set_limits(*, map_cells: int | None = None, particles: int | None = None) -> tuple[int, int]: ...
 
 @final
 class OccupancyLattice:

@@ -8,9 +8,11 @@ import os
 import sys
 from collections.abc import Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from crlam import __version__
+from crlam.cli_executor import add_executor_options, executor_from_args
+from crlam.cli_failures import EXPECTED_FAILURES, describe_failure
 from crlam.cli_options import (
     BATCH_KERNEL_HELP,
     BATCH_KERNELS,
@@ -31,17 +33,24 @@ from crlam.cli_options import (
     WEIGHT_SMOOTHING_HELP,
     add_bag_options,
     add_estimate_options,
+    add_force_option,
     add_likelihood_mode_options,
+    add_limit_options_everywhere,
     add_map_options,
+    add_odometry_options,
     add_preset_option,
+    add_resume_options,
+    apply_limit_options,
     bag_options,
+    finite_float,
     nonnegative_float,
     nonnegative_int,
     positive_float,
     positive_int,
     slam_overrides,
+    staged_output,
+    stored_input_options,
 )
-from crlam.errors import CrlamError
 from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
 
 if TYPE_CHECKING:
@@ -70,43 +79,52 @@ def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
 
 def cmd_map(args: argparse.Namespace) -> int:
     from crlam.experiments.known_poses import map_log
+    from crlam.run_folder import moved
 
-    run, files = map_log(
-        args.log,
-        args.out,
-        _mapping_config(args),
-        poses=args.poses,
-        on_error="skip" if args.skip_malformed else "raise",
-        max_scans=args.max_scans,
-        progress=not args.quiet,
-        bag_options=bag_options(args),
-    )
+    config = _mapping_config(args)
+    with staged_output(args) as stage:
+        run, files = map_log(
+            args.log,
+            stage,
+            config,
+            poses=args.poses,
+            on_error="skip" if args.skip_malformed else "raise",
+            max_scans=args.max_scans,
+            progress=not args.quiet,
+            bag_options=bag_options(args),
+        )
     print(f"mapped {run.n_scans} scans in {run.wall_time_s:.1f} s ({run.n_scans / max(run.wall_time_s, 1e-9):.0f} scans/s)")
     for name, path in files.items():
-        print(f"  {name:12s} {path}")
+        print(f"  {name:12s} {moved(path, stage, Path(args.out))}")
     return 0
 
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from crlam.experiments.simulate import simulate_to_folder
+    from crlam.run_folder import moved
 
-    summary = simulate_to_folder(
-        world=args.world,
-        n_scans=args.scans,
-        seed=args.seed,
-        out_dir=args.out,
-        sensor=args.sensor,
-        progress=not args.quiet,
-    )
+    with staged_output(args) as stage:
+        summary = simulate_to_folder(
+            world=args.world,
+            n_scans=args.scans,
+            seed=args.seed,
+            out_dir=stage,
+            sensor=args.sensor,
+            progress=not args.quiet,
+        )
+    summary["out"] = args.out
+    summary["files"] = {k: str(moved(v, stage, Path(args.out))) for k, v in summary["files"].items()}
     print(json.dumps(summary, indent=2))
     return 0
 
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from crlam.experiments.demo import run_demo
+    from crlam.run_folder import moved
 
-    report = run_demo(Path(args.out), n_scans=args.scans, seed=args.seed, progress=not args.quiet)
-    print(f"demo written to {args.out}; open {report}")
+    with staged_output(args) as stage:
+        report = run_demo(stage, n_scans=args.scans, seed=args.seed, progress=not args.quiet)
+    print(f"demo written to {args.out}; open {moved(report, stage, Path(args.out))}")
     return 0
 
 
@@ -133,6 +151,22 @@ def slam_config_of(args: argparse.Namespace) -> tuple[SlamConfig, int | None]:
     return resolve(preset, settings | slam_overrides(args)), max_scans
 
 
+def slam_input_of(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
+    """``crlam slam``'s bag options and odometry choice: those of ``--config FILE``'s ``[input]``
+    table (how that run read its log), with every bag flag given on top."""
+    from crlam.presets import load_config_file
+
+    options: dict[str, Any] = {}
+    odometry = None
+    if args.config is not None:
+        options, odometry = stored_input_options(load_config_file(args.config).input)
+    given = bag_options(args)
+    if "laser_mount" in given or "upside_down" in given:
+        options.pop("laser_mount", None)
+        options.pop("upside_down", None)
+    return options | given, args.odometry or odometry or "auto"
+
+
 def cmd_slam(args: argparse.Namespace) -> int:
     from crlam.experiments.slam_run import run_slam_log
 
@@ -149,24 +183,32 @@ def cmd_slam(args: argparse.Namespace) -> int:
     config, max_scans = slam_config_of(args)
     if saved_settings and args.max_scans is None:
         max_scans = None  # the saved run's scan limit was for its own log
-    res = run_slam_log(
-        args.log,
-        args.out,
-        config,
-        reference=args.reference,
-        relations=args.relations,
-        max_scans=max_scans,
-        progress=not args.quiet,
-        bag_options=bag_options(args),
-        mcap=args.mcap,
-        prior=prior,
-    )
+    if prior is not None and Path(args.out).resolve() == Path(args.continue_from).resolve():
+        from crlam.errors import ConfigError
+
+        raise ConfigError(f"--out {args.out} is the run being continued: write the continued run to a new folder")
+    input_options, odometry = slam_input_of(args)
+    with staged_output(args) as stage:
+        res = run_slam_log(
+            args.log,
+            stage,
+            config,
+            reference=args.reference,
+            relations=args.relations,
+            max_scans=max_scans,
+            progress=not args.quiet,
+            bag_options=input_options,
+            mcap=args.mcap,
+            odometry=odometry,
+            prior=prior,
+        )
     m = res.metrics
+    print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
     print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
-        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {res.out_dir}"
+        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {args.out}"
     )
     for key in (
         "reference",
@@ -193,6 +235,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
     from crlam.presets import resolve
 
     out = Path(args.out)
+    executor = executor_from_args(args)
     if args.experiment == "iig":
         from crlam.experiments.iig import run_iig_experiment
 
@@ -208,6 +251,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             max_wall_seconds=args.max_seconds,
             start=(args.start[0], args.start[1]),
             progress=not args.quiet,
+            executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
         print(f"{len(res.rows)} runs finished, {len(res.errors)} failed; report: {res.files['report']}")
         return 0 if not res.errors else 1
@@ -225,6 +271,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             particles=args.particles,
             workers=args.workers,
             progress=not args.quiet,
+            executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
@@ -247,6 +296,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             base=base,
             progress=not args.quiet,
             report_only=args.report_only,
+            executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
     else:
         from crlam.experiments.real_logs import run_real_logs
@@ -266,6 +318,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             max_scans=args.max_scans,
             progress=not args.quiet,
             report_only=args.report_only,
+            executor=executor,
+            resume=args.resume,
+            force=args.force,
         )
     print((out / "table.md").read_text())
     return 0
@@ -303,6 +358,7 @@ def build_parser() -> argparse.ArgumentParser:
         "figures and report.md.",
     )
     p.add_argument("--out", default="demo-out", help="output folder (default: demo-out)")
+    add_force_option(p)
     p.add_argument("--scans", type=positive_int, default=4000, help="number of scans to simulate (default: 4000)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
@@ -323,6 +379,7 @@ def build_parser() -> argparse.ArgumentParser:
         help="paper = 1079 beams over 270 deg, 8 m; sick = 180 beams over 180 deg, 80 m (default: paper)",
     )
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=cmd_simulate)
 
@@ -339,6 +396,7 @@ def build_parser() -> argparse.ArgumentParser:
         "metadata.yaml, .bag or .mcap)",
     )
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument(
         "--poses",
         choices=("log", "odometry"),
@@ -356,12 +414,14 @@ def build_parser() -> argparse.ArgumentParser:
         "slam",
         help="run RBPF-CLAM (or RBPF-OGM) on a CARMEN log or a ROS bag and write a run folder",
         description="Runs a Rao-Blackwellized particle filter on a log and writes config.toml, trajectory.tum "
-        "(one pose per scan, file order), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
+        "(the estimate to use: one pose per scan, sorted by time), estimates/ (the other estimates), README.txt (what "
+        "each file holds), metrics.json, map.pgm/yaml, belief.npz and figures. The settings are a "
         "named preset (--preset, default robust) or a run folder's config.toml (--config); every SLAM flag given "
         "overrides them.",
     )
     p.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (folder with metadata.yaml, .bag or .mcap)")
     p.add_argument("--out", required=True, help="run folder")
+    add_force_option(p)
     source = p.add_mutually_exclusive_group()
     add_preset_option(source, DEFAULT_PRESET)
     source.add_argument(
@@ -443,6 +503,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     add_bag_options(p)
+    add_odometry_options(p)
     p.set_defaults(func=cmd_slam)
 
     from crlam.cli_eval import add_data_parser, add_eval_parser
@@ -465,8 +526,9 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser(
         "experiment",
         help="run a paper experiment (resumable) and write its table and figures",
-        description="Runs an experiment as a resumable sweep of SLAM runs in spawn worker processes; "
-        "rerunning the same command skips finished runs.",
+        description="Runs an experiment as a resumable sweep of runs in spawn worker processes on this machine "
+        "or on a Dask cluster (--executor dask); rerunning the same command with --resume skips finished runs "
+        "(after checking that the folder's runs were made with the same settings), --force starts the folder anew.",
     )
     exp = p.add_subparsers(dest="experiment", metavar="EXPERIMENT")
     exp.required = True
@@ -476,7 +538,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Museum world, 1079 beams over 270 deg, 8 m, 0.2 m grid; Monte Carlo runs per method "
         "against the exact ground truth; writes table.md/csv, results.json and the Fig. 2 figures.",
     )
-    t1.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    t1.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     t1.add_argument("--runs", type=positive_int, default=15, help="Monte Carlo runs per method (default: 15)")
     t1.add_argument("--scans", type=positive_int, default=5500, help="scans of the simulated log (default: 5500)")
     t1.add_argument("--particles", type=positive_int, default=None, help=f"particles (paper: 100; {FROM_PRESET})")
@@ -497,7 +559,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--ranges) sets each run's method, particle count, seed and z_max.",
     )
     add_preset_option(rl, DEFAULT_PRESET)
-    rl.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    rl.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     rl.add_argument("--datasets", nargs="+", choices=("intel", "aces"), default=["intel", "aces"])
     rl.add_argument("--methods", nargs="+", choices=("ogm", "clam"), default=["ogm", "clam"])
     rl.add_argument("--particles", dest="particles_list", type=positive_int, nargs="+", default=[30, 100])
@@ -546,17 +608,19 @@ def build_parser() -> argparse.ArgumentParser:
         "fig3_trees.png, fig4_boxplots.png, fig5_ric_gain.png and report.md (the paper's six claims checked).",
     )
     ig.add_argument("--map", default=None, help="map (.pgm read as the planner reads cave.pgm, or Nav2 .yaml); default: cave-map")
-    ig.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    ig.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     ig.add_argument("--runs", type=positive_int, default=20, help="runs (seeds) per function (default: 20)")
     ig.add_argument("--functions", default="ogmi,crmi,ucrmi,gpvr,ugpvr", help="comma-separated (default: all five)")
     ig.add_argument("--mode", choices=("reference", "clean"), default="reference", help="planner and function quirks")
     ig.add_argument("--ogmi", choices=("fsmi", "iig_mi", "julian"), default="fsmi", help="what OGMI means (default: exact FSMI)")
     ig.add_argument("--particles", type=positive_int, default=100, help="UCRMI particles per node (default: 100)")
-    ig.add_argument("--start", type=float, nargs=2, default=(10.0, 2.0), metavar=("X", "Y"), help="start (default: 10 2)")
+    ig.add_argument("--start", type=finite_float, nargs=2, default=(10.0, 2.0), metavar=("X", "Y"), help="start (default: 10 2)")
     ig.add_argument("--max-seconds", type=positive_float, default=600.0, help="wall-clock guard per run (default: 600)")
     ig.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ig.add_argument("--quiet", action="store_true", help="no progress output")
+    add_executor_options(ig)
     ig.set_defaults(func=cmd_experiment)
+    add_resume_options(ig)
     ex = exp.add_parser(
         "explore",
         help="exploration runs over worlds, functions, UCRMI alphas and seeds",
@@ -564,7 +628,7 @@ def build_parser() -> argparse.ArgumentParser:
         "(resumable); writes runs.csv, coverage.png (explored area, map error and pose error against distance), "
         "pose_error.png and report.md. Poses come from RBPF-CLAM unless --known-poses.",
     )
-    ex.add_argument("--out", required=True, help="experiment folder (reused to resume)")
+    ex.add_argument("--out", required=True, help="experiment folder (continued with --resume)")
     ex.add_argument("--worlds", nargs="+", default=["office"], help="museum | office | map files (default: office)")
     ex.add_argument("--functions", default="crmi,ucrmi,fsmi,frontier", help="comma-separated (default: all four)")
     ex.add_argument("--alphas", default="0,0.25,0.5,0.75,1", help="UCRMI weights of the map term (default: 0,...,1)")
@@ -574,8 +638,11 @@ def build_parser() -> argparse.ArgumentParser:
     ex.add_argument("--known-poses", action="store_true", help="no SLAM: the robot knows its pose")
     ex.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
     ex.add_argument("--quiet", action="store_true", help="no progress output")
+    add_executor_options(ex)
     ex.set_defaults(func=cmd_experiment)
+    add_resume_options(ex)
     for q in (t1, rl):
+        add_resume_options(q)
         q.add_argument("--workers", type=positive_int, default=2, help="worker processes (spawn; default: 2)")
         q.add_argument(
             "--threads", type=positive_int, default=1, help="threads of each run (default: 1; the results do not depend on it)"
@@ -598,6 +665,7 @@ def build_parser() -> argparse.ArgumentParser:
         q.add_argument(
             "--report-only", action="store_true", help="run nothing: write the table (and figures) of the runs finished so far"
         )
+        add_executor_options(q)
         q.set_defaults(func=cmd_experiment)
 
     p = sub.add_parser(
@@ -614,6 +682,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--repeats", type=positive_int, default=3, help="best of N (default: 3)")
     p.add_argument("--verbose", action="store_true", help="print the full result, not just the figures")
     p.set_defaults(func=cmd_bench)
+    add_limit_options_everywhere(parser)
     return parser
 
 
@@ -621,15 +690,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     try:
+        apply_limit_options(args)
         status = int(args.func(args))
         sys.stdout.flush()
         return status
-    except (CrlamError, FileNotFoundError) as e:
-        print(f"crlam {args.command}: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"crlam {args.command}: interrupted", file=sys.stderr)
-        return 130
     except BrokenPipeError:
         # The reader of our output went away (`crlam slam ... | head`): stop without a traceback,
         # with the status a process killed by SIGPIPE has, and keep Python's exit-time flush of
@@ -637,6 +701,16 @@ def main(argv: Sequence[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 141
+    except EXPECTED_FAILURES as e:
+        # Expected failures (bad input, a file system refusing, a limit, memory) are one line;
+        # CRLAM_TRACEBACK=1 shows the traceback. Other exceptions are bugs and keep theirs.
+        if os.environ.get("CRLAM_TRACEBACK"):
+            raise
+        print(f"crlam {args.command}: error: {describe_failure(e)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"crlam {args.command}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -4,16 +4,19 @@ from __future__ import annotations
 
 import argparse
 
-from crlam.cli_options import add_bag_options, bag_options
+from crlam.cli_options import add_bag_options, add_force_option, bag_options
 
 __all__ = ["add_convert_parser", "cmd_convert"]
 
 
 def cmd_convert(args: argparse.Namespace) -> int:
     from crlam.io.convert import convert
+    from crlam.run_folder import check_output, staged_file
 
-    summary = convert(args.input, args.output, **bag_options(args))
-    print(summary.describe())
+    out = check_output(args.output, force=args.force, what="output")
+    with staged_file(out) as stage:
+        summary = convert(args.input, stage, **bag_options(args))
+    print(summary.describe().replace(str(stage), str(out)).replace(str(stage.parent), str(out.parent)))
     return 0
 
 
@@ -29,5 +32,6 @@ def add_convert_parser(sub: argparse._SubParsersAction) -> None:
     )
     p.add_argument("input", metavar="IN", help="CARMEN log or ROS bag")
     p.add_argument("output", metavar="OUT", help="ROS 2 bag folder or .mcap file (from a CARMEN log); CARMEN log (from a bag)")
+    add_force_option(p)
     add_bag_options(p)
     p.set_defaults(func=cmd_convert)

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crlam.cli_options import positive_float, positive_int
+from crlam.cli_options import add_force_option, positive_float, positive_int, staged_output
 
 if TYPE_CHECKING:
     from crlam.experiments.known_poses import KnownPoseScan
@@ -57,6 +57,9 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
 
     if (args.reference is None) == (not args.log_poses):
         raise ConfigError("give either --reference TRAJ.tum or --log-poses")
+    from crlam.run_folder import moved
+
+    output = staged_output(args)  # the output is checked before the run, written after it
     missing = 0
     if args.log_poses:
         scans = list(itertools.islice(known_pose_scans(open_log(args.log), "log"), args.max_scans))
@@ -84,9 +87,8 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
     result.settings.update(
         {"log": str(args.log), "reference": args.reference or "the log's pose fields", "scans_without_reference": missing}
     )
-    paths = save_likelihood_bias(
-        result, Path(args.out), title=f"{Path(args.log).name}: scan likelihood argmax ({len(result)} scans)"
-    )
+    with output as stage:
+        paths = save_likelihood_bias(result, stage, title=f"{Path(args.log).name}: scan likelihood argmax ({len(result)} scans)")
     s = result.summary()
     if missing:
         print(f"{missing} scans had no reference pose within {args.tolerance} s: left out of the map and the evaluation")
@@ -98,7 +100,7 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
     if edges:
         print(f"argmax on the end of the search grid (widen it): {edges}")
     for key, p in paths.items():
-        print(f"  {key:<8s} {p}")
+        print(f"  {key:<8s} {moved(p, stage, Path(args.out))}")
     return 0
 
 
@@ -120,6 +122,7 @@ def add_diagnose_parser(sub: argparse._SubParsersAction) -> None:
     )
     lb.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (topics and mount detected)")
     lb.add_argument("--out", required=True, help="output folder")
+    add_force_option(lb)
     lb.add_argument("--reference", default=None, help="TUM trajectory of the robot, matched to the scans by stamp")
     lb.add_argument("--log-poses", action="store_true", help="use the log's own pose fields (e.g. a corrected log)")
     lb.add_argument("--tolerance", type=float, default=1e-6, help="stamp matching tolerance in s (default: 1e-6)")

@@ -107,6 +107,8 @@ def cmd_eval(args: argparse.Namespace) -> int:
 
     if args.tolerance < 0 or not math.isfinite(args.tolerance):
         raise ConfigError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
+    if args.relations and args.align != "none":
+        raise ConfigError("--align applies to --reference: the relations metric does not change under a rigid motion")
     traj = load_trajectory(args.trajectory)
     report: dict[str, Any] = {"trajectory": str(args.trajectory), "trajectory_format": traj.fmt, "raw_log": args.raw_log}
     lines = [_wrap("trajectory", f"{args.trajectory} ({traj.fmt.upper()}, {traj.stamps.shape[0]} poses)")]
@@ -159,10 +161,17 @@ def cmd_eval(args: argparse.Namespace) -> int:
             lines.append(f"  {label:<16s} {_fmt(mean):>10s} {_fmt(std):>10s}")
     else:
         ref = load_trajectory(args.reference)
-        res = reference_errors(stamps, poses, ref.stamps, ref.poses, tolerance=args.tolerance)
+        res = reference_errors(stamps, poses, ref.stamps, ref.poses, tolerance=args.tolerance, align=args.align)
         summary = res.summary()
-        report.update(metric="reference", reference=str(args.reference), summary=summary)
-        lines.insert(0, "errors against a reference trajectory (same frame, matched stamps)")
+        ape = res.ape()
+        report.update(metric="reference", reference=str(args.reference), align=args.align, summary=summary, ape=ape)
+        if res.alignment is None:
+            lines.insert(0, "errors against a reference trajectory (same frame, matched stamps, no alignment)")
+        else:
+            report["alignment"] = res.alignment.to_dict()
+            a = res.alignment
+            lines.insert(0, "errors against a reference trajectory (matched stamps, estimate aligned by SE(2) least squares)")
+            lines.append(_wrap("alignment", f"rotation {math.degrees(a.theta):.4f} deg, translation ({a.tx:.4f}, {a.ty:.4f}) m"))
         lines.append(_wrap("reference", f"{args.reference}: {res.n} poses matched, {res.n_unmatched} estimated poses unmatched"))
         lines += [
             "",
@@ -170,6 +179,9 @@ def cmd_eval(args: argparse.Namespace) -> int:
             f"  MAE y (m)          {_fmt(summary['mae_y_m'])}",
             f"  MAE theta (deg)    {_fmt(summary['mae_theta_deg'])}  ({_fmt(summary['mae_theta_rad'])} rad)",
             f"  RMSE position (m)  {_fmt(summary['rmse_position_m'])}",
+            "",
+            "  APE, translation part (m; evo's statistics)",
+            "  " + "  ".join(f"{k[4:-2]} {_fmt(v)}" for k, v in ape.items()),
         ]
     print("\n".join(lines))
     if args.json:
@@ -202,6 +214,13 @@ def add_eval_parser(subparsers: Any) -> argparse.ArgumentParser:
     )
     p.add_argument("--skip-missing", action="store_true", help="skip (and count) relations whose stamps have no pose")
     p.add_argument("--tolerance", type=float, default=1e-6, help="stamp matching tolerance after exact lookup, s (default: 1e-6)")
+    p.add_argument(
+        "--align",
+        choices=("none", "se2"),
+        default="none",
+        help="with --reference: 'se2' first moves the estimate by the rigid motion that best fits it to the reference "
+        "(least squares, evo's --align in the plane); 'none' compares the poses as they are (default)",
+    )
     p.add_argument("--json", help="write the summary, the rules used and the inputs to this JSON file")
     p.set_defaults(func=cmd_eval)
     return p

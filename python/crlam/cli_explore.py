@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import Any
 
-from crlam.cli_options import positive_float, positive_int
+from crlam.cli_options import add_force_option, finite_float, positive_float, positive_int, staged_output
 
 __all__ = ["add_explore_parser", "cmd_explore"]
 
@@ -13,8 +14,10 @@ __all__ = ["add_explore_parser", "cmd_explore"]
 def cmd_explore(args: argparse.Namespace) -> int:
     """Explore the world and write the run folder."""
     from crlam.experiments.explore import ExploreConfig, default_start, explore, write_explore_folder
+    from crlam.run_folder import moved
     from crlam.sim.worlds import get_world
 
+    output = staged_output(args)  # the output is checked before the run, written after it
     world = get_world(args.world, seed=args.world_seed, resolution=args.world_resolution)
     cfg = ExploreConfig(
         function=args.function,
@@ -33,7 +36,8 @@ def cmd_explore(args: argparse.Namespace) -> int:
     start = tuple(args.start) + (0.0,) if args.start else default_start(world, cfg.resolution)
     print(f"exploring {world.name} from ({start[0]:.1f}, {start[1]:.1f}) with {cfg.function} ...", flush=True)
     run = explore(world, (start[0], start[1], start[2]), cfg, progress=not args.quiet)
-    files = write_explore_folder(run, args.out, gif=not args.no_gif)
+    with output as stage:
+        files = write_explore_folder(run, stage, gif=not args.no_gif)
     last = run.decisions[-1] if run.decisions else {}
     print(
         f"stopped ({run.stop}) after {len(run.decisions)} decisions, {run.distance:.1f} m; "
@@ -43,7 +47,7 @@ def cmd_explore(args: argparse.Namespace) -> int:
         err = ((run.estimates[:, :2] - run.poses[:, :2]) ** 2).sum(axis=1) ** 0.5
         print(f"pose error: mean {err.mean():.3f} m, max {err.max():.3f} m; bumps {run.bumps}")
     for key, p in files.items():
-        print(f"  {key:<16s} {p}")
+        print(f"  {key:<16s} {moved(p, stage, Path(args.out))}")
     return 0
 
 
@@ -64,12 +68,12 @@ def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--world-seed", type=int, default=0, help="seed of a procedural world (default: 0)")
     p.add_argument("--world-resolution", type=positive_float, default=None, help="m per pixel of a bare image")
     p.add_argument("--function", choices=("crmi", "ucrmi", "fsmi", "frontier"), default="crmi")
-    p.add_argument("--alpha", type=float, default=0.5, help="UCRMI weight of the map term (default: 0.5)")
+    p.add_argument("--alpha", type=finite_float, default=0.5, help="UCRMI weight of the map term (default: 0.5)")
     p.add_argument("--budget", type=positive_float, default=150.0, help="travel budget in metres (default: 150)")
-    p.add_argument("--threshold", type=float, default=0.1, help="stop when the best gain is below this (default: 0.1)")
+    p.add_argument("--threshold", type=finite_float, default=0.1, help="stop when the best gain is below this (default: 0.1)")
     p.add_argument("--candidates", type=positive_int, default=200, help="candidates per decision (default: 200)")
     p.add_argument("--radius", type=positive_float, default=5.0, help="candidate radius in metres (default: 5)")
-    p.add_argument("--cost-weight", type=float, default=0.0, help="score = gain / cost^w (default 0: pure gain)")
+    p.add_argument("--cost-weight", type=finite_float, default=0.0, help="score = gain / cost^w (default 0: pure gain)")
     p.add_argument("--max-range", type=positive_float, default=5.0, help="sensor range in metres (default: 5)")
     p.add_argument("--particles", type=positive_int, default=30, help="UCRMI particles (default: 30)")
     p.add_argument(
@@ -79,9 +83,10 @@ def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
         "its estimate; UCRMI sees its particle set) instead of knowing it",
     )
     p.add_argument("--slam-particles", type=positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
-    p.add_argument("--start", type=float, nargs=2, metavar=("X", "Y"), help="start position (default: a free corner)")
+    p.add_argument("--start", type=finite_float, nargs=2, metavar=("X", "Y"), help="start position (default: a free corner)")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and candidate sampling")
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument("--no-gif", action="store_true", help="skip the animation")
     p.add_argument("--quiet", action="store_true", help="no per-decision output")
     p.set_defaults(func=cmd_explore)

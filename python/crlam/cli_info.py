@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from crlam.cli_options import positive_float, positive_int
+from crlam.cli_options import add_force_option, positive_float, positive_int, staged_output
 
 __all__ = ["add_info_parser", "cmd_info"]
 
@@ -19,9 +19,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     from crlam.info import compute_surface, load_map_prior, make_function, prior_from_crm_mean, save_surface
     from crlam.io.belief import load_belief
     from crlam.mapping import ConfidenceRichMap
+    from crlam.run_folder import moved
 
     if (args.map is None) == (args.belief is None):
         raise ConfigError("give either a map file or --belief belief.npz")
+    output = staged_output(args)  # the output is checked before the run, written after it
     f = make_function(
         args.function,
         z_max=args.z_max,
@@ -51,7 +53,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     n = int(prior.free.sum())
     print(f"{f.name} ({f.units}) at {n} free cells of {prior.source} ...", flush=True)
     surface = compute_surface(f, state, prior, heading=args.heading, seed=args.seed)
-    paths = save_surface(surface, Path(args.out))
+    with output as stage:
+        paths = save_surface(surface, stage)
     s = surface.summary()
     fin = surface.values[np.isfinite(surface.values)]
     print(
@@ -59,7 +62,7 @@ def cmd_info(args: argparse.Namespace) -> int:
         f"{s['wall_time_s']:.2f} s wall ({s['us_per_pose_wall']:.0f} µs per pose, {s['threads']} threads)"
     )
     for key, p in paths.items():
-        print(f"  {key:<8s} {p}")
+        print(f"  {key:<8s} {moved(p, stage, Path(args.out))}")
     return 0
 
 
@@ -81,6 +84,7 @@ def add_info_parser(subparsers: Any) -> argparse.ArgumentParser:
     p.add_argument("--function", required=True, choices=FUNCTION_NAMES, help="the information function")
     p.add_argument("--belief", help="a belief.npz: CRM functions use it; the others its mean map")
     p.add_argument("--out", required=True, help="output folder")
+    add_force_option(p)
     p.add_argument("--resolution", type=positive_float, default=0.2, help="metres per pixel of a bare PGM (default: 0.2)")
     p.add_argument("--z-max", type=positive_float, default=5.0, help="beam length in metres (default: 5)")
     p.add_argument("--beams", type=positive_int, default=10, help="beams per virtual scan (default: 10)")

@@ -6,7 +6,15 @@ import argparse
 import math
 from typing import Any
 
-from crlam.cli_options import add_bag_options, bag_options, nonnegative_float, nonnegative_int, positive_float, positive_int
+from crlam.cli_options import (
+    add_bag_options,
+    bag_options,
+    nonnegative_float,
+    nonnegative_int,
+    positive_float,
+    positive_int,
+    staged_output,
+)
 
 __all__ = ["add_localize_parser", "cmd_localize", "localize_config_of"]
 
@@ -93,6 +101,8 @@ def cmd_localize(args: argparse.Namespace) -> int:
             nav2_prior=prior,
             bag_options=bag_options(args),
             progress=not args.quiet,
+            resume=args.resume,
+            force=args.force,
         )
         print(
             f"{summary['n_trials']} global localizations: {summary['n_converged_correct']} converged to the reference, "
@@ -102,27 +112,32 @@ def cmd_localize(args: argparse.Namespace) -> int:
         return 0
     from crlam.experiments.localize_run import run_localize_log
 
+    if args.resume:
+        from crlam.errors import ConfigError
+
+        raise ConfigError("--resume continues --trials; a single localization is run whole (--force replaces it)")
     if pose is None:
         print("no --initial-pose: global localization (particles over the map's free space)")
-    res = run_localize_log(
-        args.log,
-        args.map,
-        args.out,
-        config,
-        initial_pose=pose,
-        initial_cov=cov,
-        nav2_prior=prior,
-        relations=args.relations,
-        reference=args.reference,
-        max_scans=args.max_scans,
-        progress=not args.quiet,
-        bag_options=bag_options(args),
-    )
+    with staged_output(args) as stage:
+        res = run_localize_log(
+            args.log,
+            args.map,
+            stage,
+            config,
+            initial_pose=pose,
+            initial_cov=cov,
+            nav2_prior=prior,
+            relations=args.relations,
+            reference=args.reference,
+            max_scans=args.max_scans,
+            progress=not args.quiet,
+            bag_options=bag_options(args),
+        )
     m = res.metrics
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, {m['scans_per_s']:.1f} scans/s "
         f"(the log: {m['n_scans'] / max(m['log_duration_s'], 1e-9):.1f} scans/s); particles mean "
-        f"{m['particles'].get('mean', math.nan):.0f}, max {m['particles'].get('max', math.nan):.0f} -> {res.out_dir}"
+        f"{m['particles'].get('mean', math.nan):.0f}, max {m['particles'].get('max', math.nan):.0f} -> {args.out}"
     )
     conv = m["convergence"]
     if conv is None:
@@ -152,7 +167,16 @@ def add_localize_parser(sub: Any) -> None:
     )
     p.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (folder with metadata.yaml, .bag or .mcap)")
     p.add_argument("--map", required=True, help="a crlam map/slam run folder, its belief.npz, or a Nav2 map.yaml")
-    p.add_argument("--out", required=True, help="run folder")
+    p.add_argument("--out", required=True, help="run folder (with --trials: the trials' folder)")
+    out = p.add_mutually_exclusive_group()
+    out.add_argument(
+        "--force", action="store_true", help="replace an existing output (the old one stays until the new one is complete)"
+    )
+    out.add_argument(
+        "--resume",
+        action="store_true",
+        help="--trials: continue the trials' folder (its finished trials are kept when it was made with the same settings)",
+    )
     start = p.add_argument_group("start")
     start.add_argument(
         "--initial-pose", type=float, nargs=3, default=None, metavar=("X", "Y", "YAW"), help="map frame (m, m, rad)"
@@ -185,8 +209,17 @@ def add_localize_parser(sub: Any) -> None:
     )
     start.add_argument("--trial-seed", type=nonnegative_int, default=0, help="seed of the trials' start scans (default 0)")
     f = p.add_argument_group("filter (defaults: AMCL's where it has one)")
-    f.add_argument("--min-particles", type=positive_int, default=None, help="KLD lower bound (default 100)")
-    f.add_argument("--max-particles", type=positive_int, default=None, help="KLD upper bound and global start (default 5000)")
+    # AMCL's min_particles / max_particles; --max-particles is the resource limit of every command.
+    f.add_argument(
+        "--kld-min-particles", dest="min_particles", type=positive_int, default=None, help="KLD lower bound (default 100)"
+    )
+    f.add_argument(
+        "--kld-max-particles",
+        dest="max_particles",
+        type=positive_int,
+        default=None,
+        help="KLD upper bound and the particles of a global start (default 5000)",
+    )
     f.add_argument("--kld-err", type=positive_float, default=None, help="KLD epsilon (default 0.01)")
     f.add_argument(
         "--alpha-slow", type=nonnegative_float, default=None, help="recovery: long-term rate (default 0.001; 0 0: off)"

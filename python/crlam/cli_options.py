@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from collections.abc import Callable
 from typing import Any, TypeVar
 
@@ -26,12 +27,18 @@ __all__ = [
     "SIGMA_RANGE_HELP",
     "WEIGHT_SMOOTHING_HELP",
     "add_bag_options",
+    "add_odometry_options",
     "add_estimate_options",
+    "add_force_option",
     "add_likelihood_mode_options",
     "add_map_options",
     "add_preset_option",
+    "add_resume_options",
     "bag_options",
     "slam_overrides",
+    "stored_input_options",
+    "staged_output",
+    "finite_float",
     "nonnegative_float",
     "nonnegative_int",
     "positive_float",
@@ -54,6 +61,13 @@ def positive_float(text: str) -> float:
     v = _parse(text, float, "a number")
     if not (v > 0 and v != float("inf")):
         raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text}")
+    return v
+
+
+def finite_float(text: str) -> float:
+    v = _parse(text, float, "a number")
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be a finite number, got {text}")
     return v
 
 
@@ -160,7 +174,7 @@ def add_estimate_options(parser: argparse.ArgumentParser) -> None:
         nargs=2,
         default=None,
         metavar=("DXY", "DTHETA"),
-        help="kernel bandwidths (m, rad) of the mode-seeking estimate written to trajectory_mode.tum (the weighted mean of "
+        help="kernel bandwidths (m, rad) of the mode-seeking estimate written to estimates/mode.tum (the weighted mean of "
         "the densest group of particles; it does not change the filter; paper: 0.05 0.025; default: the preset's)",
     )
     parser.add_argument(
@@ -168,7 +182,7 @@ def add_estimate_options(parser: argparse.ArgumentParser) -> None:
         type=nonnegative_int,
         default=None,
         metavar="L",
-        help="lineage smoother written to trajectory_smoothed.tum: weigh each processed scan's particle ancestors with "
+        help="lineage smoother written to estimates/smoothed.tum: weigh each processed scan's particle ancestors with "
         "the weights L processed scans later (default: the preset's; unset there: the final weights, full smoothing)",
     )
 
@@ -265,15 +279,152 @@ def add_bag_options(p: argparse.ArgumentParser) -> None:
         help="laser pose in the base frame (m, m, rad); replaces the one of /tf_static",
     )
     g.add_argument("--upside-down", action="store_true", help="the laser is mounted upside down: mirror its bearings")
+    g.add_argument("--odom-frame", default=None, help="the odometry frame, parent of the base frame in /tf (default: odom)")
+    g.add_argument(
+        "--echo",
+        choices=("first", "last", "strongest"),
+        default=None,
+        help="which return of a MultiEchoLaserScan beam is its range (default: first)",
+    )
+
+
+#: The bag options of :func:`add_bag_options` and :func:`add_odometry_options` (argparse names).
+_BAG_OPTION_NAMES = ("scan_topic", "odom_topic", "base_frame", "odom_frame", "laser_mount", "echo", "imu_topic")
+
+
+def add_odometry_options(p: argparse.ArgumentParser) -> None:
+    """``--odometry`` and ``--imu-topic`` of ``crlam slam``: the motion input."""
+    g = p.add_argument_group("motion input")
+    g.add_argument(
+        "--odometry",
+        choices=("auto", "wheel", "scan_match"),
+        default=None,
+        help="the motion input: the log's odometry (wheel), scan-matching odometry from the scans themselves, with "
+        "a bag's IMU yaw rate where it has one (scan_match; the log's odometry is not read), or scan_match when the "
+        "input has no odometry, else wheel (auto, the default); config.toml records which was used",
+    )
+    g.add_argument("--imu-topic", default=None, help="sensor_msgs/Imu topic for scan-matching odometry (default: the only one)")
 
 
 def bag_options(args: argparse.Namespace) -> dict[str, Any]:
     """The bag options given on the command line (only those given, so a CARMEN log takes none)."""
     out: dict[str, Any] = {}
-    for name in ("scan_topic", "odom_topic", "base_frame", "laser_mount"):
+    for name in _BAG_OPTION_NAMES:
         value = getattr(args, name, None)
         if value is not None:
             out[name] = value
     if getattr(args, "upside_down", False):
         out["upside_down"] = True
     return out
+
+
+def stored_input_options(table: dict[str, Any]) -> tuple[dict[str, Any], str | None]:
+    """The bag options and the odometry choice that a run folder's ``config.toml`` ``[input]``
+    table records, for ``crlam slam --config``: the topics, frames and echo that were used, the
+    IMU topic, and the laser mount when it was given (a mount found in the bag is found again);
+    the odometry as given, or ``auto`` again when it was chosen from the input.
+    An empty value (no odometry topic with scan-matching odometry) is left out."""
+    out: dict[str, Any] = {}
+    if table.get("format") == "rosbag":
+        for name in ("scan_topic", "odom_topic", "base_frame", "odom_frame", "echo", "imu_topic"):
+            value = table.get(name)
+            if isinstance(value, str) and value:
+                out[name] = value
+        if table.get("mount_source") == "user":
+            out["laser_mount"] = [float(v) for v in table.get("laser_mount", [])]
+            if table.get("upside_down"):
+                out["upside_down"] = True
+        if table.get("odometry") == "scan_match":
+            out.pop("odom_topic", None)
+    odometry = table.get("odometry")
+    if str(table.get("odometry_choice", "")).startswith("auto"):
+        odometry = "auto"  # chosen from the input: chosen again the same way
+    return out, odometry if isinstance(odometry, str) else None
+
+
+def _limit_value(text: str) -> int:
+    from crlam.errors import ConfigError
+    from crlam.limits import parse_limit
+
+    try:
+        return parse_limit(text)
+    except ConfigError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def add_limit_options(parser: argparse.ArgumentParser) -> None:
+    """The resource-limit flags (:mod:`crlam.limits`), given to every subcommand that does work."""
+    from crlam.limits import DEFAULTS, env_name
+
+    g = parser.add_argument_group(
+        "resource limits",
+        "inputs that would need more than these are refused with an error before the memory is taken; "
+        "the environment variables CRLAM_MAX_* set them too (values like 1e8 are accepted)",
+    )
+    helps = {
+        "map_cells": "cells of a map or of a dense copy of it",
+        "particles": "particles of a filter or pose belief",
+        "image_pixels": "pixels of a map image, checked before decoding",
+        "archive_bytes": "uncompressed bytes of a .npz archive (belief.npz, tree.npz), checked before decompressing",
+        "download_bytes": "bytes of a download whose size is not known in advance",
+        "readings": "range readings (scans x beams) a simulated log holds in memory",
+    }
+    for name, text in helps.items():
+        g.add_argument(
+            "--max-" + name.replace("_", "-"),
+            dest="limit_" + name,
+            type=_limit_value,
+            default=None,
+            metavar="N",
+            help=f"{text} (default: {getattr(DEFAULTS, name):,}; {env_name(name)})",
+        )
+
+
+def add_limit_options_everywhere(parser: argparse.ArgumentParser) -> None:
+    """:func:`add_limit_options` on every leaf subcommand of ``parser``."""
+    subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    if not subs:
+        add_limit_options(parser)
+        return
+    for action in subs:
+        for child in dict.fromkeys(action.choices.values()):
+            add_limit_options_everywhere(child)
+
+
+def apply_limit_options(args: argparse.Namespace) -> None:
+    """Puts the limits given on the command line in force (for this process and its workers)."""
+    from crlam.limits import set_limits
+
+    given = {k[len("limit_") :]: v for k, v in vars(args).items() if k.startswith("limit_") and v is not None}
+    if given:
+        set_limits(**given)
+
+
+def add_force_option(parser: argparse.ArgumentParser) -> None:
+    """``--force``: replace an existing output (once the new one is complete)."""
+    parser.add_argument(
+        "--force",
+        action="store_true",
+        help="replace an existing output; the old one stays untouched until the new one is complete",
+    )
+
+
+def staged_output(args: argparse.Namespace, out: str | None = None):  # type: ignore[no-untyped-def]
+    """The staging folder of the command's ``--out`` (see :mod:`crlam.run_folder`), after the
+    up-front check: a context manager yielding the folder to write into."""
+    from crlam.run_folder import check_output, staged_folder
+
+    path = check_output(out if out is not None else args.out, force=getattr(args, "force", False))
+    return staged_folder(path, command=f"crlam {args.command}")
+
+
+def add_resume_options(parser: argparse.ArgumentParser) -> None:
+    """``--resume`` and ``--force`` of the resumable experiments."""
+    g = parser.add_mutually_exclusive_group()
+    g.add_argument(
+        "--resume",
+        action="store_true",
+        help="continue the experiment folder: finished runs are kept when it was made with the same settings (else an "
+        "error lists the differences); unreadable runs are done again",
+    )
+    g.add_argument("--force", action="store_true", help="empty an existing experiment folder and start anew")

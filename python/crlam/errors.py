@@ -7,7 +7,15 @@ whole family at once. The concrete classes also derive from the matching built-i
 
 from __future__ import annotations
 
-__all__ = ["CrlamError", "ConfigError", "DataFormatError", "MapBoundsError", "NumericalError"]
+__all__ = [
+    "CrlamError",
+    "ConfigError",
+    "DataFormatError",
+    "InternalError",
+    "MapBoundsError",
+    "NumericalError",
+    "ResourceLimitError",
+]
 
 
 class CrlamError(Exception):
@@ -24,6 +32,18 @@ class MapBoundsError(CrlamError, ValueError):
 
 class NumericalError(CrlamError, ArithmeticError):
     """A computation produced a non-finite value that cannot be skipped safely."""
+
+
+class ResourceLimitError(CrlamError, ValueError):
+    """An input asks for more memory than a resource limit allows (map cells, particles, image
+    pixels, archive bytes, download bytes), or a buffer sized by the data could not be allocated.
+
+    The message names the input, the limit and how to raise it (see :mod:`crlam.limits`).
+    """
+
+
+class InternalError(CrlamError, RuntimeError):
+    """A bug in crlam: the Rust core panicked. The message says where; please report it."""
 
 
 class DataFormatError(CrlamError, ValueError):
@@ -51,14 +71,10 @@ class DataFormatError(CrlamError, ValueError):
         self.path = path
         self.line = line
         self.field = field
-        where = []
-        if path is not None:
-            where.append(str(path))
+        where = [str(path)] if path is not None else []
         if line is not None:
             where.append(f"line {line}")
+        prefix = ":".join(where)
         if field is not None:
-            where.append(f"field {field}")
-        prefix = ":".join(where[:2]) if where else ""
-        if field is not None:
-            prefix = f"{prefix} ({where[-1]})" if len(where) > 1 else where[-1]
+            prefix = f"{prefix} (field {field})" if prefix else f"field {field}"
         super().__init__(f"{prefix}: {message}" if prefix else message)

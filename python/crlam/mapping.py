@@ -230,7 +230,7 @@ class MappingConfig:
             return 0.1 * self.resolution
         if self.cause_kernel == "chord":
             return max(self.sigma_range, 1e-4)
-        return math.sqrt(self.sigma_range**2 + self.resolution**2 / 12.0)
+        return math.hypot(self.sigma_range, self.resolution / math.sqrt(12.0))
 
     def sensor_model(self, model: str | None = None) -> _native.SensorModel:
         """The native likelihood model (``model`` overrides ``self.model``)."""
@@ -297,6 +297,17 @@ class ScanUpdateStats:
 
     def as_dict(self) -> dict[str, int]:
         return asdict(self)
+
+
+def _box(bounds: object) -> tuple[float, float, float, float]:
+    """A world box ``(xmin, ymin, xmax, ymax)`` from input: four finite numbers, max > min."""
+    try:
+        box = tuple(float(v) for v in bounds)  # type: ignore[attr-defined]
+    except (TypeError, ValueError):
+        raise ConfigError(f"bounds must be (xmin, ymin, xmax, ymax), got {bounds!r}") from None
+    if len(box) != 4 or not all(math.isfinite(v) for v in box) or box[2] <= box[0] or box[3] <= box[1]:
+        raise ConfigError(f"bounds must be 4 finite numbers (xmin, ymin, xmax, ymax) with max > min, got {bounds!r}")
+    return box  # type: ignore[return-value]
 
 
 def _cells_of_box(bounds: tuple[float, float, float, float], resolution: float, origin: tuple[float, float]) -> CellRect:
@@ -399,7 +410,7 @@ class ConfidenceRichMap:
         if bounds is None:
             r = self.native.extent or self.native.written_bounds()
             return r if r is not None else (0, 0, 1, 1)
-        return _cells_of_box(bounds, self.config.resolution, self.config.origin)
+        return _cells_of_box(_box(bounds), self.config.resolution, self.config.origin)
 
     def _layer(self, values: NDArray[np.float64], rect: CellRect, name: str) -> MapLayer:
         res, (ox, oy) = self.config.resolution, self.config.origin
@@ -462,12 +473,24 @@ class ConfidenceRichMap:
                 config = MappingConfig(
                     resolution=archive.resolution, n_levels=k, origin=(float(archive.origin[0]), float(archive.origin[1]))
                 )
+        res, (ox, oy) = config.resolution, config.origin
+        # The archive's own fields describe its grid: a configuration (given, or stored in the
+        # metadata) on another grid would silently place the beliefs on cells of another size.
+        if not math.isclose(archive.resolution, res, rel_tol=1e-9, abs_tol=0.0):
+            raise ConfigError(
+                f"the archive's cells are {archive.resolution} m but its configuration (metadata config_json or the "
+                f"config given) says resolution {res} m"
+            )
+        fx, fy = ((archive.origin[0] - ox) / res, (archive.origin[1] - oy) / res)
+        ix0, iy0 = round(fx), round(fy)
+        if abs(fx - ix0) > 1e-6 or abs(fy - iy0) > 1e-6:
+            raise ConfigError(
+                f"the archive's origin {archive.origin.tolist()} is not on the configuration's grid (origin {config.origin}, "
+                f"cells {res} m)"
+            )
         m = cls(config)
         if archive.levels.shape != m.levels.shape or not np.allclose(archive.levels, m.levels):
             raise ConfigError("archive levels do not match the configuration's levels")
-        res, (ox, oy) = config.resolution, config.origin
-        ix0 = round((archive.origin[0] - ox) / res)
-        iy0 = round((archive.origin[1] - oy) / res)
         m.native.set_beliefs(ix0, iy0, np.ascontiguousarray(archive.beliefs, dtype=np.float64))
         return m
 
@@ -529,7 +552,7 @@ class LogOddsOccupancyMap:
         if bounds is None:
             r = self.native.written_bounds()
             return r if r is not None else (0, 0, 1, 1)
-        return _cells_of_box(bounds, self.config.resolution, self.config.origin)
+        return _cells_of_box(_box(bounds), self.config.resolution, self.config.origin)
 
     def probability(self, bounds: tuple[float, float, float, float] | None = None) -> MapLayer:
         """Occupancy probability ``base^l / (1 + base^l)`` over a region."""

@@ -183,18 +183,43 @@ class IigTree:
 
     @classmethod
     def load(cls, path: str | os.PathLike[str]) -> IigTree:
+        from crlam.io.npz_check import check_npz
+
+        try:
+            check_npz(path, "IIG tree file")  # before anything is decompressed
+        except OSError as e:
+            raise DataFormatError(f"{path}: not an IIG tree file ({e})") from None
         try:
             with np.load(Path(path), allow_pickle=False) as z:
                 meta = json.loads(str(z["meta"]))
                 arrays = {k: z[k] for k in z.files if k != "meta"}
         except (OSError, ValueError, KeyError) as e:
             raise DataFormatError(f"{path}: not an IIG tree file ({e})") from None
-        return cls(**meta, **arrays)
+        try:
+            return cls(**meta, **arrays)
+        except TypeError as e:
+            raise DataFormatError(f"{path}: not an IIG tree file ({e})") from None
 
 
 def obstacle_points(prior: MapPrior) -> FloatArray:
     """World positions (n, 2) of the prior's obstacle nodes: the planner's collision point set."""
     return np.ascontiguousarray(prior.node_positions(prior.obstacle))
+
+
+def check_start(prior: MapPrior, start: tuple[float, float]) -> None:
+    """Raises :class:`ConfigError` unless ``start`` (x, y) is finite and lies on a node of the
+    prior that is not an obstacle (a tree grown from inside a wall would be reported as a run)."""
+    x, y = (float(v) for v in start)
+    if not (math.isfinite(x) and math.isfinite(y)):
+        raise ConfigError(f"start must be two finite numbers, got ({x}, {y})")
+    ox, oy = prior.lattice.origin
+    r = prior.lattice.resolution
+    ny, nx = prior.obstacle.shape
+    fx, fy = (x - ox) / r, (y - oy) / r
+    if not (0 <= fx < nx and 0 <= fy < ny):
+        raise ConfigError(f"start ({x}, {y}) lies outside the map ({prior.source})")
+    if prior.obstacle[int(fy), int(fx)]:
+        raise ConfigError(f"start ({x}, {y}) lies inside an obstacle of the map ({prior.source})")
 
 
 def plan_iig(
@@ -209,6 +234,7 @@ def plan_iig(
     (or on ``state``, which the run mutates). The only randomness is SampleFree, keyed by
     ``seed`` (plus UCRMI's particles); the same seed and settings give the same tree."""
     s = settings or IigSettings()
+    check_start(prior, s.start)
     st = function.make_state(prior.lattice) if state is None else state
     d = _native.run_iig(
         function._native,

@@ -16,7 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from crlam import _native
 from crlam.errors import ConfigError, CrlamError
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
-from crlam.pose import between, compose
+from crlam.pose import between, compose, number_pair
 from crlam.slam_continue import SlamPrior
 
 __all__ = [
@@ -205,8 +205,8 @@ class SlamConfig:
             raise bad("method", "must be 'clam' or 'ogm'")
         if not (isinstance(self.particles, int) and self.particles >= 1):
             raise bad("particles", "must be an integer >= 1")
-        if not (isinstance(self.seed, int) and self.seed >= 0):
-            raise bad("seed", "must be an integer >= 0")
+        if not (isinstance(self.seed, int) and 0 <= self.seed < 2**64):
+            raise bad("seed", "must be an integer in [0, 2^64)")
         for name in ("resolution", "max_range", "tempering"):
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
@@ -307,6 +307,8 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike, prior: SlamPrior | 
     :mod:`crlam.slam_continue`; RBPF-CLAM only) every particle starts with its map, at a draw
     from N(prior.pose, prior.cov), and ``initial_pose`` is not used.
     """
+    if not isinstance(config, SlamConfig):
+        raise TypeError(f"config must be a SlamConfig, got {type(config).__name__}")
     pose = np.ascontiguousarray(initial_pose if prior is None else prior.pose, dtype=np.float64)
     params = list(config.motion_params) if config.motion_params is not None else None
     if prior is not None:
@@ -479,7 +481,7 @@ def mode_seeking_pose(
     if p.ndim != 2:
         raise ConfigError(f"mode_seeking_pose: poses must have shape (n, 3), got {p.shape}")
     w = np.ascontiguousarray(weights, dtype=np.float64)
-    return np.array(_native.mode_seeking_pose(p, w, (float(bandwidth[0]), float(bandwidth[1]))))
+    return np.array(_native.mode_seeking_pose(p, w, number_pair(bandwidth, "bandwidth", finite=False)))
 
 
 @dataclass

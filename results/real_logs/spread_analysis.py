@@ -2,13 +2,13 @@
 
 Usage: ``python spread_analysis.py RUN_DIR RELATIONS [--bins 4] [--window 300]``
 
-RUN_DIR is a ``crlam slam`` / ``crlam experiment real-logs`` run folder written on or after
-2026-11-26 (it has ``steps.csv`` and ``trajectory_max_weight.tum``). Each relation gets the
+RUN_DIR is a ``crlam slam`` / ``crlam experiment real-logs`` run folder (``steps.csv`` and the
+trajectories under ``estimates/``). Each relation gets the
 larger of the position spreads recorded at the last processed scan at or before its two stamps;
 the relations are split into quantile bins of that spread, and each bin reports the mean
 translational error of the weighted mean, the final best particle's path and the online
-highest-weight particle (and the mode-seeking estimate ``trajectory_mode.tum`` and the lineage
-smoother ``trajectory_smoothed[_means].tum``, where the run wrote them). If the weighted mean loses to one lineage only where the set is wide,
+highest-weight particle (and the mode-seeking estimate ``estimates/mode.tum`` and the lineage
+smoother ``estimates/smoothed[_means].tum``, where the run wrote them). If the weighted mean loses to one lineage only where the set is wide,
 its extra error comes from averaging poses of lineages whose maps disagree.
 
 A second table splits the same relations by the time of their first pose into windows of
@@ -32,12 +32,12 @@ from crlam.io.tum import read_tum
 
 TRAJECTORIES = {
     "weighted mean": "trajectory.tum",
-    "best path": "trajectory_best_path.tum",
-    "best path means": "trajectory_best_path_means.tum",
-    "max weight": "trajectory_max_weight.tum",
-    "mode": "trajectory_mode.tum",
-    "smoothed": "trajectory_smoothed.tum",
-    "smoothed means": "trajectory_smoothed_means.tum",
+    "best path": "estimates/best_path.tum",
+    "best path means": "estimates/best_path_means.tum",
+    "max weight": "estimates/max_weight.tum",
+    "mode": "estimates/mode.tum",
+    "smoothed": "estimates/smoothed.tum",
+    "smoothed means": "estimates/smoothed_means.tum",
 }
 
 
@@ -98,7 +98,7 @@ def _revisits(t: np.ndarray, xy: np.ndarray, radius: float = 1.0, age: float = 6
 def _time_windows(
     args: argparse.Namespace, steps: np.ndarray, stamps: np.ndarray, t1: np.ndarray, errs: dict[str, Any], names: list[str]
 ) -> list[dict[str, Any]]:
-    path = read_tum(args.run_dir / "trajectory_best_path.tum")
+    path = read_tum(args.run_dir / "estimates/best_path.tum")
     idx = steps["scan_index"].astype(int)
     t_step = stamps[idx] - stamps[0]
     revisit = _revisits(t_step, path.poses[idx, :2])

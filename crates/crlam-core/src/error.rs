@@ -17,6 +17,23 @@ pub enum CrlamError {
     /// A non-finite value where a finite one is required.
     #[error("non-finite value in {field}: {value}")]
     NonFinite { field: &'static str, value: f64 },
+    /// An input asks for more than a resource limit allows (see [`crate::limits`]).
+    #[error(
+        "{what} needs {needed:.0} {unit}, more than the limit of {limit} (raise it with --max-{flag} N \
+         or the environment variable CRLAM_MAX_{env}=N)",
+        flag = setting.replace('_', "-"),
+        env = setting.to_uppercase()
+    )]
+    Limit {
+        what: String,
+        needed: f64,
+        limit: u64,
+        unit: &'static str,
+        setting: &'static str,
+    },
+    /// A buffer sized by the data could not be allocated.
+    #[error("out of memory: {0}")]
+    Alloc(String),
 }
 
 /// Result alias used throughout the core.

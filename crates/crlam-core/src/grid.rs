@@ -13,6 +13,7 @@
 use std::sync::{Arc, Mutex};
 
 use crate::error::{config_err, CrlamError, Result};
+use crate::limits::{check_map_cells, try_filled, try_vec};
 
 /// `x.floor() as i64` (saturating, NaN to 0), bit for bit, without the call to libm's `floor`
 /// that the baseline x86-64 target makes of `f64::floor` (no SSE4.1 `roundsd`): every walk
@@ -39,27 +40,52 @@ pub struct GridGeometry {
 }
 
 impl GridGeometry {
-    /// Validated constructor.
+    /// Validated constructor: `resolution` in [[`MIN_RESOLUTION`], [`MAX_COORD`]] and the origin
+    /// within [`MAX_COORD`] of (0, 0), so that every cell index of a valid pose fits an `i64`
+    /// with room to spare (|index| < 2^45).
     pub fn new(origin: [f64; 2], resolution: f64) -> Result<Self> {
-        if !(resolution.is_finite() && resolution > 0.0) {
+        if !(resolution.is_finite() && (MIN_RESOLUTION..=MAX_COORD).contains(&resolution)) {
             return Err(config_err(
                 "resolution",
-                format!("must be finite and > 0, got {resolution}"),
+                format!("must be a finite cell size in [{MIN_RESOLUTION:e}, {MAX_COORD:e}] m, got {resolution}"),
             ));
         }
-        if !(origin[0].is_finite() && origin[1].is_finite()) {
-            return Err(config_err("origin", "must be finite"));
+        if !(origin[0].is_finite() && origin[1].is_finite())
+            || origin[0].abs() > MAX_COORD
+            || origin[1].abs() > MAX_COORD
+        {
+            return Err(config_err(
+                "origin",
+                format!("must be finite and within {MAX_COORD:e} m of (0, 0), got {origin:?}"),
+            ));
         }
         Ok(Self { origin, resolution })
     }
 
-    /// Index of the cell containing the world point (x, y).
+    /// Index of the cell containing the world point (x, y) (saturating; NaN gives 0: check the
+    /// point first with [`Self::checked_cell_of`] when it comes from input).
     #[inline]
     pub fn cell_of(&self, x: f64, y: f64) -> (i64, i64) {
         (
             floor_to_i64((x - self.origin[0]) / self.resolution),
             floor_to_i64((y - self.origin[1]) / self.resolution),
         )
+    }
+
+    /// Index of the cell containing (x, y), refusing non-finite points and points farther than
+    /// [`MAX_COORD`] from the origin.
+    pub fn checked_cell_of(&self, x: f64, y: f64) -> Result<(i64, i64)> {
+        for (field, v) in [("x", x), ("y", y)] {
+            if !v.is_finite() {
+                return Err(CrlamError::NonFinite { field, value: v });
+            }
+        }
+        if (x - self.origin[0]).abs() > MAX_COORD || (y - self.origin[1]).abs() > MAX_COORD {
+            return Err(CrlamError::OutOfBounds(format!(
+                "point ({x:.3e}, {y:.3e}) is more than {MAX_COORD:.0e} m from the map origin"
+            )));
+        }
+        Ok(self.cell_of(x, y))
     }
 
     /// World coordinates of the centre of cell (ix, iy).
@@ -74,6 +100,13 @@ impl GridGeometry {
 
 /// Poses farther than this (m) from the grid origin are refused: they would overflow cell indices.
 pub const MAX_COORD: f64 = 1e7;
+
+/// Smallest cell size (m): with [`MAX_COORD`] it bounds every cell index of a valid pose by 2^45.
+pub const MIN_RESOLUTION: f64 = 1e-6;
+
+/// Largest |cell index| (and rectangle side) accepted from input: far beyond any valid pose
+/// (2^45 > 2 x 10^7 m / 10^-6 m), and small enough that sums of two indices never overflow.
+pub const MAX_CELL_INDEX: i64 = 1 << 46;
 
 /// Checks that a pose (x, y, θ) is finite and within [`MAX_COORD`] of the origin.
 pub fn check_pose(pose: [f64; 3]) -> Result<()> {
@@ -104,6 +137,30 @@ pub struct CellRect {
 }
 
 impl CellRect {
+    /// A rectangle from input, refused unless `nx, ny > 0` and every index lies within
+    /// [`MAX_CELL_INDEX`] (so that no arithmetic on it can overflow).
+    pub fn checked(ix0: i64, iy0: i64, nx: i64, ny: i64) -> Result<Self> {
+        let r = CellRect { ix0, iy0, nx, ny };
+        r.validate()?;
+        Ok(r)
+    }
+
+    /// See [`Self::checked`].
+    pub fn validate(&self) -> Result<()> {
+        let ok = |v: i64| v.unsigned_abs() <= MAX_CELL_INDEX as u64;
+        if !(self.nx > 0 && self.ny > 0) {
+            return Err(CrlamError::Shape(format!(
+                "a cell rectangle (ix0, iy0, nx, ny) needs nx, ny > 0, got {self:?}"
+            )));
+        }
+        if !(ok(self.ix0) && ok(self.iy0) && ok(self.nx) && ok(self.ny)) {
+            return Err(CrlamError::OutOfBounds(format!(
+                "cell rectangle {self:?}: indices and sizes must lie within +-2^46"
+            )));
+        }
+        Ok(())
+    }
+
     /// True when (ix, iy) lies inside.
     #[inline]
     pub fn contains(&self, ix: i64, iy: i64) -> bool {
@@ -124,9 +181,14 @@ impl CellRect {
         }
     }
 
-    /// Number of cells.
+    /// Number of cells (saturating at `usize::MAX` for an absurd rectangle).
     pub fn n_cells(&self) -> usize {
-        (self.nx.max(0) * self.ny.max(0)) as usize
+        (self.nx.max(0) as u128 * self.ny.max(0) as u128).min(usize::MAX as u128) as usize
+    }
+
+    /// Number of cells as a float (exact below 2^53), for limit checks that must not overflow.
+    pub fn cells_f64(&self) -> f64 {
+        self.nx.max(0) as f64 * self.ny.max(0) as f64
     }
 }
 
@@ -260,6 +322,11 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
                     "a fixed extent needs at least one cell",
                 ));
             }
+            r.validate()?;
+            check_map_cells(
+                &format!("a fixed map extent of {} x {} cells", r.nx, r.ny),
+                r.cells_f64(),
+            )?;
             grid.reserve_tiles(r)?;
         }
         Ok(grid)
@@ -386,7 +453,12 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
     }
 
     /// Makes sure storage covers `rect` (growing grids only; fixed grids check containment).
+    /// A growing grid refuses to cover more cells than [`crate::limits::max_map_cells`].
     pub fn reserve(&mut self, rect: CellRect) -> Result<()> {
+        if rect.nx <= 0 || rect.ny <= 0 {
+            return Ok(());
+        }
+        rect.validate()?;
         if let Some(f) = self.fixed {
             if !(f.contains(rect.ix0, rect.iy0)
                 && f.contains(rect.ix0 + rect.nx - 1, rect.iy0 + rect.ny - 1))
@@ -430,6 +502,30 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
             let (c, d) = grow(ty0, ty1, self.ty0, self.ty0 + nty0);
             (a, c, b, d)
         };
+        // The cells the grid must cover (the union of its storage and `rect`, without the slack)
+        // are what the limit bounds: the slack only adds tile slots, 16 bytes per tile.
+        let s = self.tile_size() as f64;
+        let (ux0, uy0) = if ntx0 == 0 {
+            (tx0, ty0)
+        } else {
+            (tx0.min(self.tx0), ty0.min(self.ty0))
+        };
+        let (ux1, uy1) = if ntx0 == 0 {
+            (tx1, ty1)
+        } else {
+            (tx1.max(self.tx0 + ntx0), ty1.max(self.ty0 + nty0))
+        };
+        let (cx, cy) = ((ux1 - ux0) as f64 * s, (uy1 - uy0) as f64 * s);
+        check_map_cells(
+            &format!(
+                "a map of {cx:.0} x {cy:.0} cells ({:.0} m x {:.0} m at {} m; is a pose far from the others, or the \
+                 cell size very small?)",
+                cx * self.geometry.resolution,
+                cy * self.geometry.resolution,
+                self.geometry.resolution
+            ),
+            cx * cy,
+        )?;
         let (ntx, nty) = (nx1 - nx0, ny1 - ny0);
         if ntx > MAX_TILE_SPAN || nty > MAX_TILE_SPAN {
             return Err(CrlamError::OutOfBounds(format!(
@@ -437,7 +533,8 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
                  is a pose far outside the mapped area?"
             )));
         }
-        let mut tiles: Vec<Option<Arc<[T]>>> = vec![None; (ntx * nty) as usize];
+        let mut tiles: Vec<Option<Arc<[T]>>> =
+            try_filled((ntx * nty) as usize, None, "map tile slots")?;
         for ty in 0..nty0 {
             for tx in 0..ntx0 {
                 let old = (ty * ntx0 + tx) as usize;
@@ -466,7 +563,17 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
             ))),
             Some(_) => Ok(()),
             None => {
-                let r = (reach / g.resolution).ceil() as i64 + 2;
+                // In floats first: a tiny cell or a huge reach must give an error, not overflow.
+                let rf = (reach / g.resolution).ceil() + 2.0;
+                let side = 2.0 * rf + 1.0;
+                check_map_cells(
+                    &format!(
+                        "a scan reaching {reach} m on {} m cells ({side:.0} x {side:.0} cells)",
+                        g.resolution
+                    ),
+                    side * side,
+                )?;
+                let r = rf as i64;
                 self.reserve(CellRect {
                     ix0: cx - r,
                     iy0: cy - r,
@@ -560,20 +667,27 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
             .map(|t| (t.as_ptr() as usize, t.len() * std::mem::size_of::<T>()))
     }
 
-    /// Copies the cells of `rect` into a row-major `[iy][ix][stride]` buffer.
-    pub fn export(&self, rect: CellRect) -> Vec<T> {
-        let mut out = Vec::with_capacity(rect.n_cells() * self.stride);
+    /// Copies the cells of `rect` into a row-major `[iy][ix][stride]` buffer. A rectangle of
+    /// more cells than [`crate::limits::max_map_cells`] is refused before anything is allocated.
+    pub fn export(&self, rect: CellRect) -> Result<Vec<T>> {
+        if rect.nx <= 0 || rect.ny <= 0 {
+            return Ok(Vec::new());
+        }
+        rect.validate()?;
+        check_dense_rect(rect)?;
+        let mut out = try_vec(rect.n_cells() * self.stride, "map export")?;
         for iy in rect.iy0..rect.iy0 + rect.ny {
             for ix in rect.ix0..rect.ix0 + rect.nx {
                 out.extend_from_slice(self.get(ix, iy));
             }
         }
-        out
+        Ok(out)
     }
 
     /// Writes a row-major `[iy][ix][stride]` buffer over the cells of `rect`.
     pub fn import(&mut self, rect: CellRect, values: &[T]) -> Result<()> {
-        if values.len() != rect.n_cells() * self.stride {
+        rect.validate()?;
+        if values.len() != rect.n_cells().saturating_mul(self.stride) {
             return Err(CrlamError::Shape(format!(
                 "expected {} values for {} cells x {}, got {}",
                 rect.n_cells() * self.stride,
@@ -594,6 +708,14 @@ impl<T: Copy + Send + Sync> TiledGrid<T> {
         }
         Ok(())
     }
+}
+
+/// Refuses a dense copy of `rect` (an export, a layer) of more cells than the map-cell limit.
+pub fn check_dense_rect(rect: CellRect) -> Result<()> {
+    check_map_cells(
+        &format!("a dense copy of {} x {} cells", rect.nx, rect.ny),
+        rect.cells_f64(),
+    )
 }
 
 /// A tile of `len` values written by `init`: a pooled one if the pool has any, else `fresh()`.
@@ -808,7 +930,7 @@ mod tests {
         };
         let vals: Vec<i32> = (0..30).collect();
         g.import(r, &vals).unwrap();
-        assert_eq!(g.export(r), vals);
+        assert_eq!(g.export(r).unwrap(), vals);
     }
 
     #[test]

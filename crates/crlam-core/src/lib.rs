@@ -7,13 +7,14 @@
 // Index loops over parallel per-level arrays read more clearly than zipped iterators here.
 #![allow(clippy::needless_range_loop)]
 
-pub mod bench;
 pub mod crm;
 pub mod error;
 pub mod grid;
 pub mod info;
+pub mod limits;
 pub mod mcl;
 pub mod motion;
+pub mod numeric;
 pub mod ogm;
 pub mod planner;
 pub mod pose;

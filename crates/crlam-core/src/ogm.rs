@@ -237,13 +237,13 @@ impl LogOddsGrid {
     }
 
     /// Log-odds over `rect`, row-major `[iy][ix]` (the hit means, if kept, are not exported).
-    pub fn export(&self, rect: CellRect) -> Vec<f32> {
+    pub fn export(&self, rect: CellRect) -> Result<Vec<f32>> {
         let stride = self.grid.stride();
-        let all = self.grid.export(rect);
+        let all = self.grid.export(rect)?;
         if stride == 1 {
-            return all;
+            return Ok(all);
         }
-        all.chunks_exact(stride).map(|c| c[0]).collect()
+        Ok(all.chunks_exact(stride).map(|c| c[0]).collect())
     }
 
     /// Replaces the log-odds over `rect` (hit means, if kept, are left as they are).
@@ -335,10 +335,10 @@ mod tests {
             nx: 3,
             ny: 1,
         };
-        let lo = m.export(r);
+        let lo = m.export(r).unwrap();
         assert_eq!(lo, vec![-2.0, -2.0, 18.0]);
         m.import(r, &[1.0, 2.0, 3.0]).unwrap();
-        assert_eq!(m.export(r), vec![1.0, 2.0, 3.0]);
+        assert_eq!(m.export(r).unwrap(), vec![1.0, 2.0, 3.0]);
         assert_eq!(m.hit_mean_offset(5, 0), o);
         assert!(m.import(r, &[1.0]).is_err());
         // Without the option a grid keeps one value per cell and reports no offsets.

@@ -5,7 +5,7 @@
 //! traversed length and the chord midpoint serves as the cause distance of the CRM model
 //! (crm-spec 2.1). Cells touched only at a corner (chord < [`MIN_CHORD`]) are dropped.
 
-use crate::grid::{floor_to_i64, CellRect, GridGeometry};
+use crate::grid::{floor_to_i64, CellRect, GridGeometry, MAX_CELL_INDEX};
 
 mod walk;
 pub use walk::{FastWalk, FastWalkParts, GridWalk, WalkCell};
@@ -99,6 +99,18 @@ pub fn traverse_with<F: FnMut(RayCell) -> bool>(
     // Local coordinates relative to the grid origin, in cells.
     let px = (origin[0] - g.origin[0] + t_start * u[0]) * inv_res;
     let py = (origin[1] - g.origin[1] + t_start * u[1]) * inv_res;
+    // A ray from a non-finite or absurdly far point, in a non-finite direction or of unbounded
+    // length crosses no cell: its indices would overflow and its walk would not end. (Poses
+    // are checked before a scan; this guards direct callers.)
+    let far = MAX_CELL_INDEX as f64;
+    if !(px.abs() < far
+        && py.abs() < far
+        && u[0].is_finite()
+        && u[1].is_finite()
+        && (t_end - t_start) * inv_res < far)
+    {
+        return 0.0;
+    }
     let mut ix = floor_to_i64(px);
     let mut iy = floor_to_i64(py);
     // When entering a clip box exactly on its far boundary the floor lands outside; pull back in.

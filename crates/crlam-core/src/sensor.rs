@@ -5,6 +5,7 @@
 //! ∞ cause means "nothing within range". Each model is a proper distribution over the reading.
 
 use crate::error::{config_err, Result};
+pub use crate::numeric::normal_cdf;
 use crate::raycast::RayCell;
 
 mod reading;
@@ -252,7 +253,7 @@ impl SensorModel {
     }
 
     /// [`Self::hit_density`] with the Gaussian's exponential from
-    /// [`crate::info::fastmath::exp_table`] (within 2 ulp of libm's; no call): for hot loops
+    /// [`crate::numeric::fastmath::exp_table`] (within 2 ulp of libm's; no call): for hot loops
     /// that agree with the full sweep to rounding, not bit for bit.
     #[inline]
     pub fn hit_density_fast(&self, z: f64, d: f64) -> f64 {
@@ -261,7 +262,7 @@ impl SensorModel {
             return 0.0;
         }
         let s = self.sigma_hit;
-        let peak = crate::info::fastmath::exp_table(-0.5 * u * u) / (s * SQRT_2PI);
+        let peak = crate::numeric::fastmath::exp_table(-0.5 * u * u) / (s * SQRT_2PI);
         if d > TRUNC_SIGMAS * s && self.z_max - d > TRUNC_SIGMAS * s {
             peak
         } else {
@@ -438,12 +439,6 @@ impl SensorModel {
         let pmax = if d == self.z_max { 1.0 } else { 0.0 };
         self.w_hit * hit + self.w_short * short + self.w_max * pmax + self.w_rand / self.z_max
     }
-}
-
-/// Standard normal CDF Φ(x), accurate in both tails (via erfc).
-#[inline]
-pub fn normal_cdf(x: f64) -> f64 {
-    0.5 * libm::erfc(-x * std::f64::consts::FRAC_1_SQRT_2)
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! The instruction-set level of the core's vector kernels, decided once per process.
 //!
 //! Every kernel with explicit vector code (the CRM lanes of [`crate::crm`], the logarithm,
-//! exponential and Φ slices of [`crate::info::fastlog`] and [`crate::info::fastmath`], the
+//! exponential and Φ slices of [`crate::numeric::fastlog`] and [`crate::numeric::fastmath`], the
 //! divergences of the CRMI) dispatches on [`level`]: AVX-512F, AVX2 or the portable scalar code.
 //! Every path performs the scalar code's operations in its order, without fused multiply-adds,
 //! so results are the same bit for bit at every level (the tests compare each level against the

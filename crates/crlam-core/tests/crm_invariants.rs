@@ -609,8 +609,8 @@ fn fused_weigh_and_update_equals_likelihood_then_update() {
                 ny: 90,
             };
             assert_eq!(
-                a.beliefs(r),
-                b.beliefs(r),
+                a.beliefs(r).unwrap(),
+                b.beliefs(r).unwrap(),
                 "fixed extent: {fixed}, scan {k}"
             );
         }

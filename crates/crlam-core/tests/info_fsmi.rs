@@ -1,7 +1,7 @@
 //! OGMI / FSMI invariants (planner-spec 9.2 items 1–7, 9.1 item 13 for FSMI and IIG 'mi').
 
+use crlam_bench::info::{bench_fsmi_vs_julian, bench_lattice};
 use crlam_core::grid::GridGeometry;
-use crlam_core::info::bench::{bench_fsmi_vs_julian, bench_lattice};
 use crlam_core::info::bernoulli_entropy;
 use crlam_core::info::fsmi::*;
 use crlam_core::info::iig_mi::IigMi;

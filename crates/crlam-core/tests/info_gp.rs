@@ -2,10 +2,8 @@
 
 use std::f64::consts::PI;
 
+use crlam_bench::info::{bench_us_per_pose_gpvr, bench_us_per_pose_ugpvr, synthetic_cave_lattice};
 use crlam_core::grid::GridGeometry;
-use crlam_core::info::bench::{
-    bench_us_per_pose_gpvr, bench_us_per_pose_ugpvr, synthetic_cave_lattice,
-};
 use crlam_core::info::gp::*;
 use crlam_core::info::lattice::{BeamAngles, OccupancyLattice};
 use crlam_core::info::posecov::*;

@@ -651,7 +651,7 @@ fn time_functions(lat: &OccupancyLattice, w: &PlannerWorld, s: &IigSettings, see
 #[test]
 #[ignore]
 fn timing_on_the_synthetic_cave() {
-    let lat = crlam_core::info::bench::synthetic_cave_lattice().unwrap();
+    let lat = crlam_bench::info::synthetic_cave_lattice().unwrap();
     let w = PlannerWorld::from_lattice(lat.clone(), 0.5).unwrap();
     for (name, base) in [
         ("reference", IigSettings::reference()),

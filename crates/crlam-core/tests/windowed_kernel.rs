@@ -82,8 +82,9 @@ fn opts(kernel: BatchKernel, stride: usize) -> ScanOptions {
 /// Largest difference between two maps' pmf entries over `rect`.
 fn max_diff(a: &CrmMap, b: &CrmMap, rect: CellRect) -> f32 {
     a.beliefs(rect)
+        .unwrap()
         .iter()
-        .zip(b.beliefs(rect))
+        .zip(b.beliefs(rect).unwrap())
         .map(|(x, y)| (x - y).abs())
         .fold(0.0, f32::max)
 }
@@ -147,7 +148,7 @@ fn windowed_updates_equal_the_full_sweep_for_every_level_placement() {
         assert!(d < 2e-6, "{placement:?}: largest pmf difference {d}");
         // The maps really learned: walls and free space are confident, so the test compares
         // converged beliefs and not a near-uniform map.
-        let (m, _, _) = win.derived(ROOM);
+        let (m, _, _) = win.derived(ROOM).unwrap();
         let (lo, hi) = m
             .iter()
             .fold((1.0f64, 0.0f64), |(a, b), &x| (a.min(x), b.max(x)));
@@ -313,6 +314,7 @@ fn shared_mean_cache_changes_nothing() {
             ROOM,
             &parent
                 .beliefs(ROOM)
+                .unwrap()
                 .iter()
                 .map(|&x| x as f64)
                 .collect::<Vec<_>>(),
@@ -325,7 +327,11 @@ fn shared_mean_cache_changes_nothing() {
         let ll = run(c, 6, 0.03 * i as f64, &mut sc);
         let (m, want) = lone(6, 0.03 * i as f64, &mut sc);
         assert_eq!(ll.to_bits(), want.to_bits(), "copy {i}");
-        assert_eq!(c.beliefs(ROOM), m.beliefs(ROOM), "copy {i}");
+        assert_eq!(
+            c.beliefs(ROOM).unwrap(),
+            m.beliefs(ROOM).unwrap(),
+            "copy {i}"
+        );
     }
     // A copy that wrote scans again from its own beliefs.
     let ll = run(&mut copies[0], 7, 0.0, &mut sc);

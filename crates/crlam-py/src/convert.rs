@@ -12,6 +12,7 @@ pub fn to_py(err: CrlamError) -> PyErr {
             CrlamError::Config { .. } | CrlamError::Shape(_) => "ConfigError",
             CrlamError::OutOfBounds(_) => "MapBoundsError",
             CrlamError::NonFinite { .. } => "NumericalError",
+            CrlamError::Limit { .. } | CrlamError::Alloc(_) => "ResourceLimitError",
         };
         let msg = err.to_string();
         match py
@@ -23,6 +24,35 @@ pub fn to_py(err: CrlamError) -> PyErr {
             Err(_) => pyo3::exceptions::PyValueError::new_err(msg),
         }
     })
+}
+
+/// Runs the body of a Python-facing function, turning a panic (a bug: the core returns errors
+/// for every bad input) into `crlam.errors.InternalError`, a `CrlamError`, instead of PyO3's
+/// `PanicException`, which derives from `BaseException` and escapes `except Exception`.
+pub fn guard<T>(what: &str, body: impl FnOnce() -> PyResult<T>) -> PyResult<T> {
+    match std::panic::catch_unwind(std::panic::AssertUnwindSafe(body)) {
+        Ok(result) => result,
+        Err(payload) => {
+            let reason = payload
+                .downcast_ref::<&str>()
+                .map(|s| s.to_string())
+                .or_else(|| payload.downcast_ref::<String>().cloned())
+                .unwrap_or_else(|| "unknown panic".into());
+            let msg = format!(
+                "internal error in {what}: {reason} (a bug in crlam; please report it with the call that caused it)"
+            );
+            Err(Python::with_gil(|py| {
+                match py
+                    .import("crlam.errors")
+                    .and_then(|m| m.getattr("InternalError"))
+                    .and_then(|c| c.call1((msg.clone(),)))
+                {
+                    Ok(obj) => PyErr::from_value(obj),
+                    Err(_) => pyo3::exceptions::PyRuntimeError::new_err(msg),
+                }
+            }))
+        }
+    }
 }
 
 /// Shorthand for mapping a core `Result` into a `PyResult`.

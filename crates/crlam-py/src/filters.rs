@@ -6,8 +6,9 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::{
     mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamPrior, ClamProposal, FilterStep,
-    MatcherParams, ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams,
-    ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
+    LocalMapMatcher as CoreLocalMapMatcher, MatcherParams, ModeBandwidth, MotionDraws,
+    OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput,
+    ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -16,7 +17,7 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{pose3, poses_n3, shape_err, slice1, IntoPy};
+use crate::convert::{guard, pose3, poses_n3, shape_err, slice1, IntoPy};
 use crate::maps::{CrmMap, LogOddsMap, SensorModel};
 
 /// Parses the motion model name and its parameters.
@@ -138,16 +139,18 @@ pub fn mode_seeking_pose(
     weights: PyReadonlyArray1<'_, f64>,
     bandwidth: (f64, f64),
 ) -> PyResult<(f64, f64, f64)> {
-    let p = poses_n3(&poses)?;
-    let w = slice1(&weights, "weights")?;
-    let bw = ModeBandwidth {
-        xy: bandwidth.0,
-        theta: bandwidth.1,
-    };
-    let m = py
-        .allow_threads(|| core_mode_seeking_pose(&p, w, bw))
-        .py_err()?;
-    Ok((m[0], m[1], m[2]))
+    guard("mode_seeking_pose", || {
+        let p = poses_n3(&poses)?;
+        let w = slice1(&weights, "weights")?;
+        let bw = ModeBandwidth {
+            xy: bandwidth.0,
+            theta: bandwidth.1,
+        };
+        let m = py
+            .allow_threads(|| core_mode_seeking_pose(&p, w, bw))
+            .py_err()?;
+        Ok((m[0], m[1], m[2]))
+    })
 }
 
 /// RBPF-CLAM: particles with poses, log-weights and their own copy-on-write CRMs.
@@ -183,12 +186,14 @@ macro_rules! filter_pymethods {
                 ranges: PyReadonlyArray1<'_, f64>,
                 laser_offset: PyReadonlyArray1<'_, f64>,
             ) -> PyResult<(bool, (f64, f64, f64), f64, bool)> {
+                guard(concat!(stringify!($class), ".process"), || {
                 let scan = scan_of(&odom, &angles, &ranges, &laser_offset)?;
                 let inner = &mut self.inner;
                 let s = py
                     .allow_threads(|| ParticleFilter::process(inner, &scan))
                     .py_err()?;
                 Ok(step_tuple(s))
+                })
             }
 
             /// Feeds n scans with shared beam angles: odoms (n, 3), ranges (n, m). Returns a dict
@@ -201,9 +206,11 @@ macro_rules! filter_pymethods {
                 ranges: PyReadonlyArray2<'py, f64>,
                 laser_offset: PyReadonlyArray1<'py, f64>,
             ) -> PyResult<Bound<'py, PyDict>> {
+                guard(concat!(stringify!($class), ".process_many"), || {
                 let inner = &mut self.inner;
                 feed_many(py, &odoms, &angles, &ranges, &laser_offset, |scan| {
                     ParticleFilter::process(inner, scan)
+                })
                 })
             }
 
@@ -215,21 +222,27 @@ macro_rules! filter_pymethods {
 
             /// Particle poses, shape (n, 3).
             fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                guard(concat!(stringify!($class), ".particle_poses"), || {
                 poses_array(py, ParticleFilter::poses(&self.inner))
+                })
             }
 
             /// The best particle's pose at every processed scan, first to last, shape (n_processed, 3).
             fn best_path<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+                guard(concat!(stringify!($class), ".best_path"), || {
                 poses_array(py, ParticleFilter::best_path(&self.inner))
+                })
             }
 
             /// The proposal means along the best particle's path, shape (n_processed, 3); None
             /// unless the poses are drawn from a fitted proposal (the likelihood-mode / improved
             /// proposal with pose "sample").
             fn best_path_means<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+                guard(concat!(stringify!($class), ".best_path_means"), || {
                 ParticleFilter::best_path_means(&self.inner)
                     .map(|p| poses_array(py, p))
                     .transpose()
+                })
             }
 
             /// Poses (n, 3) and normalised weights (n,) of the last processed scan before
@@ -238,11 +251,13 @@ macro_rules! filter_pymethods {
                 &self,
                 py: Python<'py>,
             ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<f64>>)> {
+                guard(concat!(stringify!($class), ".weighed_set"), || {
                 let set = ParticleFilter::weighed_set(&self.inner);
                 Ok((
                     poses_array(py, set.poses.clone())?,
                     Array1::from_vec(set.weights.clone()).into_pyarray(py),
                 ))
+                })
             }
 
             /// Smoothed means of the weighed set's lineages, shape (k, 3): row j is the weighted
@@ -256,12 +271,14 @@ macro_rules! filter_pymethods {
                 max_lag: Option<usize>,
                 proposal_means: bool,
             ) -> PyResult<Option<Bound<'py, PyArray2<f64>>>> {
+                guard(concat!(stringify!($class), ".ancestor_means"), || {
                 let inner = &self.inner;
                 py.allow_threads(|| {
                     ParticleFilter::ancestor_means(inner, max_lag.unwrap_or(usize::MAX), proposal_means)
                 })
                 .map(|m| poses_array(py, m))
                 .transpose()
+                })
             }
 
             /// Particle log-weights as the filter stores them (RBPF-OGM: before its weight
@@ -342,12 +359,11 @@ filter_pymethods!(ClamFilter {
         prior_map: Option<PyRef<'_, CrmMap>>,
         initial_cov: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<Self> {
+        guard("ClamFilter.new", || {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
-        let extent = match extent {
-            None => None,
-            Some((ix0, iy0, nx, ny)) if nx > 0 && ny > 0 => Some(CellRect { ix0, iy0, nx, ny }),
-            Some(t) => return Err(shape_err(format!("extent needs nx, ny > 0, got {t:?}"))),
-        };
+        let extent = extent
+            .map(|(ix0, iy0, nx, ny)| CellRect::checked(ix0, iy0, nx, ny).py_err())
+            .transpose()?;
         let crm = CrmConfig {
             geometry,
             n_levels,
@@ -455,6 +471,7 @@ filter_pymethods!(ClamFilter {
         Ok(Self {
             inner: inner.py_err()?,
         })
+        })
     }
 
     /// The best particle's map (a copy-on-write copy).
@@ -494,6 +511,7 @@ filter_pymethods!(OgmFilter {
         weight_smoothing: f64,
         seed: u64,
     ) -> PyResult<Self> {
+        guard("OgmFilter.new", || {
         let defaults = OgmFilterConfig::default();
         let motion = match (motion, &motion_params) {
             ("thrun", None) => OgmFilterConfig::default_motion(),
@@ -540,6 +558,7 @@ filter_pymethods!(OgmFilter {
         Ok(Self {
             inner: RbpfOgm::new(cfg, pose3(&initial_pose)?).py_err()?,
         })
+        })
     }
 
     /// The best particle's log-odds map (a copy-on-write copy).
@@ -547,3 +566,105 @@ filter_pymethods!(OgmFilter {
         LogOddsMap::from_core(self.inner.best_map().clone())
     }
 });
+
+/// One scan matcher on one GMapping-style grid: match a scan from a start pose, insert a scan
+/// at a pose (the building block of `crlam.scan_odometry`).
+#[pyclass(module = "crlam._native")]
+pub struct LocalMapMatcher {
+    inner: CoreLocalMapMatcher,
+}
+
+#[pymethods]
+impl LocalMapMatcher {
+    #[new]
+    #[pyo3(signature = (*, resolution=0.05, usable_range=8.0, score_sigma=0.05, lstep=0.05, astep=0.05, iterations=5, kernel_size=1, beam_stride=1))]
+    fn new(
+        resolution: f64,
+        usable_range: f64,
+        score_sigma: f64,
+        lstep: f64,
+        astep: f64,
+        iterations: usize,
+        kernel_size: usize,
+        beam_stride: usize,
+    ) -> PyResult<Self> {
+        guard("LocalMapMatcher.new", || {
+            let params = MatcherParams {
+                score_sigma,
+                lstep,
+                astep,
+                iterations,
+                kernel_size,
+                beam_stride,
+                ..MatcherParams::default()
+            };
+            Ok(Self {
+                inner: CoreLocalMapMatcher::new(resolution, usable_range, params).py_err()?,
+            })
+        })
+    }
+
+    /// Hill-climbs the scan from the robot pose `start`: (pose, score, matched beams, used beams).
+    fn match_scan(
+        &self,
+        py: Python<'_>,
+        start: PyReadonlyArray1<'_, f64>,
+        angles: PyReadonlyArray1<'_, f64>,
+        ranges: PyReadonlyArray1<'_, f64>,
+        laser_offset: PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<((f64, f64, f64), f64, usize, usize)> {
+        guard("LocalMapMatcher.match_scan", || {
+            let (s, a, r, o) = (
+                pose3(&start)?,
+                slice1(&angles, "angles")?,
+                slice1(&ranges, "ranges")?,
+                pose3(&laser_offset)?,
+            );
+            let inner = &self.inner;
+            let m = py.allow_threads(|| inner.match_scan(s, a, r, o)).py_err()?;
+            Ok((
+                (m.pose[0], m.pose[1], m.pose[2]),
+                m.score,
+                m.matched,
+                m.used,
+            ))
+        })
+    }
+
+    /// Integrates the scan with the robot at `pose`.
+    fn insert(
+        &mut self,
+        py: Python<'_>,
+        pose: PyReadonlyArray1<'_, f64>,
+        angles: PyReadonlyArray1<'_, f64>,
+        ranges: PyReadonlyArray1<'_, f64>,
+        laser_offset: PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<()> {
+        guard("LocalMapMatcher.insert", || {
+            let (p, a, r, o) = (
+                pose3(&pose)?,
+                slice1(&angles, "angles")?,
+                slice1(&ranges, "ranges")?,
+                pose3(&laser_offset)?,
+            );
+            let inner = &mut self.inner;
+            py.allow_threads(|| inner.insert(p, a, r, o)).py_err()
+        })
+    }
+
+    /// Forgets every inserted scan.
+    fn clear(&mut self) {
+        self.inner.clear();
+    }
+
+    /// Scans inserted since the last `clear`.
+    #[getter]
+    fn n_inserted(&self) -> usize {
+        self.inner.n_inserted()
+    }
+
+    /// The grid (a copy-on-write copy; log-odds of the hit-rate cells).
+    fn map(&self) -> LogOddsMap {
+        LogOddsMap::from_core(self.inner.map().clone())
+    }
+}

@@ -13,7 +13,7 @@ use crlam_core::info::{self as core_info, Candidate, InfoUnits, InformationFunct
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{pose3, poses_n3, shape_err, IntoPy};
+use crate::convert::{guard, pose3, poses_n3, shape_err, IntoPy};
 use crate::dispatch::{dispatch, GlueFunction, StateClass};
 use crate::info_state::InfoUpdate;
 use crate::maps::SensorModel;
@@ -86,34 +86,36 @@ impl InfoFunction {
         variant: &str,
         resolution: f64,
     ) -> PyResult<Self> {
-        if variant != "exact" {
-            let mut cfg = AuthorsCrmiConfig::new(model.inner.z_max, resolution);
-            cfg.n_beams = n_beams;
-            cfg.beam_angles = BeamAngles::parse(beam_angles).py_err()?;
-            cfg.hit_threshold = hit_threshold;
-            let f = match variant {
-                "ml_scan_binary" => Func::CrmiMl(MlScanBinary::new(cfg).py_err()?),
-                "r1_map" => Func::CrmiR1(R1Map::new(cfg).py_err()?),
-                other => {
-                    return Err(shape_err(format!(
-                        "variant must be exact, ml_scan_binary or r1_map, got {other:?}"
-                    )))
-                }
-            };
-            return Ok(Self { f });
-        }
-        let cfg = crmi_config(
-            model,
-            n_beams,
-            beam_angles,
-            lambda_z,
-            quadrature,
-            dedupe_cells,
-            units,
-            hit_threshold,
-        )?;
-        Ok(Self {
-            f: Func::Crmi(Crmi::new(cfg).py_err()?),
+        guard("InfoFunction.crmi", || {
+            if variant != "exact" {
+                let mut cfg = AuthorsCrmiConfig::new(model.inner.z_max, resolution);
+                cfg.n_beams = n_beams;
+                cfg.beam_angles = BeamAngles::parse(beam_angles).py_err()?;
+                cfg.hit_threshold = hit_threshold;
+                let f = match variant {
+                    "ml_scan_binary" => Func::CrmiMl(MlScanBinary::new(cfg).py_err()?),
+                    "r1_map" => Func::CrmiR1(R1Map::new(cfg).py_err()?),
+                    other => {
+                        return Err(shape_err(format!(
+                            "variant must be exact, ml_scan_binary or r1_map, got {other:?}"
+                        )))
+                    }
+                };
+                return Ok(Self { f });
+            }
+            let cfg = crmi_config(
+                model,
+                n_beams,
+                beam_angles,
+                lambda_z,
+                quadrature,
+                dedupe_cells,
+                units,
+                hit_threshold,
+            )?;
+            Ok(Self {
+                f: Func::Crmi(Crmi::new(cfg).py_err()?),
+            })
         })
     }
 
@@ -135,30 +137,32 @@ impl InfoFunction {
         root_cov_diag: (f64, f64, f64),
         resample_threshold: f64,
     ) -> PyResult<Self> {
-        let crmi = crmi_config(
-            model,
-            n_beams,
-            beam_angles,
-            lambda_z,
-            quadrature,
-            dedupe_cells,
-            "bits",
-            hit_threshold,
-        )?;
-        let cfg = UcrmiConfig {
-            crmi,
-            alpha,
-            n_particles,
-            noise: EdgeMotionNoise {
-                q_xy: edge_noise.0,
-                q_theta: edge_noise.1,
-            },
-            root_cov_diag: [root_cov_diag.0, root_cov_diag.1, root_cov_diag.2],
-            weight_model: weight_model.inner,
-            resample_threshold,
-        };
-        Ok(Self {
-            f: Func::Ucrmi(Ucrmi::new(cfg).py_err()?),
+        guard("InfoFunction.ucrmi", || {
+            let crmi = crmi_config(
+                model,
+                n_beams,
+                beam_angles,
+                lambda_z,
+                quadrature,
+                dedupe_cells,
+                "bits",
+                hit_threshold,
+            )?;
+            let cfg = UcrmiConfig {
+                crmi,
+                alpha,
+                n_particles,
+                noise: EdgeMotionNoise {
+                    q_xy: edge_noise.0,
+                    q_theta: edge_noise.1,
+                },
+                root_cov_diag: [root_cov_diag.0, root_cov_diag.1, root_cov_diag.2],
+                weight_model: weight_model.inner,
+                resample_threshold,
+            };
+            Ok(Self {
+                f: Func::Ucrmi(Ucrmi::new(cfg).py_err()?),
+            })
         })
     }
 
@@ -177,31 +181,33 @@ impl InfoFunction {
         beam_angles: &str,
         p_occ: f64,
     ) -> PyResult<Self> {
-        let variant = match variant {
-            "full" => FsmiVariant::Full,
-            "truncated" => FsmiVariant::Truncated { width_sigmas },
-            "noise_free" => FsmiVariant::NoiseFree,
-            "julian" => FsmiVariant::Julian { points_per_cell },
-            other => {
-                return Err(shape_err(format!(
-                    "variant must be full, truncated, noise_free or julian, got {other:?}"
-                )))
-            }
-        };
-        let f = Fsmi {
-            params: OgmiParams {
-                delta_occ,
-                delta_emp,
-                sigma,
-                z_max,
-            },
-            variant,
-            n_beams,
-            beam_angles: BeamAngles::parse(beam_angles).py_err()?,
-            p_occ,
-        };
-        f.validate().py_err()?;
-        Ok(Self { f: Func::Fsmi(f) })
+        guard("InfoFunction.fsmi", || {
+            let variant = match variant {
+                "full" => FsmiVariant::Full,
+                "truncated" => FsmiVariant::Truncated { width_sigmas },
+                "noise_free" => FsmiVariant::NoiseFree,
+                "julian" => FsmiVariant::Julian { points_per_cell },
+                other => {
+                    return Err(shape_err(format!(
+                        "variant must be full, truncated, noise_free or julian, got {other:?}"
+                    )))
+                }
+            };
+            let f = Fsmi {
+                params: OgmiParams {
+                    delta_occ,
+                    delta_emp,
+                    sigma,
+                    z_max,
+                },
+                variant,
+                n_beams,
+                beam_angles: BeamAngles::parse(beam_angles).py_err()?,
+                p_occ,
+            };
+            f.validate().py_err()?;
+            Ok(Self { f: Func::Fsmi(f) })
+        })
     }
 
     /// The IIG reference 'mi' heuristic (or 'miub' with `upper_bound`), nats.
@@ -215,32 +221,38 @@ impl InfoFunction {
         p_occ: f64,
         int_res: f64,
     ) -> PyResult<Self> {
-        let f = IigMi {
-            upper_bound,
-            n_beams,
-            beam_angles: BeamAngles::parse(beam_angles).py_err()?,
-            z_max,
-            p_occ,
-            int_res,
-        };
-        f.validate().py_err()?;
-        Ok(Self { f: Func::IigMi(f) })
+        guard("InfoFunction.iig_mi", || {
+            let f = IigMi {
+                upper_bound,
+                n_beams,
+                beam_angles: BeamAngles::parse(beam_angles).py_err()?,
+                z_max,
+                p_occ,
+                int_res,
+            };
+            f.validate().py_err()?;
+            Ok(Self { f: Func::IigMi(f) })
+        })
     }
 
     /// GPVR on a GP variance map (planner-spec 5.2), nats; `mode` reference | clean.
     #[staticmethod]
     #[pyo3(signature = (*, mode="reference"))]
     fn gpvr(mode: &str) -> PyResult<Self> {
-        let f = Gpvr::new(GpvrOptions::preset(Mode::parse(mode).py_err()?)).py_err()?;
-        Ok(Self { f: Func::Gpvr(f) })
+        guard("InfoFunction.gpvr", || {
+            let f = Gpvr::new(GpvrOptions::preset(Mode::parse(mode).py_err()?)).py_err()?;
+            Ok(Self { f: Func::Gpvr(f) })
+        })
     }
 
     /// UGPVR with the expected kernel (planner-spec 5.3), nats; `mode` reference | clean.
     #[staticmethod]
     #[pyo3(signature = (*, mode="reference"))]
     fn ugpvr(mode: &str) -> PyResult<Self> {
-        let f = Ugpvr::new(UgpvrOptions::preset(Mode::parse(mode).py_err()?)).py_err()?;
-        Ok(Self { f: Func::Ugpvr(f) })
+        guard("InfoFunction.ugpvr", || {
+            let f = Ugpvr::new(UgpvrOptions::preset(Mode::parse(mode).py_err()?)).py_err()?;
+            Ok(Self { f: Func::Ugpvr(f) })
+        })
     }
 
     #[getter]
@@ -282,8 +294,10 @@ impl InfoFunction {
         pose: numpy::PyReadonlyArray1<'_, f64>,
         seed: u64,
     ) -> PyResult<PyObject> {
-        let p = pose3(&pose)?;
-        dispatch!(&self.f, |f, S| root_with(py, f, p, seed))
+        guard("InfoFunction.root_belief", || {
+            let p = pose3(&pose)?;
+            dispatch!(&self.f, |f, S| root_with(py, f, p, seed))
+        })
     }
 
     /// Gain of one candidate (pure: `state` is not changed). `parent` is the (x, y) of the edge
@@ -299,15 +313,19 @@ impl InfoFunction {
         belief: Option<&Bound<'_, PyAny>>,
         seed: u64,
     ) -> PyResult<(f64, PyObject, InfoUpdate)> {
-        let c = candidate(pose3(&pose)?, parent);
-        dispatch!(&self.f, |f, S| evaluate_with::<_, S>(
-            py, f, state, &c, belief, seed
-        ))
+        guard("InfoFunction.evaluate", || {
+            let c = candidate(pose3(&pose)?, parent);
+            dispatch!(&self.f, |f, S| evaluate_with::<_, S>(
+                py, f, state, &c, belief, seed
+            ))
+        })
     }
 
     /// Applies an update from `evaluate` to `state` (the planner's map mutation).
     fn commit(&self, state: &Bound<'_, PyAny>, update: &InfoUpdate) -> PyResult<()> {
-        dispatch!(&self.f, |f, S| commit_with::<_, S>(f, state, update))
+        guard("InfoFunction.commit", || {
+            dispatch!(&self.f, |f, S| commit_with::<_, S>(f, state, update))
+        })
     }
 
     /// Gains of many candidates (n, 3) on one state, in parallel (rayon, GIL released);
@@ -323,33 +341,35 @@ impl InfoFunction {
         belief: Option<&Bound<'py, PyAny>>,
         seed: u64,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let p = poses_n3(&poses)?;
-        let cands: Vec<Candidate> = match parents {
-            None => p.iter().map(|&q| Candidate::at(q)).collect(),
-            Some(par) => {
-                if par.shape() != [p.len(), 2] {
-                    return Err(shape_err(format!(
-                        "parents must have shape ({}, 2), got {:?}",
-                        p.len(),
-                        par.shape()
-                    )));
+        guard("InfoFunction.gains", || {
+            let p = poses_n3(&poses)?;
+            let cands: Vec<Candidate> = match parents {
+                None => p.iter().map(|&q| Candidate::at(q)).collect(),
+                Some(par) => {
+                    if par.shape() != [p.len(), 2] {
+                        return Err(shape_err(format!(
+                            "parents must have shape ({}, 2), got {:?}",
+                            p.len(),
+                            par.shape()
+                        )));
+                    }
+                    let s = par
+                        .as_slice()
+                        .map_err(|_| shape_err("parents must be a contiguous float64 array"))?;
+                    p.iter()
+                        .zip(s.chunks(2))
+                        .map(|(&q, xy)| Candidate {
+                            pose: q,
+                            parent: [xy[0], xy[1]],
+                        })
+                        .collect()
                 }
-                let s = par
-                    .as_slice()
-                    .map_err(|_| shape_err("parents must be a contiguous float64 array"))?;
-                p.iter()
-                    .zip(s.chunks(2))
-                    .map(|(&q, xy)| Candidate {
-                        pose: q,
-                        parent: [xy[0], xy[1]],
-                    })
-                    .collect()
-            }
-        };
-        let g = dispatch!(&self.f, |f, S| gains_with::<_, S>(
-            py, f, state, &cands, belief, seed
-        ))?;
-        Ok(g.into_pyarray(py))
+            };
+            let g = dispatch!(&self.f, |f, S| gains_with::<_, S>(
+                py, f, state, &cands, belief, seed
+            ))?;
+            Ok(g.into_pyarray(py))
+        })
     }
 }
 

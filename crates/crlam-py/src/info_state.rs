@@ -12,7 +12,7 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{shape_err, IntoPy};
+use crate::convert::{guard, shape_err, IntoPy};
 use crate::maps::CrmMap;
 
 /// Occupancy probabilities on a lattice of cell centres (planner-spec 2.2).
@@ -47,8 +47,10 @@ impl OccupancyLattice {
         resolution: f64,
         origin: (f64, f64),
     ) -> PyResult<Self> {
-        Ok(Self {
-            inner: lattice_from(&probabilities, resolution, origin)?,
+        guard("OccupancyLattice.new", || {
+            Ok(Self {
+                inner: lattice_from(&probabilities, resolution, origin)?,
+            })
         })
     }
 
@@ -71,10 +73,12 @@ impl OccupancyLattice {
 
     /// The probabilities as a (ny, nx) array.
     fn probabilities<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let (nx, ny) = self.inner.shape();
-        let a = Array2::from_shape_vec((ny, nx), self.inner.probabilities().to_vec())
-            .map_err(|e| shape_err(e.to_string()))?;
-        Ok(a.into_pyarray(py))
+        guard("OccupancyLattice.probabilities", || {
+            let (nx, ny) = self.inner.shape();
+            let a = Array2::from_shape_vec((ny, nx), self.inner.probabilities().to_vec())
+                .map_err(|e| shape_err(e.to_string()))?;
+            Ok(a.into_pyarray(py))
+        })
     }
 
     fn copy(&self) -> Self {
@@ -84,8 +88,10 @@ impl OccupancyLattice {
     /// A CRM over the same cells whose pmfs are tilted priors with these means (crm-spec 6.5).
     #[pyo3(signature = (n_levels=10))]
     fn to_crm(&self, n_levels: usize) -> PyResult<CrmMap> {
-        let m = prior::crm_from_lattice(&self.inner, n_levels).py_err()?;
-        Ok(CrmMap::from_core(m, 32))
+        guard("OccupancyLattice.to_crm", || {
+            let m = prior::crm_from_lattice(&self.inner, n_levels).py_err()?;
+            Ok(CrmMap::from_core(m, 32))
+        })
     }
 }
 
@@ -102,21 +108,25 @@ impl GpVarianceMap {
     #[new]
     #[pyo3(signature = (lattice, prior_variance=1.0))]
     fn new(lattice: &OccupancyLattice, prior_variance: f64) -> PyResult<Self> {
-        Ok(Self {
-            inner: CoreGpMap::with_variances(
-                lattice.inner.clone(),
-                vec![prior_variance; lattice.inner.len()],
-            )
-            .py_err()?,
+        guard("GpVarianceMap.new", || {
+            Ok(Self {
+                inner: CoreGpMap::with_variances(
+                    lattice.inner.clone(),
+                    vec![prior_variance; lattice.inner.len()],
+                )
+                .py_err()?,
+            })
         })
     }
 
     /// Variances as a (ny, nx) array.
     fn variances<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let (nx, ny) = self.inner.lattice().shape();
-        let a = Array2::from_shape_vec((ny, nx), self.inner.variances().to_vec())
-            .map_err(|e| shape_err(e.to_string()))?;
-        Ok(a.into_pyarray(py))
+        guard("GpVarianceMap.variances", || {
+            let (nx, ny) = self.inner.lattice().shape();
+            let a = Array2::from_shape_vec((ny, nx), self.inner.variances().to_vec())
+                .map_err(|e| shape_err(e.to_string()))?;
+            Ok(a.into_pyarray(py))
+        })
     }
 
     fn copy(&self) -> Self {
@@ -141,40 +151,42 @@ impl ParticleBelief {
         log_weights: numpy::PyReadonlyArray1<'_, f64>,
         entropy_nats: f64,
     ) -> PyResult<Self> {
-        let shape = particles.shape();
-        if shape[1] != 3 {
-            return Err(shape_err(format!(
-                "particles must have shape (n, 3), got {shape:?}"
-            )));
-        }
-        let p = particles
-            .as_slice()
-            .map_err(|_| shape_err("particles must be a contiguous float64 array"))?;
-        let lw = log_weights
-            .as_slice()
-            .map_err(|_| shape_err("log_weights must be a contiguous float64 array"))?;
-        if lw.len() != shape[0] || shape[0] == 0 {
-            return Err(shape_err(format!(
-                "{} particles and {} log-weights",
-                shape[0],
-                lw.len()
-            )));
-        }
-        if !entropy_nats.is_finite() || p.iter().chain(lw).any(|v| v.is_nan()) {
-            return Err(shape_err(
-                "particles, log-weights and entropy must not be NaN",
-            ));
-        }
-        let w = crlam_core::resample::normalize_log_weights(lw);
-        Ok(Self {
-            inner: ucrmi::ParticleBelief {
-                particles: p.chunks(3).map(|c| [c[0], c[1], c[2]]).collect(),
-                log_weights: w.iter().map(|x| x.ln()).collect(),
-                entropy_nats,
-                map_gain_bits: 0.0,
-                pose_gain_bits: 0.0,
-                resampled: false,
-            },
+        guard("ParticleBelief.from_particles", || {
+            let shape = particles.shape();
+            if shape[1] != 3 {
+                return Err(shape_err(format!(
+                    "particles must have shape (n, 3), got {shape:?}"
+                )));
+            }
+            let p = particles
+                .as_slice()
+                .map_err(|_| shape_err("particles must be a contiguous float64 array"))?;
+            let lw = log_weights
+                .as_slice()
+                .map_err(|_| shape_err("log_weights must be a contiguous float64 array"))?;
+            if lw.len() != shape[0] || shape[0] == 0 {
+                return Err(shape_err(format!(
+                    "{} particles and {} log-weights",
+                    shape[0],
+                    lw.len()
+                )));
+            }
+            if !entropy_nats.is_finite() || p.iter().chain(lw).any(|v| v.is_nan()) {
+                return Err(shape_err(
+                    "particles, log-weights and entropy must not be NaN",
+                ));
+            }
+            let w = crlam_core::resample::normalize_log_weights(lw);
+            Ok(Self {
+                inner: ucrmi::ParticleBelief {
+                    particles: p.chunks(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                    log_weights: w.iter().map(|x| x.ln()).collect(),
+                    entropy_nats,
+                    map_gain_bits: 0.0,
+                    pose_gain_bits: 0.0,
+                    resampled: false,
+                },
+            })
         })
     }
 
@@ -219,7 +231,9 @@ impl ParticleBelief {
 
     /// Weighted 2×2 position covariance (m²).
     fn position_covariance(&self) -> PyResult<[[f64; 2]; 2]> {
-        weighted_position_covariance(&self.inner.particles, &self.inner.weights()).py_err()
+        guard("ParticleBelief.position_covariance", || {
+            weighted_position_covariance(&self.inner.particles, &self.inner.weights()).py_err()
+        })
     }
 }
 

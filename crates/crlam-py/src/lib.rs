@@ -17,6 +17,38 @@ mod rays;
 
 use pyo3::prelude::*;
 
+use crate::convert::guard;
+
+/// Sets the core's resource limits (each left unchanged when None); returns the limits in force
+/// as (map_cells, particles).
+#[pyfunction]
+#[pyo3(signature = (*, map_cells=None, particles=None))]
+fn set_limits(map_cells: Option<u64>, particles: Option<u64>) -> PyResult<(u64, u64)> {
+    guard("set_limits", || {
+        use crlam_core::limits;
+        for (name, v) in [("map_cells", map_cells), ("particles", particles)] {
+            if v == Some(0) {
+                return Err(convert::shape_err(format!("limit {name} must be >= 1")));
+            }
+        }
+        if let Some(n) = map_cells {
+            limits::set_max_map_cells(n);
+        }
+        if let Some(n) = particles {
+            limits::set_max_particles(n);
+        }
+        Ok((limits::max_map_cells(), limits::max_particles()))
+    })
+}
+
+/// Panics inside the panic guard every Python-facing function runs in: the test suite checks with
+/// it that a panic reaches Python as `crlam.errors.InternalError` (a `CrlamError`), never as
+/// PyO3's `PanicException`.
+#[pyfunction]
+fn _guarded_panic(message: &str) -> PyResult<()> {
+    guard("_guarded_panic", || panic!("{message}"))
+}
+
 #[pymodule]
 fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__core_version__", env!("CARGO_PKG_VERSION"))?;
@@ -25,6 +57,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::LogOddsMap>()?;
     m.add_class::<filters::ClamFilter>()?;
     m.add_class::<filters::OgmFilter>()?;
+    m.add_class::<filters::LocalMapMatcher>()?;
     m.add_class::<localize::MclFilter>()?;
     m.add_class::<info_state::OccupancyLattice>()?;
     m.add_class::<info_state::GpVarianceMap>()?;
@@ -41,5 +74,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(bench::run_benchmark, m)?)?;
     m.add_function(wrap_pyfunction!(bench::simd_level, m)?)?;
     m.add_function(wrap_pyfunction!(bench::simd_info, m)?)?;
+    m.add_function(wrap_pyfunction!(set_limits, m)?)?;
+    m.add_function(wrap_pyfunction!(_guarded_panic, m)?)?;
     Ok(())
 }

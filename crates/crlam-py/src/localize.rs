@@ -13,7 +13,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2}
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{pose3, shape_err, slice1, IntoPy};
+use crate::convert::{guard, pose3, shape_err, slice1, IntoPy};
 use crate::filters::motion_model;
 use crate::maps::{CrmMap, SensorModel};
 
@@ -122,10 +122,10 @@ impl MclFilter {
         skip_no_returns: bool,
         seed: u64,
     ) -> PyResult<Self> {
-        let (ix0, iy0, nx, ny) = rect;
-        let rect = CellRect { ix0, iy0, nx, ny };
-        let init =
-            match (initial_pose, initial_cov) {
+        guard("MclFilter.new", || {
+            let (ix0, iy0, nx, ny) = rect;
+            let rect = CellRect::checked(ix0, iy0, nx, ny).py_err()?;
+            let init = match (initial_pose, initial_cov) {
                 (None, None) => MclInit::Global,
                 (Some(p), Some(c)) => MclInit::Pose {
                     mean: pose3(&p)?,
@@ -135,51 +135,52 @@ impl MclFilter {
                     "give both initial_pose and initial_cov (or neither, for global localization)",
                 )),
             };
-        let cfg = MclConfig {
-            likelihood: LikelihoodSettings {
-                model: model.inner,
-                tail_tolerance,
-                skip_no_returns,
-            },
-            motion: motion_model(motion, motion_params)?,
-            trigger: UpdateTrigger {
-                linear: linear_update,
-                angular: angular_update,
-            },
-            spread_trigger: UpdateTrigger {
-                linear: spread_update.0,
-                angular: spread_update.1,
-            },
-            spread_limit,
-            kld: KldSettings {
-                n_min,
-                n_max,
-                epsilon: kld_err,
-                z: kld_z,
-                bin_xy,
-                bin_theta,
-            },
-            alpha_slow,
-            alpha_fast,
-            tempering,
-            min_neff,
-            sigma_max,
-            anneal,
-            beam_stride,
-            max_beams,
-            resample_threshold,
-            seed,
-        };
-        // Validate before building the field (which may be large).
-        cfg.validate().py_err()?;
-        let core = crm.core();
-        let inner = py
-            .allow_threads(|| {
-                let field = MeanField::from_crm(core, rect, free_threshold, margin)?;
-                Mcl::new(cfg, Arc::new(field), init)
-            })
-            .py_err()?;
-        Ok(Self { inner })
+            let cfg = MclConfig {
+                likelihood: LikelihoodSettings {
+                    model: model.inner,
+                    tail_tolerance,
+                    skip_no_returns,
+                },
+                motion: motion_model(motion, motion_params)?,
+                trigger: UpdateTrigger {
+                    linear: linear_update,
+                    angular: angular_update,
+                },
+                spread_trigger: UpdateTrigger {
+                    linear: spread_update.0,
+                    angular: spread_update.1,
+                },
+                spread_limit,
+                kld: KldSettings {
+                    n_min,
+                    n_max,
+                    epsilon: kld_err,
+                    z: kld_z,
+                    bin_xy,
+                    bin_theta,
+                },
+                alpha_slow,
+                alpha_fast,
+                tempering,
+                min_neff,
+                sigma_max,
+                anneal,
+                beam_stride,
+                max_beams,
+                resample_threshold,
+                seed,
+            };
+            // Validate before building the field (which may be large).
+            cfg.validate().py_err()?;
+            let core = crm.core();
+            let inner = py
+                .allow_threads(|| {
+                    let field = MeanField::from_crm(core, rect, free_threshold, margin)?;
+                    Mcl::new(cfg, Arc::new(field), init)
+                })
+                .py_err()?;
+            Ok(Self { inner })
+        })
     }
 
     /// Feeds one scan (odometry pose, beam bearings, ranges, laser offset in the robot frame);
@@ -194,15 +195,17 @@ impl MclFilter {
         ranges: PyReadonlyArray1<'py, f64>,
         laser_offset: PyReadonlyArray1<'py, f64>,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let scan = ScanInput {
-            odom: pose3(&odom)?,
-            angles: slice1(&angles, "angles")?,
-            ranges: slice1(&ranges, "ranges")?,
-            laser_offset: pose3(&laser_offset)?,
-        };
-        let inner = &mut self.inner;
-        let s = py.allow_threads(|| inner.process(&scan)).py_err()?;
-        step_dict(py, &s)
+        guard("MclFilter.process", || {
+            let scan = ScanInput {
+                odom: pose3(&odom)?,
+                angles: slice1(&angles, "angles")?,
+                ranges: slice1(&ranges, "ranges")?,
+                laser_offset: pose3(&laser_offset)?,
+            };
+            let inner = &mut self.inner;
+            let s = py.allow_threads(|| inner.process(&scan)).py_err()?;
+            step_dict(py, &s)
+        })
     }
 
     /// Places the particles anew from N(pose, cov).
@@ -211,16 +214,20 @@ impl MclFilter {
         pose: PyReadonlyArray1<'_, f64>,
         cov: PyReadonlyArray2<'_, f64>,
     ) -> PyResult<()> {
-        let init = MclInit::Pose {
-            mean: pose3(&pose)?,
-            cov: cov3(&cov)?,
-        };
-        self.inner.reset(init).py_err()
+        guard("MclFilter.reset_pose", || {
+            let init = MclInit::Pose {
+                mean: pose3(&pose)?,
+                cov: cov3(&cov)?,
+            };
+            self.inner.reset(init).py_err()
+        })
     }
 
     /// Places the particles anew uniformly over the free cells.
     fn reset_global(&mut self) -> PyResult<()> {
-        self.inner.reset(MclInit::Global).py_err()
+        guard("MclFilter.reset_global", || {
+            self.inner.reset(MclInit::Global).py_err()
+        })
     }
 
     /// The estimate: the heaviest cluster's mean at the last processed scan.
@@ -231,7 +238,9 @@ impl MclFilter {
 
     /// Particle poses, shape (n, 3).
     fn particle_poses<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        poses_array(py, self.inner.poses())
+        guard("MclFilter.particle_poses", || {
+            poses_array(py, self.inner.poses())
+        })
     }
 
     /// Normalised weights, shape (n,).
@@ -241,11 +250,13 @@ impl MclFilter {
 
     /// The clusters of the current set, heaviest first (dicts as in `process`).
     fn clusters<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyDict>>> {
-        self.inner
-            .clusters()
-            .iter()
-            .map(|c| cluster_dict(py, c))
-            .collect()
+        guard("MclFilter.clusters", || {
+            self.inner
+                .clusters()
+                .iter()
+                .map(|c| cluster_dict(py, c))
+                .collect()
+        })
     }
 
     /// (w_slow, w_fast) of the recovery, or None before the first weighed scan.
@@ -279,27 +290,29 @@ impl MclFilter {
         ranges: PyReadonlyArray1<'_, f64>,
         laser_offset: PyReadonlyArray1<'_, f64>,
     ) -> PyResult<(f64, f64, usize)> {
-        let sensor = crlam_core::pose::compose(pose3(&pose)?, pose3(&laser_offset)?);
-        let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
-        let inner = &self.inner;
-        let beams: Vec<usize> = crlam_core::mcl::select_beams(
-            a.len(),
-            inner.config().beam_stride,
-            inner.config().max_beams,
-        );
-        let fit = py
-            .allow_threads(|| {
-                crlam_core::mcl::scan_log_likelihood(
-                    inner.field(),
-                    &inner.config().likelihood,
-                    sensor,
-                    a,
-                    r,
-                    &beams,
-                )
-            })
-            .py_err()?;
-        Ok((fit.log_likelihood, fit.explained, fit.n_beams))
+        guard("MclFilter.scan_fit", || {
+            let sensor = crlam_core::pose::compose(pose3(&pose)?, pose3(&laser_offset)?);
+            let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
+            let inner = &self.inner;
+            let beams: Vec<usize> = crlam_core::mcl::select_beams(
+                a.len(),
+                inner.config().beam_stride,
+                inner.config().max_beams,
+            );
+            let fit = py
+                .allow_threads(|| {
+                    crlam_core::mcl::scan_log_likelihood(
+                        inner.field(),
+                        &inner.config().likelihood,
+                        sensor,
+                        a,
+                        r,
+                        &beams,
+                    )
+                })
+                .py_err()?;
+            Ok((fit.log_likelihood, fit.explained, fit.n_beams))
+        })
     }
 
     /// Distance (m) from every cell centre of the map's rectangle to the nearest cell with
@@ -309,11 +322,13 @@ impl MclFilter {
         py: Python<'py>,
         occupied: f64,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let field = self.inner.field();
-        let r = field.rect();
-        let d = py.allow_threads(|| field.occupied_distance(occupied));
-        Ok(Array2::from_shape_vec((r.ny as usize, r.nx as usize), d)
-            .map_err(|e| shape_err(e.to_string()))?
-            .into_pyarray(py))
+        guard("MclFilter.occupied_distance", || {
+            let field = self.inner.field();
+            let r = field.rect();
+            let d = py.allow_threads(|| field.occupied_distance(occupied));
+            Ok(Array2::from_shape_vec((r.ny as usize, r.nx as usize), d)
+                .map_err(|e| shape_err(e.to_string()))?
+                .into_pyarray(py))
+        })
     }
 }

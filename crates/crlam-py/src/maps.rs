@@ -15,7 +15,7 @@ use numpy::{
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use crate::convert::{pose3, poses_n3, shape_err, slice1, IntoPy};
+use crate::convert::{guard, pose3, poses_n3, shape_err, slice1, IntoPy};
 
 /// A cause-conditional range likelihood model (crm-spec 2.3).
 #[pyclass(module = "crlam._native", frozen)]
@@ -42,25 +42,27 @@ impl SensorModel {
         lambda_short: f64,
         z_min: f64,
     ) -> PyResult<Self> {
-        let kind = SensorModelKind::parse(kind).py_err()?;
-        let mut m = sensor::SensorModel::with_defaults(kind, z_max, resolution);
-        m.kernel = sensor::CauseKernel::parse(cause_kernel).py_err()?;
-        if let Some(v) = sigma_hit {
-            m.sigma_hit = v;
-        }
-        m.w_hit = w_hit.unwrap_or(m.w_hit);
-        m.w_short = w_short.unwrap_or(m.w_short);
-        m.w_max = w_max.unwrap_or(m.w_max);
-        m.w_rand = w_rand.unwrap_or(m.w_rand);
-        m.lambda_short = lambda_short;
-        m.z_min = z_min;
-        if !(resolution.is_finite() && resolution > 0.0) {
-            return Err(shape_err(format!(
-                "resolution must be finite and > 0, got {resolution}"
-            )));
-        }
-        m.validate().py_err()?;
-        Ok(Self { inner: m })
+        guard("SensorModel.new", || {
+            let kind = SensorModelKind::parse(kind).py_err()?;
+            let mut m = sensor::SensorModel::with_defaults(kind, z_max, resolution);
+            m.kernel = sensor::CauseKernel::parse(cause_kernel).py_err()?;
+            if let Some(v) = sigma_hit {
+                m.sigma_hit = v;
+            }
+            m.w_hit = w_hit.unwrap_or(m.w_hit);
+            m.w_short = w_short.unwrap_or(m.w_short);
+            m.w_max = w_max.unwrap_or(m.w_max);
+            m.w_rand = w_rand.unwrap_or(m.w_rand);
+            m.lambda_short = lambda_short;
+            m.z_min = z_min;
+            if !(resolution.is_finite() && resolution > 0.0) {
+                return Err(shape_err(format!(
+                    "resolution must be finite and > 0, got {resolution}"
+                )));
+            }
+            m.validate().py_err()?;
+            Ok(Self { inner: m })
+        })
     }
 
     #[getter]
@@ -105,13 +107,13 @@ impl SensorModel {
     }
 
     /// L_l(z) for a cause at distance d; z >= z_max (or inf/NaN) is the no-return atom.
-    fn on_ray(&self, z: f64, d: f64) -> f64 {
-        self.inner.on_ray(z, d)
+    fn on_ray(&self, z: f64, d: f64) -> PyResult<f64> {
+        guard("SensorModel.on_ray", || Ok(self.inner.on_ray(z, d)))
     }
 
     /// L_∞(z): likelihood of the reading when nothing lies within range.
-    fn infinity(&self, z: f64) -> f64 {
-        self.inner.infinity(z)
+    fn infinity(&self, z: f64) -> PyResult<f64> {
+        guard("SensorModel.infinity", || Ok(self.inner.infinity(z)))
     }
 
     fn __repr__(&self) -> String {
@@ -132,13 +134,8 @@ impl SensorModel {
 }
 
 fn rect_from(t: Option<(i64, i64, i64, i64)>) -> PyResult<Option<CellRect>> {
-    match t {
-        None => Ok(None),
-        Some((ix0, iy0, nx, ny)) if nx > 0 && ny > 0 => Ok(Some(CellRect { ix0, iy0, nx, ny })),
-        Some(t) => Err(shape_err(format!(
-            "a cell rectangle (ix0, iy0, nx, ny) needs nx, ny > 0, got {t:?}"
-        ))),
-    }
+    t.map(|(ix0, iy0, nx, ny)| CellRect::checked(ix0, iy0, nx, ny).py_err())
+        .transpose()
 }
 
 fn rect_tuple(r: CellRect) -> (i64, i64, i64, i64) {
@@ -229,20 +226,22 @@ impl CrmMap {
         tile_size: usize,
         extent: Option<(i64, i64, i64, i64)>,
     ) -> PyResult<Self> {
-        let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
-        let cfg = CrmConfig {
-            geometry,
-            n_levels,
-            placement: LevelPlacement::parse(levels).py_err()?,
-            prior_mean,
-            belief_floor,
-            tile_size,
-            extent: rect_from(extent)?,
-        };
-        Ok(Self {
-            inner: crm::CrmMap::new(&cfg).py_err()?,
-            scratch: CrmScratch::default(),
-            tile_size,
+        guard("CrmMap.new", || {
+            let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
+            let cfg = CrmConfig {
+                geometry,
+                n_levels,
+                placement: LevelPlacement::parse(levels).py_err()?,
+                prior_mean,
+                belief_floor,
+                tile_size,
+                extent: rect_from(extent)?,
+            };
+            Ok(Self {
+                inner: crm::CrmMap::new(&cfg).py_err()?,
+                scratch: CrmScratch::default(),
+                tile_size,
+            })
         })
     }
 
@@ -293,19 +292,23 @@ impl CrmMap {
         self.inner.grid().written_bounds().map(rect_tuple)
     }
 
-    /// Cell index (ix, iy) of a world point.
-    fn cell_of(&self, x: f64, y: f64) -> (i64, i64) {
-        self.inner.geometry().cell_of(x, y)
+    /// Cell index (ix, iy) of a world point (finite, within 1e7 m of the origin).
+    fn cell_of(&self, x: f64, y: f64) -> PyResult<(i64, i64)> {
+        guard("CrmMap.cell_of", || {
+            self.inner.geometry().checked_cell_of(x, y).py_err()
+        })
     }
 
     /// Expected occupancy of one cell.
-    fn mean_at(&self, ix: i64, iy: i64) -> f64 {
-        self.inner.mean_at(ix, iy)
+    fn mean_at(&self, ix: i64, iy: i64) -> PyResult<f64> {
+        guard("CrmMap.mean_at", || Ok(self.inner.mean_at(ix, iy)))
     }
 
     /// Stored pmf of one cell, shape (K,).
-    fn cell<'py>(&self, py: Python<'py>, ix: i64, iy: i64) -> Bound<'py, PyArray1<f32>> {
-        PyArray1::from_slice(py, self.inner.cell(ix, iy))
+    fn cell<'py>(&self, py: Python<'py>, ix: i64, iy: i64) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        guard("CrmMap.cell", || {
+            Ok(PyArray1::from_slice(py, self.inner.cell(ix, iy)))
+        })
     }
 
     /// Updates the map with one scan from the sensor pose; returns counters.
@@ -323,15 +326,17 @@ impl CrmMap {
         beam_stride: usize,
         zero_is_no_return: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
-        let pose = pose3(&pose)?;
-        let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
-        let m = model.inner;
-        let (inner, sc) = (&mut self.inner, &mut self.scratch);
-        let st = py
-            .allow_threads(|| inner.update_scan(pose, a, r, &m, &opts, sc))
-            .py_err()?;
-        stats_dict(py, &st)
+        guard("CrmMap.update_scan", || {
+            let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
+            let pose = pose3(&pose)?;
+            let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
+            let m = model.inner;
+            let (inner, sc) = (&mut self.inner, &mut self.scratch);
+            let st = py
+                .allow_threads(|| inner.update_scan(pose, a, r, &m, &opts, sc))
+                .py_err()?;
+            stats_dict(py, &st)
+        })
     }
 
     /// Updates the map with n scans (poses (n, 3), ranges (n, m), shared angles (m,)).
@@ -349,40 +354,42 @@ impl CrmMap {
         beam_stride: usize,
         zero_is_no_return: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
-        let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
-        let poses = poses_n3(&poses)?;
-        let a = slice1(&angles, "angles")?;
-        let shape = ranges.shape();
-        if shape[0] != poses.len() || shape[1] != a.len() {
-            return Err(shape_err(format!(
-                "ranges must have shape ({}, {}) to match poses and angles, got {shape:?}",
-                poses.len(),
-                a.len()
-            )));
-        }
-        let r = ranges
-            .as_slice()
-            .map_err(|_| shape_err("ranges must be contiguous"))?;
-        let m = model.inner;
-        let (inner, sc) = (&mut self.inner, &mut self.scratch);
-        let st = py
-            .allow_threads(|| {
-                let mut total = ScanStats::default();
-                for (i, p) in poses.iter().enumerate() {
-                    let s = inner.update_scan(
-                        *p,
-                        a,
-                        &r[i * a.len()..(i + 1) * a.len()],
-                        &m,
-                        &opts,
-                        sc,
-                    )?;
-                    total.add(&s);
-                }
-                Ok(total)
-            })
-            .py_err()?;
-        stats_dict(py, &st)
+        guard("CrmMap.update_scans", || {
+            let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
+            let poses = poses_n3(&poses)?;
+            let a = slice1(&angles, "angles")?;
+            let shape = ranges.shape();
+            if shape[0] != poses.len() || shape[1] != a.len() {
+                return Err(shape_err(format!(
+                    "ranges must have shape ({}, {}) to match poses and angles, got {shape:?}",
+                    poses.len(),
+                    a.len()
+                )));
+            }
+            let r = ranges
+                .as_slice()
+                .map_err(|_| shape_err("ranges must be contiguous"))?;
+            let m = model.inner;
+            let (inner, sc) = (&mut self.inner, &mut self.scratch);
+            let st = py
+                .allow_threads(|| {
+                    let mut total = ScanStats::default();
+                    for (i, p) in poses.iter().enumerate() {
+                        let s = inner.update_scan(
+                            *p,
+                            a,
+                            &r[i * a.len()..(i + 1) * a.len()],
+                            &m,
+                            &opts,
+                            sc,
+                        )?;
+                        total.add(&s);
+                    }
+                    Ok(total)
+                })
+                .py_err()?;
+            stats_dict(py, &st)
+        })
     }
 
     /// (Σ log η over beams, beams used) of a scan under the current beliefs, map unchanged.
@@ -397,13 +404,15 @@ impl CrmMap {
         beam_stride: usize,
         zero_is_no_return: bool,
     ) -> PyResult<(f64, usize)> {
-        let opts = scan_opts("batch", "windowed", beam_stride, zero_is_no_return)?;
-        let pose = pose3(&pose)?;
-        let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
-        let m = model.inner;
-        let (inner, sc) = (&self.inner, &mut self.scratch);
-        py.allow_threads(|| inner.scan_log_likelihood(pose, a, r, &m, &opts, sc))
-            .py_err()
+        guard("CrmMap.scan_log_likelihood", || {
+            let opts = scan_opts("batch", "windowed", beam_stride, zero_is_no_return)?;
+            let pose = pose3(&pose)?;
+            let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
+            let m = model.inner;
+            let (inner, sc) = (&self.inner, &mut self.scratch);
+            py.allow_threads(|| inner.scan_log_likelihood(pose, a, r, &m, &opts, sc))
+                .py_err()
+        })
     }
 
     /// Pmfs over a cell rectangle (default: bounds), shape (ny, nx, K), float32.
@@ -413,12 +422,14 @@ impl CrmMap {
         py: Python<'py>,
         rect: Option<(i64, i64, i64, i64)>,
     ) -> PyResult<Bound<'py, PyArray3<f32>>> {
-        let r = self.rect_or_bounds(rect)?;
-        let k = self.inner.levels().len();
-        let v = self.inner.beliefs(r);
-        let a = Array3::from_shape_vec((r.ny.max(0) as usize, r.nx.max(0) as usize, k), v)
-            .map_err(|e| shape_err(e.to_string()))?;
-        Ok(a.into_pyarray(py))
+        guard("CrmMap.beliefs", || {
+            let r = self.rect_or_bounds(rect)?;
+            let k = self.inner.levels().len();
+            let v = self.inner.beliefs(r).py_err()?;
+            let a = Array3::from_shape_vec((r.ny.max(0) as usize, r.nx.max(0) as usize, k), v)
+                .map_err(|e| shape_err(e.to_string()))?;
+            Ok(a.into_pyarray(py))
+        })
     }
 
     /// Writes pmfs (ny, nx, K) with cell (ix0, iy0) at index [0, 0]; each pmf is normalised.
@@ -428,27 +439,25 @@ impl CrmMap {
         iy0: i64,
         beliefs: PyReadonlyArray3<'_, f64>,
     ) -> PyResult<()> {
-        let s = beliefs.shape();
-        if s[2] != self.inner.levels().len() {
-            return Err(shape_err(format!(
-                "beliefs have {} levels, the map has {}",
-                s[2],
-                self.inner.levels().len()
-            )));
-        }
-        if s[0] == 0 || s[1] == 0 {
-            return Ok(());
-        }
-        let r = CellRect {
-            ix0,
-            iy0,
-            nx: s[1] as i64,
-            ny: s[0] as i64,
-        };
-        let v = beliefs
-            .as_slice()
-            .map_err(|_| shape_err("beliefs must be contiguous"))?;
-        self.inner.set_beliefs(r, v).py_err()
+        guard("CrmMap.set_beliefs", || {
+            let s = beliefs.shape();
+            if s[2] != self.inner.levels().len() {
+                return Err(shape_err(format!(
+                    "beliefs have {} levels, the map has {}",
+                    s[2],
+                    self.inner.levels().len()
+                )));
+            }
+            if s[0] == 0 || s[1] == 0 {
+                return Ok(());
+            }
+            let side = |n: usize| i64::try_from(n).unwrap_or(i64::MAX);
+            let r = CellRect::checked(ix0, iy0, side(s[1]), side(s[0])).py_err()?;
+            let v = beliefs
+                .as_slice()
+                .map_err(|_| shape_err("beliefs must be contiguous"))?;
+            self.inner.set_beliefs(r, v).py_err()
+        })
     }
 
     /// (expected occupancy, variance, entropy in bits), each (ny, nx) over the rectangle.
@@ -462,16 +471,19 @@ impl CrmMap {
         Bound<'py, PyArray2<f64>>,
         Bound<'py, PyArray2<f64>>,
     )> {
-        let r = self.rect_or_bounds(rect)?;
-        let (m, v, h) = py.allow_threads(|| self.inner.derived(r));
-        let shape = (r.ny.max(0) as usize, r.nx.max(0) as usize);
-        let to =
-            |x: Vec<f64>| Array2::from_shape_vec(shape, x).map_err(|e| shape_err(e.to_string()));
-        Ok((
-            to(m)?.into_pyarray(py),
-            to(v)?.into_pyarray(py),
-            to(h)?.into_pyarray(py),
-        ))
+        guard("CrmMap.derived_maps", || {
+            let r = self.rect_or_bounds(rect)?;
+            let (m, v, h) = py.allow_threads(|| self.inner.derived(r)).py_err()?;
+            let shape = (r.ny.max(0) as usize, r.nx.max(0) as usize);
+            let to = |x: Vec<f64>| {
+                Array2::from_shape_vec(shape, x).map_err(|e| shape_err(e.to_string()))
+            };
+            Ok((
+                to(m)?.into_pyarray(py),
+                to(v)?.into_pyarray(py),
+                to(h)?.into_pyarray(py),
+            ))
+        })
     }
 
     /// A copy sharing every tile copy-on-write (O(tiles), no cell data copied).
@@ -485,7 +497,9 @@ impl CrmMap {
 
     /// Tile counts and bytes (shared tiles counted in full).
     fn tile_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        tiles_dict(py, &self.inner.tile_stats())
+        guard("CrmMap.tile_stats", || {
+            tiles_dict(py, &self.inner.tile_stats())
+        })
     }
 }
 
@@ -520,19 +534,21 @@ impl LogOddsMap {
         tile_size: usize,
         extent: Option<(i64, i64, i64, i64)>,
     ) -> PyResult<Self> {
-        let g = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
-        let p = LogOddsParams {
-            l_occ,
-            l_free,
-            l_min,
-            l_max,
-            base,
-            z_max,
-            clear_no_return,
-            hit_means: false,
-        };
-        Ok(Self {
-            inner: LogOddsGrid::new(g, p, tile_size, rect_from(extent)?).py_err()?,
+        guard("LogOddsMap.new", || {
+            let g = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
+            let p = LogOddsParams {
+                l_occ,
+                l_free,
+                l_min,
+                l_max,
+                base,
+                z_max,
+                clear_no_return,
+                hit_means: false,
+            };
+            Ok(Self {
+                inner: LogOddsGrid::new(g, p, tile_size, rect_from(extent)?).py_err()?,
+            })
         })
     }
 
@@ -566,10 +582,12 @@ impl LogOddsMap {
         angles: PyReadonlyArray1<'_, f64>,
         ranges: PyReadonlyArray1<'_, f64>,
     ) -> PyResult<(usize, usize)> {
-        let pose = pose3(&pose)?;
-        let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
-        let inner = &mut self.inner;
-        py.allow_threads(|| inner.update_scan(pose, a, r)).py_err()
+        guard("LogOddsMap.update_scan", || {
+            let pose = pose3(&pose)?;
+            let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
+            let inner = &mut self.inner;
+            py.allow_threads(|| inner.update_scan(pose, a, r)).py_err()
+        })
     }
 
     /// Integrates n scans (poses (n, 3), ranges (n, m)); returns totals (used, dropped).
@@ -580,30 +598,32 @@ impl LogOddsMap {
         angles: PyReadonlyArray1<'_, f64>,
         ranges: PyReadonlyArray2<'_, f64>,
     ) -> PyResult<(usize, usize)> {
-        let poses = poses_n3(&poses)?;
-        let a = slice1(&angles, "angles")?;
-        let shape = ranges.shape();
-        if shape[0] != poses.len() || shape[1] != a.len() {
-            return Err(shape_err(format!(
-                "ranges must have shape ({}, {}), got {shape:?}",
-                poses.len(),
-                a.len()
-            )));
-        }
-        let r = ranges
-            .as_slice()
-            .map_err(|_| shape_err("ranges must be contiguous"))?;
-        let inner = &mut self.inner;
-        py.allow_threads(|| {
-            let (mut u, mut d) = (0, 0);
-            for (i, p) in poses.iter().enumerate() {
-                let (a1, b1) = inner.update_scan(*p, a, &r[i * a.len()..(i + 1) * a.len()])?;
-                u += a1;
-                d += b1;
+        guard("LogOddsMap.update_scans", || {
+            let poses = poses_n3(&poses)?;
+            let a = slice1(&angles, "angles")?;
+            let shape = ranges.shape();
+            if shape[0] != poses.len() || shape[1] != a.len() {
+                return Err(shape_err(format!(
+                    "ranges must have shape ({}, {}), got {shape:?}",
+                    poses.len(),
+                    a.len()
+                )));
             }
-            Ok((u, d))
+            let r = ranges
+                .as_slice()
+                .map_err(|_| shape_err("ranges must be contiguous"))?;
+            let inner = &mut self.inner;
+            py.allow_threads(|| {
+                let (mut u, mut d) = (0, 0);
+                for (i, p) in poses.iter().enumerate() {
+                    let (a1, b1) = inner.update_scan(*p, a, &r[i * a.len()..(i + 1) * a.len()])?;
+                    u += a1;
+                    d += b1;
+                }
+                Ok((u, d))
+            })
+            .py_err()
         })
-        .py_err()
     }
 
     /// Log-odds over a cell rectangle (default: bounds), shape (ny, nx).
@@ -613,11 +633,19 @@ impl LogOddsMap {
         py: Python<'py>,
         rect: Option<(i64, i64, i64, i64)>,
     ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-        let r = rect_from(rect)?.unwrap_or_else(|| self.inner.grid().bounds());
-        let v: Vec<f64> = self.inner.export(r).into_iter().map(f64::from).collect();
-        let a = Array2::from_shape_vec((r.ny.max(0) as usize, r.nx.max(0) as usize), v)
-            .map_err(|e| shape_err(e.to_string()))?;
-        Ok(a.into_pyarray(py))
+        guard("LogOddsMap.log_odds", || {
+            let r = rect_from(rect)?.unwrap_or_else(|| self.inner.grid().bounds());
+            let v: Vec<f64> = self
+                .inner
+                .export(r)
+                .py_err()?
+                .into_iter()
+                .map(f64::from)
+                .collect();
+            let a = Array2::from_shape_vec((r.ny.max(0) as usize, r.nx.max(0) as usize), v)
+                .map_err(|e| shape_err(e.to_string()))?;
+            Ok(a.into_pyarray(py))
+        })
     }
 
     fn copy(&self) -> Self {
@@ -627,6 +655,8 @@ impl LogOddsMap {
     }
 
     fn tile_stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        tiles_dict(py, &self.inner.tile_stats())
+        guard("LogOddsMap.tile_stats", || {
+            tiles_dict(py, &self.inner.tile_stats())
+        })
     }
 }

@@ -11,7 +11,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMet
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
-use crate::convert::{shape_err, IntoPy};
+use crate::convert::{guard, shape_err, IntoPy};
 use crate::dispatch::{dispatch, GlueFunction, StateClass};
 use crate::info::InfoFunction;
 use crate::info_state::OccupancyLattice;
@@ -196,29 +196,31 @@ pub fn run_iig<'py>(
     seed: u64,
     belief: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let settings = settings_from(mode, options)?;
-    if obstacle_points.shape()[1] != 2 {
-        return Err(shape_err(format!(
-            "obstacle_points must have shape (n, 2), got {:?}",
-            obstacle_points.shape()
-        )));
-    }
-    let pts: Vec<[f64; 2]> = obstacle_points
-        .as_slice()
-        .map_err(|_| shape_err("obstacle_points must be a contiguous float64 array"))?
-        .chunks(2)
-        .map(|c| [c[0], c[1]])
-        .collect();
-    let world = PlannerWorld::new(lattice.inner.clone(), pts).py_err()?;
-    let start = [settings.start[0], settings.start[1], 0.0];
-    let d = dispatch!(&function.f, |f, S| plan_with::<_, S>(
-        py, f, state, &world, &settings, start, seed, belief
-    ))?;
-    d.set_item("settings", settings_dict(py, &settings)?)?;
-    d.set_item("mode", mode)?;
-    d.set_item("function", function.f_name())?;
-    d.set_item("units", function.f_units())?;
-    Ok(d)
+    guard("run_iig", || {
+        let settings = settings_from(mode, options)?;
+        if obstacle_points.shape()[1] != 2 {
+            return Err(shape_err(format!(
+                "obstacle_points must have shape (n, 2), got {:?}",
+                obstacle_points.shape()
+            )));
+        }
+        let pts: Vec<[f64; 2]> = obstacle_points
+            .as_slice()
+            .map_err(|_| shape_err("obstacle_points must be a contiguous float64 array"))?
+            .chunks(2)
+            .map(|c| [c[0], c[1]])
+            .collect();
+        let world = PlannerWorld::new(lattice.inner.clone(), pts).py_err()?;
+        let start = [settings.start[0], settings.start[1], 0.0];
+        let d = dispatch!(&function.f, |f, S| plan_with::<_, S>(
+            py, f, state, &world, &settings, start, seed, belief
+        ))?;
+        d.set_item("settings", settings_dict(py, &settings)?)?;
+        d.set_item("mode", mode)?;
+        d.set_item("function", function.f_name())?;
+        d.set_item("units", function.f_units())?;
+        Ok(d)
+    })
 }
 
 /// A 2-D traversability mask: bool, or uint8 with nonzero = traversable.
@@ -239,25 +241,28 @@ pub fn geodesic<'py>(
     start: (i64, i64),
     res: f64,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray1<i64>>)> {
-    let not_contiguous = || shape_err("traversable must be a C-contiguous 2-D array");
-    let (shape, mask): (Vec<usize>, Vec<bool>) = match &traversable {
-        Mask::Bool(a) => (
-            a.shape().to_vec(),
-            a.as_slice().map_err(|_| not_contiguous())?.to_vec(),
-        ),
-        Mask::U8(a) => (
-            a.shape().to_vec(),
-            a.as_slice()
-                .map_err(|_| not_contiguous())?
-                .iter()
-                .map(|&v| v != 0)
-                .collect(),
-        ),
-    };
-    let (ny, nx) = (shape[0], shape[1]);
-    let g = py
-        .allow_threads(|| core_geodesic(&mask, ny, nx, start, res))
-        .py_err()?;
-    let dist = Array2::from_shape_vec((ny, nx), g.dist).map_err(|e| shape_err(e.to_string()))?;
-    Ok((dist.into_pyarray(py), Array1::from(g.pred).into_pyarray(py)))
+    guard("geodesic", || {
+        let not_contiguous = || shape_err("traversable must be a C-contiguous 2-D array");
+        let (shape, mask): (Vec<usize>, Vec<bool>) = match &traversable {
+            Mask::Bool(a) => (
+                a.shape().to_vec(),
+                a.as_slice().map_err(|_| not_contiguous())?.to_vec(),
+            ),
+            Mask::U8(a) => (
+                a.shape().to_vec(),
+                a.as_slice()
+                    .map_err(|_| not_contiguous())?
+                    .iter()
+                    .map(|&v| v != 0)
+                    .collect(),
+            ),
+        };
+        let (ny, nx) = (shape[0], shape[1]);
+        let g = py
+            .allow_threads(|| core_geodesic(&mask, ny, nx, start, res))
+            .py_err()?;
+        let dist =
+            Array2::from_shape_vec((ny, nx), g.dist).map_err(|e| shape_err(e.to_string()))?;
+        Ok((dist.into_pyarray(py), Array1::from(g.pred).into_pyarray(py)))
+    })
 }

@@ -10,7 +10,7 @@ use numpy::{
 };
 use pyo3::prelude::*;
 
-use crate::convert::{poses_n3, shape_err, slice1, IntoPy};
+use crate::convert::{guard, poses_n3, shape_err, slice1, IntoPy};
 
 /// Cells crossed by a ray: (cells (n, 2) int64 [ix, iy], t_in (n,), t_out (n,)).
 #[pyfunction]
@@ -29,28 +29,36 @@ pub fn traverse_ray<'py>(
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
 )> {
-    let g = GridGeometry::new([grid_origin.0, grid_origin.1], resolution).py_err()?;
-    if ![origin_x, origin_y, angle, length]
-        .iter()
-        .all(|v| v.is_finite())
-        || length > 1e6
-    {
-        return Err(shape_err(
-            "origin, angle and length must be finite (length <= 1e6 m)",
-        ));
-    }
-    let mut cells = Vec::new();
-    raycast::traverse(&g, [origin_x, origin_y], angle, length, None, &mut cells);
-    let idx: Vec<i64> = cells.iter().flat_map(|c| [c.ix, c.iy]).collect();
-    let idx =
-        Array2::from_shape_vec((cells.len(), 2), idx).map_err(|e| shape_err(e.to_string()))?;
-    let t_in = Array1::from_iter(cells.iter().map(|c| c.t_in));
-    let t_out = Array1::from_iter(cells.iter().map(|c| c.t_out));
-    Ok((
-        idx.into_pyarray(py),
-        t_in.into_pyarray(py),
-        t_out.into_pyarray(py),
-    ))
+    guard("traverse_ray", || {
+        let g = GridGeometry::new([grid_origin.0, grid_origin.1], resolution).py_err()?;
+        if ![origin_x, origin_y, angle, length]
+            .iter()
+            .all(|v| v.is_finite())
+            || length > 1e6
+        {
+            return Err(shape_err(
+                "origin, angle and length must be finite (length <= 1e6 m)",
+            ));
+        }
+        // A ray crosses at most 2 (length / resolution) + 2 cells.
+        crlam_core::limits::check_map_cells(
+            &format!("a ray of {length} m on {resolution} m cells"),
+            2.0 * length / resolution + 2.0,
+        )
+        .py_err()?;
+        let mut cells = Vec::new();
+        raycast::traverse(&g, [origin_x, origin_y], angle, length, None, &mut cells);
+        let idx: Vec<i64> = cells.iter().flat_map(|c| [c.ix, c.iy]).collect();
+        let idx =
+            Array2::from_shape_vec((cells.len(), 2), idx).map_err(|e| shape_err(e.to_string()))?;
+        let t_in = Array1::from_iter(cells.iter().map(|c| c.t_in));
+        let t_out = Array1::from_iter(cells.iter().map(|c| c.t_out));
+        Ok((
+            idx.into_pyarray(py),
+            t_in.into_pyarray(py),
+            t_out.into_pyarray(py),
+        ))
+    })
 }
 
 /// Exact ranges to the first occupied cell of a world raster (n poses x m beams); inf when
@@ -67,20 +75,27 @@ pub fn cast_ranges<'py>(
     angles: PyReadonlyArray1<'py, f64>,
     max_range: f64,
 ) -> PyResult<Bound<'py, PyArray2<f64>>> {
-    let g = GridGeometry::new([origin_x, origin_y], resolution).py_err()?;
-    let shape = occupied.shape();
-    let occ = occupied
-        .as_slice()
-        .map_err(|_| shape_err("occupied must be a contiguous uint8 array"))?;
-    let world = WorldRaster::new(g, shape[1], shape[0], occ).py_err()?;
-    let poses = poses_n3(&poses)?;
-    let a = slice1(&angles, "angles")?;
-    let mut out = vec![0.0; poses.len() * a.len()];
-    py.allow_threads(|| world.cast(&poses, a, max_range, &mut out))
+    guard("cast_ranges", || {
+        let g = GridGeometry::new([origin_x, origin_y], resolution).py_err()?;
+        let shape = occupied.shape();
+        let occ = occupied
+            .as_slice()
+            .map_err(|_| shape_err("occupied must be a contiguous uint8 array"))?;
+        let world = WorldRaster::new(g, shape[1], shape[0], occ).py_err()?;
+        let poses = poses_n3(&poses)?;
+        let a = slice1(&angles, "angles")?;
+        let mut out = crlam_core::limits::try_filled(
+            poses.len().saturating_mul(a.len()),
+            0.0,
+            "cast_ranges output",
+        )
         .py_err()?;
-    let arr = Array2::from_shape_vec((poses.len(), a.len()), out)
-        .map_err(|e| shape_err(e.to_string()))?;
-    Ok(arr.into_pyarray(py))
+        py.allow_threads(|| world.cast(&poses, a, max_range, &mut out))
+            .py_err()?;
+        let arr = Array2::from_shape_vec((poses.len(), a.len()), out)
+            .map_err(|e| shape_err(e.to_string()))?;
+        Ok(arr.into_pyarray(py))
+    })
 }
 
 /// One CRM beam update on explicit beliefs (N, K) and cause likelihoods (crm-spec 3.1); returns
@@ -95,27 +110,29 @@ pub fn crm_update_ray<'py>(
     like_inf: f64,
     belief_floor: f64,
 ) -> PyResult<(Bound<'py, PyArray2<f64>>, f64)> {
-    let mu = slice1(&levels, "levels")?;
-    let l = slice1(&like, "like")?;
-    let s = beliefs.shape();
-    if s[1] != mu.len() || s[0] != l.len() || mu.len() > 64 {
-        return Err(shape_err(format!(
+    guard("crm_update_ray", || {
+        let mu = slice1(&levels, "levels")?;
+        let l = slice1(&like, "like")?;
+        let s = beliefs.shape();
+        if s[1] != mu.len() || s[0] != l.len() || mu.len() > 64 {
+            return Err(shape_err(format!(
             "beliefs must be (N, K) with N = len(like) = {} and K = len(levels) = {} <= 64, got {s:?}",
             l.len(),
             mu.len()
         )));
-    }
-    if l.iter()
-        .chain(std::iter::once(&like_inf))
-        .any(|x| !(x.is_finite() && *x >= 0.0))
-    {
-        return Err(shape_err("likelihoods must be finite and >= 0"));
-    }
-    let mut b = beliefs
-        .as_slice()
-        .map_err(|_| shape_err("beliefs must be contiguous"))?
-        .to_vec();
-    let eta = crm::update::update_ray(&mut b, mu, l, like_inf, belief_floor);
-    let arr = Array2::from_shape_vec((s[0], s[1]), b).map_err(|e| shape_err(e.to_string()))?;
-    Ok((arr.into_pyarray(py), eta))
+        }
+        if l.iter()
+            .chain(std::iter::once(&like_inf))
+            .any(|x| !(x.is_finite() && *x >= 0.0))
+        {
+            return Err(shape_err("likelihoods must be finite and >= 0"));
+        }
+        let mut b = beliefs
+            .as_slice()
+            .map_err(|_| shape_err("beliefs must be contiguous"))?
+            .to_vec();
+        let eta = crm::update::update_ray(&mut b, mu, l, like_inf, belief_floor);
+        let arr = Array2::from_shape_vec((s[0], s[1]), b).map_err(|e| shape_err(e.to_string()))?;
+        Ok((arr.into_pyarray(py), eta))
+    })
 }

@@ -21,6 +21,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import DataFormatError
+from crlam.eval.align import Se2Alignment, align_se2, ape_statistics
 from crlam.io.logs import read_scans_any
 from crlam.io.relations import Relations
 from crlam.pose import between, compose, wrap_angle
@@ -467,11 +468,14 @@ class ReferenceErrors:
         ``(x_est - x_ref, y_est - y_ref, wrap(theta_est - theta_ref))`` (m, m, rad).
     n_unmatched : int
         Estimated poses without a reference pose at their stamp (ignored).
+    alignment : Se2Alignment or None
+        The rigid motion applied to the estimate before the errors were taken (``align="se2"``).
     """
 
     stamps: FloatArray
     errors: FloatArray
     n_unmatched: int = 0
+    alignment: Se2Alignment | None = None
 
     @property
     def n(self) -> int:
@@ -493,6 +497,10 @@ class ReferenceErrors:
             "rmse_position_m": float(np.sqrt(np.mean(dx**2 + dy**2))),
         }
 
+    def ape(self) -> dict[str, float]:
+        """evo's APE statistics of the translation part (:func:`crlam.eval.align.ape_statistics`)."""
+        return ape_statistics(self.errors[:, :2])
+
 
 def reference_errors(
     stamps_est: ArrayLike,
@@ -501,24 +509,50 @@ def reference_errors(
     poses_ref: ArrayLike,
     *,
     tolerance: float = DEFAULT_TOLERANCE,
+    align: Literal["none", "se2"] = "none",
 ) -> ReferenceErrors:
-    """Errors of estimated poses against reference poses at the same stamps (no alignment: the
-    two trajectories must share the world frame, as a simulation's ground truth does).
+    """Errors of estimated poses against reference poses at the same stamps.
 
     ``stamps_est`` (m,) / ``poses_est`` (m, 3) and ``stamps_ref`` (r,) / ``poses_ref`` (r, 3)
     are in s and (m, m, rad); stamps match exactly or, failing that, within ``tolerance`` (s).
     Estimated poses without a reference are counted; none at all raises DataFormatError.
+    ``align="none"`` compares the poses as they are (the two trajectories share the world frame,
+    as a simulation's ground truth does); ``"se2"`` first moves the estimate by the rigid motion
+    that best fits its matched positions to the reference's (:func:`crlam.eval.align.align_se2`,
+    evo's ``--align`` in the plane). A stamp estimated twice with different poses raises
+    DataFormatError too (identical repeated rows count once).
     """
     t_est, p_est = _as_estimate(stamps_est, poses_est, "estimate")
     t_ref, p_ref = _as_estimate(stamps_ref, poses_ref, "reference")
+    # A stamp estimated twice with different poses would be scored twice against one reference
+    # pose; repeated identical rows are scored once.
+    own = _StampIndex(t_est, p_est, 0.0)
+    if own.ambiguous:
+        first = min(own.ambiguous)
+        rows = np.flatnonzero(t_est == first)[:2].tolist()
+        raise DataFormatError(
+            f"estimate: {len(own.ambiguous)} stamps occur more than once with different poses (first: {first:.6f} at rows "
+            f"{rows[0]} and {rows[1]})",
+            field="timestamp",
+        )
+    keep = np.zeros(t_est.shape[0], dtype=bool)
+    keep[sorted(own.exact.values())] = True
+    t_est, p_est = t_est[keep], p_est[keep]
     index = _StampIndex(t_ref, p_ref, tolerance)
     j = np.array([index.find(x) for x in t_est.tolist()], dtype=np.int64)
     ok = j >= 0
     if not ok.any():
         raise DataFormatError(f"none of the {t_est.shape[0]} estimated stamps has a reference pose (within {tolerance:g} s)")
-    d = p_est[ok] - p_ref[j[ok]]
+    if align not in ("none", "se2"):
+        raise ValueError(f"align must be 'none' or 'se2', got {align!r}")
+    matched_est, matched_ref = p_est[ok], p_ref[j[ok]]
+    alignment = None
+    if align == "se2":
+        alignment = align_se2(matched_est[:, :2], matched_ref[:, :2])
+        matched_est = alignment.apply(matched_est)
+    d = matched_est - matched_ref
     d[:, 2] = wrap_angle(d[:, 2])
-    return ReferenceErrors(stamps=t_est[ok].copy(), errors=d, n_unmatched=int((~ok).sum()))
+    return ReferenceErrors(stamps=t_est[ok].copy(), errors=d, n_unmatched=int((~ok).sum()), alignment=alignment)
 
 
 def aggregate_runs(summaries: Sequence[Mapping[str, object]]) -> dict[str, dict[str, float]]:

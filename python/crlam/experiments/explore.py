@@ -191,8 +191,13 @@ def _resample(points: NDArray[np.float64], step: float) -> NDArray[np.float64]:
 
 def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig, *, progress: bool = False) -> ExploreRun:
     """Runs an exploration of ``world`` from ``start`` (x, y, theta) with known poses. Raises
-    ``RuntimeError`` if the robot ever stands in an occupied cell of the world (a bug guard)."""
+    ``RuntimeError`` if the robot ever stands in an occupied cell of the world (a bug guard), and
+    ``ConfigError`` if ``start`` is not finite or not in the world's free space."""
     res = cfg.resolution
+    if len(start) != 3 or not all(math.isfinite(float(v)) for v in start):
+        raise ConfigError(f"start must be three finite numbers (x, y, theta), got {tuple(start)!r}")
+    if not bool(world.is_free(np.array([start[:2]], dtype=np.float64))[0]):
+        raise ConfigError(f"start ({start[0]}, {start[1]}) is not in the free space of world {world.name!r}")
     truth = truth_grid(world, res)
     ny, nx = truth.shape
     origin = (float(world.origin[0]), float(world.origin[1]))

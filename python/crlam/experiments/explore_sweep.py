@@ -18,10 +18,17 @@ from typing import Any
 import numpy as np
 
 from crlam.errors import ConfigError
+from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.explore import FUNCTIONS, ExploreConfig, default_start, explore
 from crlam.experiments.pool import run_jobs, write_atomic
+from crlam.experiments.resume import close_experiment, input_digest, load_json_dict, open_experiment
+from crlam.run_folder import staged_folder
+from crlam.sim.worlds import WORLD_NAMES
 
 __all__ = ["ExploreSweep", "run_explore_experiment", "run_one_exploration", "variant_label"]
+
+#: An exploration reads its world's map file (none for a built-in world) and writes ``metrics.json`` last.
+EXPLORE_RUN_LAYOUT = RunLayout(inputs=("world_file",))
 
 
 def variant_label(function: str, alpha: float | None) -> str:
@@ -29,24 +36,29 @@ def variant_label(function: str, alpha: float | None) -> str:
 
 
 def run_one_exploration(
-    world: str, world_seed: int, function: str, alpha: float, seed: int, budget: float, slam: bool, particles: int, folder: str
+    world: str,
+    world_seed: int,
+    function: str,
+    alpha: float,
+    seed: int,
+    budget: float,
+    slam: bool,
+    particles: int,
+    folder: str,
+    world_file: str | None = None,
 ) -> dict[str, Any]:
-    """One exploration; writes ``progress.csv`` and then ``metrics.json`` into ``folder``."""
+    """One exploration; writes ``progress.csv`` and then ``metrics.json`` into ``folder``.
+    ``world`` names the world in the results; it is read from ``world_file`` when given (a
+    copy of the map file ``world`` names, e.g. on a remote worker)."""
     from crlam.sim.worlds import get_world
 
-    w = get_world(world, seed=world_seed)
+    w = get_world(world_file or world, seed=world_seed)
     cfg = ExploreConfig(
         function=function, alpha=alpha, budget_m=budget, threshold=0.05, seed=seed, slam=slam, slam_particles=particles
     )
     run = explore(w, default_start(w), cfg)
-    d = Path(folder)
-    d.mkdir(parents=True, exist_ok=True)
     err = np.hypot(*(run.estimates[:, :2] - run.poses[:, :2]).T)
     rows = run.decisions
-    with (d / "progress.csv").open("w", newline="") as fh:
-        wr = csv.DictWriter(fh, fieldnames=list(rows[0]) if rows else ["decision"])
-        wr.writeheader()
-        wr.writerows(rows)
     last = run.decisions[-1] if run.decisions else {}
     metrics = {
         "world": world,
@@ -65,7 +77,29 @@ def run_one_exploration(
         "decision_ms_mean": round(float(np.mean([r["decision_ms"] for r in run.decisions])), 3) if run.decisions else None,
         "bumps": run.bumps,
     }
-    write_atomic(d / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    # Staged: the run's folder appears (replacing an older, unfinished or corrupt one) only whole.
+    with staged_folder(folder, command=f"crlam experiment explore ({world}, {function}, seed {seed})") as d:
+        with (d / "progress.csv").open("w", newline="") as fh:
+            wr = csv.DictWriter(fh, fieldnames=list(rows[0]) if rows else ["decision"])
+            wr.writeheader()
+            wr.writerows(rows)
+        write_atomic(d / "metrics.json", json.dumps(metrics, indent=2, sort_keys=True) + "\n")
+    return metrics
+
+
+def _finished_exploration(folder: Path) -> dict[str, Any] | None:
+    """The metrics of a finished run, or None when its files are missing or unreadable (the run is
+    then done again)."""
+    metrics = load_json_dict(folder / "metrics.json")
+    if metrics is None or not {"world", "variant", "pose_error_mean_m"} <= set(metrics):
+        return None
+    try:
+        with (folder / "progress.csv").open(newline="") as fh:
+            for row in csv.DictReader(fh):
+                for key in ("distance_m", "explored_m2", "map_error", "pose_error_m"):
+                    float(row[key])
+    except (OSError, ValueError, KeyError, TypeError, csv.Error, UnicodeDecodeError):
+        return None
     return metrics
 
 
@@ -90,15 +124,35 @@ def run_explore_experiment(
     world_seed: int = 0,
     workers: int = 2,
     progress: bool = True,
+    executor: Executor | None = None,
+    resume: bool = True,
+    force: bool = False,
 ) -> ExploreSweep:
-    """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``."""
+    """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``.
+    ``executor``: where the runs go (default: ``workers`` local processes).
+
+    An existing ``out`` is resumed (``resume``; its runs must have the same budget, pose source,
+    particles and world seed, and a world file it already has runs of must be the same file, by
+    content) or replaced (``force``); see :mod:`crlam.experiments.resume`. A run whose files
+    cannot be read is run again."""
+    if not functions or not worlds:
+        raise ConfigError("no function or no world given: the sweep would run nothing")
+    if "ucrmi" in functions and not alphas:
+        raise ConfigError("UCRMI needs at least one alpha (--alphas)")
     for f in functions:
         if f not in FUNCTIONS:
             raise ConfigError(f"unknown function {f!r}; expected one of {', '.join(FUNCTIONS)}")
     if any(not (0.0 <= a <= 1.0) for a in alphas):
         raise ConfigError(f"alphas must be in [0, 1], got {list(alphas)}")
-    root = Path(out)
-    root.mkdir(parents=True, exist_ok=True)
+    inputs = {f"world:{Path(w).stem}": (input_digest(w) if Path(w).is_file() else w) for w in worlds}
+    root = open_experiment(
+        out,
+        "explore",
+        {"budget": budget, "slam": slam, "particles": particles, "world_seed": world_seed},
+        inputs=inputs,
+        resume=resume,
+        force=force,
+    )
     jobs = []
     for world in worlds:
         for f in functions:
@@ -118,17 +172,20 @@ def run_explore_experiment(
                                 "slam": slam,
                                 "particles": particles,
                                 "folder": str(root / "runs" / tag),
+                                "world_file": None if world in WORLD_NAMES else world,
                             },
                         )
                     )
     done, errors = run_jobs(
         jobs,
         run_one_exploration,
-        lambda n: (root / "runs" / n / "metrics.json").is_file(),
-        lambda n: json.loads((root / "runs" / n / "metrics.json").read_text()),
+        lambda n: _finished_exploration(root / "runs" / n) is not None,
+        lambda n: _finished_exploration(root / "runs" / n) or {},
         workers=workers,
         progress=progress,
         desc="explorations",
+        executor=executor,
+        layout=EXPLORE_RUN_LAYOUT,
     )
     rows = [{**done[n], "name": n} for n, _ in jobs if n in done]
     files = {"runs": root / "runs.csv", "report": root / "report.md"}
@@ -142,6 +199,7 @@ def run_explore_experiment(
 
         files.update(save_sweep_figures(root, rows))
     files["report"].write_text(_report(rows, errors, budget=budget, slam=slam))
+    close_experiment(root, n_runs=len(jobs), failed=errors)
     return ExploreSweep(out=root, rows=rows, errors=errors, files=files)
 
 

@@ -19,16 +19,21 @@ from typing import Any
 
 import numpy as np
 
-from crlam.errors import ConfigError
+from crlam.errors import ConfigError, CrlamError
+from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs, write_atomic
+from crlam.experiments.resume import close_experiment, input_digest, load_json_dict, open_experiment
 from crlam.info import InformationFunction, load_map_prior, make_function
-from crlam.planner import IigSettings, IigTree, plan_iig
+from crlam.planner import IigSettings, IigTree, check_start, plan_iig
+from crlam.run_folder import staged_folder
 
 __all__ = ["FUNCTIONS", "LABELS", "IigExperiment", "function_for", "run_iig_experiment", "run_one"]
 
 FUNCTIONS = ("ogmi", "crmi", "ucrmi", "gpvr", "ugpvr")
 LABELS = {"ogmi": "OGMI", "crmi": "CRMI", "ucrmi": "UCRMI", "gpvr": "GPVR", "ugpvr": "UGPVR"}
 OGMI_IMPLEMENTATIONS = {"fsmi": "fsmi", "iig_mi": "iig_mi", "julian": "ogmi"}
+#: A planner run reads the map and writes ``tree.npz``, then ``result.json``.
+IIG_RUN_LAYOUT = RunLayout(inputs=("map_path",))
 
 
 def function_for(name: str, *, mode: str, ogmi: str = "fsmi", particles: int = 100) -> InformationFunction:
@@ -65,11 +70,11 @@ def run_one(
     f = function_for(function, mode=mode, ogmi=ogmi, particles=particles)
     settings = IigSettings(mode=mode, start=(float(start[0]), float(start[1])), max_wall_seconds=max_wall_seconds)
     tree = plan_iig(f, prior, settings, seed=seed)
-    d = Path(folder)
-    d.mkdir(parents=True, exist_ok=True)
-    tree.save(d / "tree.npz")
     row = {**tree.summary(), "function": function, "implementation": f.name}
-    write_atomic(d / "result.json", json.dumps(row, indent=2, sort_keys=True) + "\n")
+    # Staged: the run's folder appears (replacing an older, unfinished or corrupt one) only whole.
+    with staged_folder(folder, command=f"crlam experiment iig ({function}, seed {seed})") as d:
+        tree.save(d / "tree.npz")
+        write_atomic(d / "result.json", json.dumps(row, indent=2, sort_keys=True) + "\n")
     return row
 
 
@@ -96,18 +101,42 @@ def run_iig_experiment(
     max_wall_seconds: float = 600.0,
     start: tuple[float, float] = (10.0, 2.0),
     progress: bool = True,
+    executor: Executor | None = None,
+    resume: bool = True,
+    force: bool = False,
 ) -> IigExperiment:
-    """Runs (resuming) the comparison and writes ``runs.csv``, the figures and ``report.md``."""
+    """Runs (resuming) the comparison and writes ``runs.csv``, the figures and ``report.md``.
+    ``executor``: where the runs go (default: ``workers`` local processes).
+
+    An existing ``out`` is resumed (``resume``; its runs must have been made on the same map, by
+    its content, with the same planner settings) or replaced (``force``); see
+    :mod:`crlam.experiments.resume`. A run whose ``result.json`` or ``tree.npz`` cannot be read is
+    run again."""
+    if not functions:
+        raise ConfigError("no information function given (e.g. --functions crmi,ucrmi)")
     for name in functions:
         function_for(name, mode=mode, ogmi=ogmi, particles=particles)  # validate before any run
-    root = Path(out)
-    root.mkdir(parents=True, exist_ok=True)
     if map_path is None:
         from crlam.io.fetch import find_dataset
 
         map_path = find_dataset("cave-map")
     map_path = str(Path(map_path).resolve())
-    load_map_prior(map_path)  # a clean error for an unusable map before spawning workers
+    # A clean error for an unusable map or start before spawning workers.
+    check_start(load_map_prior(map_path), (float(start[0]), float(start[1])))
+    root = open_experiment(
+        out,
+        "iig",
+        {
+            "map_sha256": input_digest(map_path),
+            "mode": mode,
+            "ogmi": ogmi,
+            "particles": particles,
+            "max_wall_seconds": max_wall_seconds,
+            "start": [float(start[0]), float(start[1])],
+        },
+        resume=resume,
+        force=force,
+    )
     jobs = [
         (
             f"{name}-s{seed:02d}",
@@ -129,11 +158,13 @@ def run_iig_experiment(
     done, errors = run_jobs(
         jobs,
         run_one,
-        lambda n: (_folder(root, n) / "result.json").is_file(),
-        lambda n: json.loads((_folder(root, n) / "result.json").read_text()),
+        lambda n: _finished_run(_folder(root, n)) is not None,
+        lambda n: _finished_run(_folder(root, n)) or {},
         workers=workers,
         progress=progress,
         desc="planner runs",
+        executor=executor,
+        layout=IIG_RUN_LAYOUT,
     )
     rows = [done[n] for n, _ in jobs if n in done]
     files = {"runs": root / "runs.csv"}
@@ -149,7 +180,21 @@ def run_iig_experiment(
         files["fig5"] = save_ric_and_gain(root / "fig5_ric_gain.png", trees, LABELS)
     files["report"] = root / "report.md"
     files["report"].write_text(report_markdown(rows, functions, errors, mode=mode, ogmi=ogmi, map_path=map_path))
+    close_experiment(root, n_runs=len(jobs), failed=errors)
     return IigExperiment(out=root, rows=rows, errors=errors, files=files)
+
+
+def _finished_run(folder: Path) -> dict[str, Any] | None:
+    """The result row of a finished run, or None when its files are missing or unreadable (the
+    run is then done again)."""
+    row = load_json_dict(folder / "result.json")
+    if row is None or "function" not in row:
+        return None
+    try:
+        IigTree.load(folder / "tree.npz")
+    except (CrlamError, OSError):
+        return None
+    return row
 
 
 def _write_csv(path: Path, rows: Sequence[dict[str, Any]]) -> None:

@@ -8,7 +8,8 @@ or the robot has travelled ``max_travel`` metres. With a reference trajectory (e
 estimate is within :data:`CORRECT_XY` m and :data:`CORRECT_THETA` rad of the reference at the
 convergence scan and at the trial's last scan. The folder gets ``trials.csv`` (one row per
 trial, written as each finishes), ``trials.png`` (the share of trials converged against the
-distance travelled) and ``metrics.json`` (the summary, written last).
+distance travelled) and ``metrics.json`` (the summary, written last); ``--resume`` keeps the
+finished trials of an interrupted folder.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from tqdm import tqdm
 
 from crlam import __version__
 from crlam.errors import ConfigError, DataFormatError
+from crlam.experiments.resume import close_experiment, open_experiment
 from crlam.experiments.slam_run import _jsonable, _scan_inputs
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import open_log
@@ -104,14 +106,31 @@ def run_global_trials(
     nav2_prior: Nav2Prior | None = None,
     bag_options: dict[str, Any] | None = None,
     progress: bool = True,
+    resume: bool = False,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Runs the trials (module docstring) and returns the summary written to ``metrics.json``.
-    Trial i uses ``config`` with seed ``config.seed + i``."""
+    Trial i uses ``config`` with seed ``config.seed + i``.
+
+    An existing folder is refused unless ``resume`` (its finished trials are kept when its
+    ``experiment.json`` records the same settings; the rest are run) or ``force`` (it is emptied
+    first); see :mod:`crlam.experiments.resume`."""
     config = config or LocalizeConfig()
     if not (n_trials >= 1 and max_travel > 0 and target_travel > 0):
         raise ConfigError("n_trials must be >= 1 and the travels > 0")
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
+    settings = {
+        "log": str(log_path),
+        "map": str(map_path),
+        "config": config.to_dict(),
+        "n_trials": n_trials,
+        "max_travel_m": max_travel,
+        "target_travel_m": target_travel,
+        "trial_seed": trial_seed,
+        "reference": None if reference is None else str(reference),
+        "nav2_prior": None if nav2_prior is None else nav2_prior.__dict__,
+        "bag_options": bag_options or {},
+    }
+    out = open_experiment(out_dir, "localize-trials", settings, resume=resume, force=force)
     loc_map = load_localization_map(map_path, nav2_prior=nav2_prior)
     scans = _read_scans(log_path, bag_options)
     travelled = np.concatenate(
@@ -129,13 +148,16 @@ def run_global_trials(
         raise ConfigError(f"the log's {travelled[-1]:.1f} m of travel leave no start with {target_travel:g} m ahead")
     rng = np.random.default_rng(trial_seed)
     starts = np.sort(rng.choice(starts_ok, size=n_trials, replace=starts_ok.size < n_trials))
-    rows: list[dict[str, Any]] = []
     csv_path = out / "trials.csv"
+    done = _finished_rows(csv_path, starts)
+    rows: list[dict[str, Any]] = []
     with open(csv_path, "w", newline="") as fh:
         w = csv.writer(fh)
         w.writerow(TRIAL_COLUMNS)
         for i, start in enumerate(tqdm(starts, desc="global localization trials", disable=not progress)):
-            row = _run_trial(i, int(start), scans, travelled, loc_map, replace(config, seed=config.seed + i), max_travel, ref)
+            row = done.get(i)
+            if row is None:
+                row = _run_trial(i, int(start), scans, travelled, loc_map, replace(config, seed=config.seed + i), max_travel, ref)
             rows.append(row)
             w.writerow([row[c] for c in TRIAL_COLUMNS])
             fh.flush()
@@ -165,7 +187,30 @@ def run_global_trials(
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(summary, indent=2, sort_keys=True, default=_jsonable) + "\n")
     tmp.replace(out / "metrics.json")
+    close_experiment(out, n_runs=n_trials, failed={})
     return summary
+
+
+def _finished_rows(csv_path: Path, starts: NDArray[np.int64]) -> dict[int, dict[str, Any]]:
+    """The rows of a resumed folder's ``trials.csv`` that finished with the start they should have
+    (by trial index); an unreadable file or row counts as not finished."""
+    out: dict[int, dict[str, Any]] = {}
+    try:
+        with open(csv_path, newline="") as fh:
+            for raw in csv.DictReader(fh):
+                if set(TRIAL_COLUMNS) - set(raw):
+                    return {}
+                i = int(raw["trial"])
+                if 0 <= i < len(starts) and int(raw["start_scan"]) == int(starts[i]):
+                    row: dict[str, Any] = dict(raw)
+                    for key in ("trial", "start_scan", "converged", "scans_run"):
+                        row[key] = int(row[key])
+                    if row["correct"] != "":
+                        row["correct"] = int(row["correct"])
+                    out[i] = row
+    except (OSError, ValueError, csv.Error):
+        return {}
+    return out
 
 
 def _run_trial(

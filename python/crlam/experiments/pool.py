@@ -1,8 +1,10 @@
-"""Resumable jobs in ``spawn`` worker processes.
+"""Resumable jobs: the sweep loop (:func:`run_jobs`) and the local executor (``spawn`` worker processes).
 
-A job is finished when its folder holds the marker file the worker writes last (atomically), so
-a killed run loses at most the jobs in flight and rerunning skips the finished ones. Workers use
-the ``spawn`` context: a forked child of a process whose rayon pool has started hangs.
+A job is finished when its folder holds the marker file written last (atomically), so a killed
+run loses at most the jobs in flight and rerunning skips the finished ones. Workers use the
+``spawn`` context: a forked child of a process whose rayon pool has started hangs. Other
+executors (:mod:`crlam.experiments.dask_executor`) plug into the same loop through
+:class:`crlam.experiments.executor.Executor`.
 """
 
 from __future__ import annotations
@@ -14,17 +16,18 @@ import threading
 import time
 import traceback
 from collections.abc import Callable, Sequence
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing.connection import Connection, wait
 from pathlib import Path
 from typing import Any
 
 from tqdm import tqdm
 
-__all__ = ["Job", "run_jobs", "write_atomic"]
+from crlam.experiments.executor import Collect, Executor, Job, RunLayout
 
-Job = tuple[str, dict[str, Any]]
-"""(name, keyword arguments of the worker function)."""
+__all__ = ["DEFAULT_RETRIES", "Job", "LocalExecutor", "run_jobs", "write_atomic"]
+
+#: How often a run whose process died is started again before it is recorded as failed.
+DEFAULT_RETRIES = 2
 
 
 def write_atomic(path: Path, text: str) -> None:
@@ -80,40 +83,84 @@ def _run_fresh_processes(
     fn: Callable[..., dict[str, Any]],
     workers: int,
     threads: int,
-    collect: Callable[[str, Any, str | None], None],
+    collect: Collect,
+    retries: int = 0,
 ) -> None:
     """Every job in its own spawned process, at most ``workers`` at a time. A process that dies
-    without a result (killed by the OOM killer, a crash in native code) fails its job only;
-    ``multiprocessing.Pool`` would replace the worker and wait for the lost result forever."""
+    without a result (killed by the OOM killer, a crash in native code) costs its job only: the
+    job is started again, up to ``retries`` more times, and then reported as failed with the
+    reason. (``multiprocessing.Pool`` would replace the worker and wait for the lost result forever.)"""
     ctx = mp.get_context("spawn")
     queue = list(todo)[::-1]
-    running: dict[Connection, tuple[str, Any]] = {}
+    attempts: dict[str, int] = {}
+    running: dict[Connection, tuple[str, Any, dict[str, Any]]] = {}
     try:
         while queue or running:
             while queue and len(running) < max(workers, 1):
                 name, kw = queue.pop()
+                attempts[name] = attempts.get(name, 0) + 1
                 recv, send = ctx.Pipe(duplex=False)
                 proc = ctx.Process(target=_call_and_send, args=(send, fn, name, kw, threads, os.getpid()), daemon=True)
                 proc.start()
                 send.close()  # the child holds the only writer: EOF once it is gone
-                running[recv] = (name, proc)
+                running[recv] = (name, proc, kw)
             for conn in wait(list(running)):
                 assert isinstance(conn, Connection)
-                name, proc = running.pop(conn)
+                name, proc, kw = running.pop(conn)
                 try:
                     result = conn.recv()
                 except EOFError:
                     proc.join()
-                    collect(name, None, _death_reason(proc.exitcode))
+                    reason = _death_reason(proc.exitcode)
+                    if attempts[name] <= retries:
+                        tqdm.write(f"{name}: {reason.split(': ', 1)[1]}; starting it again (attempt {attempts[name] + 1})")
+                        queue.append((name, kw))
+                    else:
+                        collect(name, None, f"{reason} (attempt {attempts[name]} of {retries + 1})")
                 else:
                     collect(*result)
                     proc.join()
                 finally:
                     conn.close()
     finally:
-        for _, proc in running.values():
+        for _, proc, _ in running.values():
             proc.terminate()
             proc.join()
+
+
+class LocalExecutor:
+    """This machine's worker processes (``--executor local``, the default).
+
+    With more than one worker, or ``fresh_process``, every run gets a spawned process of its
+    own, so a run that dies (out of memory) takes no other run with it and is started again
+    (``retries`` times at most, then reported as failed). One worker without ``fresh_process``
+    runs the jobs in this process. Workers write their run folders themselves (``layout`` is
+    not needed: this process and its workers share the disk)."""
+
+    def __init__(self, workers: int = 1, *, retries: int = DEFAULT_RETRIES) -> None:
+        if workers < 1 or retries < 0:
+            raise ValueError(f"workers must be >= 1 and retries >= 0, got {workers} and {retries}")
+        self.workers = workers
+        self.retries = retries
+
+    def describe(self) -> str:
+        return f"{self.workers} local worker process{'es' if self.workers != 1 else ''}"
+
+    def run(
+        self,
+        todo: Sequence[Job],
+        fn: Callable[..., dict[str, Any]],
+        *,
+        threads: int,
+        fresh_process: bool,
+        layout: RunLayout | None,
+        collect: Collect,
+    ) -> None:
+        if fresh_process or self.workers > 1:
+            _run_fresh_processes(todo, fn, self.workers, threads, collect, self.retries)
+        else:
+            for n, kw in todo:
+                collect(*_call(fn, n, kw, threads))
 
 
 def run_jobs(
@@ -127,21 +174,27 @@ def run_jobs(
     progress: bool = True,
     desc: str = "runs",
     fresh_process: bool = False,
+    executor: Executor | None = None,
+    layout: RunLayout | None = None,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """Runs the unfinished jobs (``fn(**kwargs)`` must be a module-level function writing its own
     result and returning it); returns ({name: result} of all finished jobs, {name: error}).
 
-    ``fresh_process`` runs every job in a new spawned process (also with one worker), so that
+    ``executor`` carries the runs out (default: :class:`LocalExecutor` with ``workers``);
+    ``layout`` says what each run reads and writes (needed by executors whose workers do not
+    share this disk, such as Dask's).
+    ``fresh_process`` runs every job in a new process (also with one worker), so that
     per-process measurements such as the peak resident memory belong to that job alone (a
     reused worker reports the largest peak of all the jobs it ran, and more)."""
     names = [n for n, _ in jobs]
     if len(set(names)) != len(names):
         raise ValueError("job names must be unique")
+    executor = executor or LocalExecutor(workers)
     done = {n: load(n) for n in names if is_finished(n)}
     todo = [(n, kw) for n, kw in jobs if n not in done]
     errors: dict[str, str] = {}
     if progress:
-        print(f"{len(done)} of {len(jobs)} {desc} already finished; {len(todo)} to run with {workers} worker(s)", flush=True)
+        print(f"{len(done)} of {len(jobs)} {desc} already finished; {len(todo)} to run on {executor.describe()}", flush=True)
     if not todo:
         return done, errors
     bar = tqdm(total=len(todo), desc=desc, unit="run", disable=not progress)
@@ -154,16 +207,8 @@ def run_jobs(
             tqdm.write(f"{name} failed: {errors[name].splitlines()[0]}")
         bar.update(1)
 
-    if fresh_process:
-        _run_fresh_processes(todo, fn, workers, threads, collect)
-    elif workers <= 1:
-        for n, kw in todo:
-            collect(*_call(fn, n, kw, threads))
-    else:
-        ctx = mp.get_context("spawn")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=ctx) as pool:
-            futures = [pool.submit(_call, fn, n, kw, threads) for n, kw in todo]
-            for f in as_completed(futures):
-                collect(*f.result())
-    bar.close()
+    try:
+        executor.run(todo, fn, threads=threads, fresh_process=fresh_process, layout=layout, collect=collect)
+    finally:
+        bar.close()
     return done, errors

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from crlam.experiments.executor import Executor
+from crlam.experiments.resume import close_experiment, open_experiment
 from crlam.experiments.sweep import RunSpec, run_sweep
 from crlam.io.fetch import find_dataset
 from crlam.slam import SlamConfig
@@ -59,17 +61,26 @@ def run_real_logs(
     max_scans: int | None = None,
     progress: bool = True,
     report_only: bool = False,
+    executor: Executor | None = None,
+    resume: bool = True,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Runs (or resumes) the grid of runs and writes the table; returns the results.
 
     ``threads``: rayon threads of each run (the results do not depend on it; the wall times do).
+    ``executor``: where the runs go (default: ``workers`` local processes; the results do not
+    depend on it).
 
     ``base`` holds every setting but the grid's (method, particles, seed, max_range, which each
     run sets); without one the sweep uses the default preset (``SlamConfig.from_preset()``,
     ``robust``).
 
-    ``report_only`` runs nothing: the table covers the runs finished so far."""
+    ``report_only`` runs nothing: the table covers the runs finished so far.
+
+    An existing ``out`` is resumed (``resume``: every finished run's ``config.toml`` must hold the
+    settings asked for) or replaced (``force``); see :mod:`crlam.experiments.resume`."""
     base = base or SlamConfig.from_preset()
+    out = open_experiment(out, "real-logs", {}, resume=resume, force=force, report_only=report_only, runs_check_themselves=True)
     specs: list[RunSpec] = []
     for ds in datasets:
         if ds not in LOGS:
@@ -84,7 +95,7 @@ def run_real_logs(
                         specs.append(
                             RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans, threads=threads)
                         )
-    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
+    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor)
     rows = []
     for ds in datasets:
         for m in methods:
@@ -140,6 +151,8 @@ def run_real_logs(
     out.mkdir(parents=True, exist_ok=True)
     (out / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
     _write_table(out, rows, datasets)
+    if not report_only:
+        close_experiment(out, n_runs=len(specs), failed=errors)
     return results
 
 
@@ -170,16 +183,16 @@ def _write_table(out: Path, rows: list[dict[str, Any]], datasets: Sequence[str])
         "",
         "Translational error: mean ± std over relations, averaged over seeds; in brackets the std of the mean over seeds. "
         "Both errors are of the weighted-mean trajectory (`trajectory.tum`); 'best path' is the mean translational error "
-        "of the final best particle's path (`trajectory_best_path.tum`, GMapping's trajectory; '-' for runs that did "
+        "of the final best particle's path (`estimates/best_path.tum`, GMapping's trajectory; '-' for runs that did "
         "not record it); 'best path means' is the same lineage with each pose replaced by the mean of the proposal it "
-        "was drawn from (`trajectory_best_path_means.tum`; '-' where the poses are not drawn from a fitted proposal or "
+        "was drawn from (`estimates/best_path_means.tum`; '-' where the poses are not drawn from a fitted proposal or "
         "the run did not record it); 'max-weight' is the highest-weight particle chosen at each processed scan "
-        "(`trajectory_max_weight.tum`), 'mode' the mode-seeking estimate (`trajectory_mode.tum`, the weighted mean "
-        "of the densest group of particles), 'smoothed' the lineage smoother (`trajectory_smoothed.tum`, each scan's "
+        "(`estimates/max_weight.tum`), 'mode' the mode-seeking estimate (`estimates/mode.tum`, the weighted mean "
+        "of the densest group of particles), 'smoothed' the lineage smoother (`estimates/smoothed.tum`, each scan's "
         "ancestors of the final particles under the final weights, or those of the particles L scans later with "
-        "`--smoothing-lag L`; both '-' for runs made before they existed), and 'particle spread' the weighted "
-        "RMS distance of the particles from their mean, averaged over the processed scans (`steps.csv`; '-' for runs "
-        "from before 2026-11-26).",
+        "`--smoothing-lag L`; '-' where the run did not record them), and 'particle spread' the weighted "
+        "RMS distance of the particles from their mean, averaged over the processed scans (`steps.csv`; '-' where "
+        "the run did not record it).",
         "",
         "## Published (absolute translational error, m)",
         "",

@@ -3,18 +3,15 @@
 The folder holds ``config.toml`` (every resolved setting: the ``[input]`` table says how the log
 was read (for a bag: the topics, frames and laser mount used), the ``[slam]`` table has every
 :class:`crlam.slam.SlamConfig` field and the preset they were resolved from, so
-``crlam slam --config DIR/config.toml`` runs the same configuration again), ``trajectory.tum`` (one pose per laser
-scan of the log, in file order, stamped with the scan's ipc timestamp), ``metrics.json``,
-``trajectory_best_path.tum`` (the same from the final best particle's path, GMapping's trajectory;
-its errors are reported as ``reference_best_path`` / ``relations_best_path``),
-``trajectory_best_path_means.tum`` when the poses are drawn from a fitted proposal (the same
-lineage with each pose replaced by its proposal's mean; ``*_best_path_means`` errors),
-``trajectory_max_weight.tum`` (the highest-weight particle at each processed scan, chosen online;
-``*_max_weight`` errors), ``trajectory_mode.tum`` (the mode-seeking estimate of
-:func:`crlam.slam.mode_seeking_pose` at each processed scan; ``*_mode`` errors),
-``trajectory_smoothed.tum`` and, where the filter records proposal means,
-``trajectory_smoothed_means.tum`` (the lineage smoother of
-:meth:`crlam.slam.SlamRun.smoothed_trajectory`; ``*_smoothed`` / ``*_smoothed_means`` errors), ``steps.csv``
+``crlam slam --config DIR/config.toml`` runs the same configuration again), ``trajectory.tum`` (the filter's
+estimate: one pose per laser scan, sorted by time, stamped with the scan's timestamp),
+``metrics.json``, ``README.txt`` (one line per file), ``estimates/`` with the other estimates
+(:data:`ESTIMATES`: ``best_path.tum``, the final best particle's path, GMapping's trajectory,
+``*_best_path`` errors; ``best_path_means.tum`` when the poses are drawn from a fitted proposal;
+``max_weight.tum``; ``mode.tum``, :func:`crlam.slam.mode_seeking_pose` at each processed scan;
+``smoothed.tum`` and ``smoothed_means.tum``, the lineage smoother of
+:meth:`crlam.slam.SlamRun.smoothed_trajectory`; each with its ``reference_*`` / ``relations_*``
+errors in ``metrics.json``), ``steps.csv``
 (per processed scan: N_eff, resampling, the particle set's position and heading spread, the
 weighted-mean, highest-weight and mode-seeking poses; their summary is
 ``particle_set`` in ``metrics.json``), ``map.pgm`` + ``map.yaml`` and ``belief.npz`` (the best
@@ -52,7 +49,7 @@ from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
 from crlam.slam_continue import SlamPrior, pose_covariance
 
-__all__ = ["SlamResult", "run_slam_log", "write_toml", "FILL_RULE"]
+__all__ = ["ESTIMATES", "FILL_RULE", "SlamResult", "run_slam_log", "write_run_readme", "write_toml"]
 
 FILL_RULE = (
     "every laser scan gets a pose: processed scans the filter's weighted-mean estimate, the others the "
@@ -88,30 +85,37 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def _toml_value(v: Any) -> str:
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        return repr(f) if math.isfinite(f) else ("nan" if math.isnan(f) else ("inf" if f > 0 else "-inf"))
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+def _toml_plain(v: Any) -> Any:
+    """``v`` with numpy scalars as Python numbers and tuples as lists (what tomli-w writes)."""
+    if isinstance(v, (bool, np.bool_)):
+        return bool(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    if isinstance(v, np.floating):
+        return float(v)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return [_toml_plain(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _toml_plain(x) for k, x in v.items() if x is not None}
+    return v
 
 
 def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
-    """A flat TOML file of ``[section]`` tables (None values are written as comments)."""
-    lines = []
+    """A TOML file of ``[section]`` tables written with tomli-w.
+
+    A None value cannot be a TOML value: it is written as the comment line ``# name = (unset)``
+    at the end of its table, which :mod:`crlam.presets` and the sweeps read back as None (a key
+    that is absent altogether means "the preset's value", which is not the same).
+    """
+    import tomli_w
+
+    parts = []
     for name, table in sections.items():
-        lines.append(f"[{name}]")
-        for k, v in table.items():
-            lines.append(f"# {k} = (unset)" if v is None else f"{k} = {_toml_value(v)}")
-        lines.append("")
-    path.write_text("\n".join(lines))
+        values = {k: _toml_plain(v) for k, v in table.items() if v is not None}
+        unset = [f"# {k} = (unset)\n" for k, v in table.items() if v is None]
+        text = tomli_w.dumps({name: values}) if values else f"[{name}]\n"
+        parts.append(text + "".join(unset))
+    path.write_text("\n".join(parts))
 
 
 def _scan_inputs(scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
@@ -150,6 +154,7 @@ def run_slam_log(
     bag_options: dict[str, Any] | None = None,
     mcap: bool = False,
     prior: SlamPrior | None = None,
+    odometry: str = "auto",
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
@@ -157,8 +162,12 @@ def run_slam_log(
     ``bag_options`` go to the bag reader (:func:`crlam.io.logs.open_log`: ``scan_topic``,
     ``odom_topic``, ``base_frame``, ``laser_mount``, ``upside_down``). ``mcap`` also writes
     ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: scans, TF, particles, path and map as
-    standard ROS 2 messages). ``prior`` continues a saved run (:mod:`crlam.slam_continue`): its
-    folder is only read, and must not be ``out_dir``."""
+    standard ROS 2 messages). ``odometry`` is the motion input (:mod:`crlam.scan_odometry`):
+    ``wheel`` (the log's odometry), ``scan_match`` (scan-matching odometry; the log's odometry is
+    not read, and the filter takes :func:`~crlam.scan_odometry.scan_match_filter_config`'s motion
+    noise) or ``auto`` (``scan_match`` when the input has no odometry); ``config.toml`` and
+    ``metrics.json`` record which was used and why. ``prior`` continues a saved run
+    (:mod:`crlam.slam_continue`): its folder is only read, and must not be ``out_dir``."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
@@ -167,6 +176,11 @@ def run_slam_log(
     out.mkdir(parents=True, exist_ok=True)
     # The wall time includes the odometry-noise pre-pass, which is part of the run.
     t0 = time.perf_counter()
+    from crlam.scan_odometry import resolve_odometry, scan_match_filter_config
+
+    source = resolve_odometry(log_path, odometry, bag_options)
+    if source[0] == "scan_match":
+        config = scan_match_filter_config(config)
     noise_estimate = None
     if config.motion_noise == "estimate" and config.motion_params is None:
         from dataclasses import replace
@@ -182,21 +196,48 @@ def run_slam_log(
             seed=config.seed,
         )
         config = replace(config, motion_params=noise_estimate.params)
-    reader = open_log(log_path, **(bag_options or {}))
+    reader = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
+    records: Any = reader
+    front_end = None
+    if source[0] == "scan_match":
+        from crlam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig, scan_match_odometry
+
+        front_end = ScanMatchOdometry(ScanOdometryConfig())
+        records = scan_match_odometry(reader, front_end=front_end)
     recorder = None
     if mcap:
         from crlam.experiments.slam_mcap import SlamMcapRecorder
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(reader, config, log_path, max_scans, progress, recorder, t0, prior)
+        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0, prior)
     except BaseException:
         if recorder is not None:
             recorder.close()
         raise
+    odometry_info = {"odometry": source[0], "odometry_choice": source[1]}
     return _write_outputs(
-        run_wall, reader, log_path, out, reference, relations, max_scans, figures, recorder, noise_estimate, prior
+        run_wall,
+        reader,
+        log_path,
+        out,
+        reference,
+        relations,
+        max_scans,
+        figures,
+        recorder,
+        noise_estimate,
+        odometry_info,
+        front_end,
+        prior,
     )
+
+
+def _scan_match_reading(log_path: str | os.PathLike[str], source: str) -> dict[str, Any]:
+    """The reader options of scan-matching odometry: a bag's odometry is not read, its IMU is."""
+    from crlam.io.rosbag import is_bag
+
+    return {"odometry": False, "imu": True} if source == "scan_match" and is_bag(log_path) else {}
 
 
 def _run_filter(
@@ -229,6 +270,8 @@ def _run_filter(
             particles = np.asarray(run.filter.particle_poses(), dtype=np.float64) if step.processed else None
             recorder.scan(rec, step.processed, step.estimate, particles)
         bar.update(1)
+        if max_scans is not None and run.n_scans >= max_scans:
+            break  # before the next record is read (a front end would match one scan more)
     bar.close()
     wall = time.perf_counter() - t0
     if run is None or run.n_scans == 0:
@@ -247,41 +290,55 @@ def _write_outputs(
     figures: bool,
     recorder: Any,
     noise_estimate: MotionNoiseEstimate | None = None,
+    odometry_info: dict[str, str] | None = None,
+    front_end: Any = None,
     prior: SlamPrior | None = None,
 ) -> SlamResult:
     run, wall = run_wall
+    input_info = input_description(reader) | (odometry_info or {})
     config = run.config
     stamps, poses = run.trajectory()
-    write_tum(out / "trajectory.tum", stamps, poses, header=f"crlam {config.method} trajectory of {Path(log_path).name}")
+    name = Path(log_path).name
+    # Every trajectory file is sorted by time (evo and other tools expect increasing stamps; a log's
+    # file order need not be). A stable sort keeps the file order of equal stamps.
+    order = np.argsort(stamps, kind="stable")
+    written: dict[str, str] = {}
+
+    def save(rel: str, traj: NDArray[np.float64], header: str, what: str) -> None:
+        (out / rel).parent.mkdir(parents=True, exist_ok=True)
+        write_tum(out / rel, stamps[order], traj[order], header=header)
+        written[rel] = what
+
+    save("trajectory.tum", poses, f"crlam {config.method} trajectory of {name}", ESTIMATES["trajectory.tum"])
     _, path_poses = run.best_path_trajectory()
-    write_tum(
-        out / "trajectory_best_path.tum",
-        stamps,
+    save(
+        "estimates/best_path.tum",
         path_poses,
-        header=f"crlam {config.method} final best particle's path over {Path(log_path).name}",
+        f"crlam {config.method} final best particle's path over {name}",
+        ESTIMATES["estimates/best_path.tum"],
     )
     path_means = run.best_path_means_trajectory()
     means_poses = None if path_means is None else path_means[1]
     if means_poses is not None:
-        write_tum(
-            out / "trajectory_best_path_means.tum",
-            stamps,
+        save(
+            "estimates/best_path_means.tum",
             means_poses,
-            header=f"crlam {config.method} proposal means along the final best particle's path over {Path(log_path).name}",
+            f"crlam {config.method} proposal means along the final best particle's path over {name}",
+            ESTIMATES["estimates/best_path_means.tum"],
         )
     _, max_weight_poses = run.max_weight_trajectory()
-    write_tum(
-        out / "trajectory_max_weight.tum",
-        stamps,
+    save(
+        "estimates/max_weight.tum",
         max_weight_poses,
-        header=f"crlam {config.method} highest-weight particle at each processed scan of {Path(log_path).name}",
+        f"crlam {config.method} highest-weight particle at each processed scan of {name}",
+        ESTIMATES["estimates/max_weight.tum"],
     )
     _, mode_poses = run.mode_trajectory()
-    write_tum(
-        out / "trajectory_mode.tum",
-        stamps,
+    save(
+        "estimates/mode.tum",
         mode_poses,
-        header=f"crlam {config.method} mode-seeking estimate (bandwidth {config.mode_bandwidth}) over {Path(log_path).name}",
+        f"crlam {config.method} mode-seeking estimate (bandwidth {config.mode_bandwidth}) over {name}",
+        ESTIMATES["estimates/mode.tum"],
     )
     smoothed = {}
     for suffix, use_means, what in (("", False, "poses"), ("_means", True, "proposal means")):
@@ -289,12 +346,8 @@ def _write_outputs(
         if traj is not None:
             smoothed[suffix] = traj[1]
             lag = "full" if config.smoothing_lag is None else f"lag {config.smoothing_lag}"
-            write_tum(
-                out / f"trajectory_smoothed{suffix}.tum",
-                stamps,
-                traj[1],
-                header=f"crlam {config.method} lineage smoother ({lag}, {what}) over {Path(log_path).name}",
-            )
+            rel = f"estimates/smoothed{suffix}.tum"
+            save(rel, traj[1], f"crlam {config.method} lineage smoother ({lag}, {what}) over {name}", ESTIMATES[rel])
     write_particle_sets(out / "steps.csv", run)
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
@@ -319,7 +372,8 @@ def _write_outputs(
         "preset": config.preset,
         "deviations_from_paper": config.deviations(),
         "motion_noise_estimate": None if noise_estimate is None else noise_estimate.to_dict(),
-        "input": input_description(reader),
+        "input": input_info,
+        "scan_odometry": None if front_end is None else front_end.config.to_dict() | front_end.stats.to_dict(),
         "continued_from": None if prior is None else prior.describe(),
     }
     ref_poses = None
@@ -352,7 +406,7 @@ def _write_outputs(
         for suffix, sm_poses in smoothed.items():
             metrics[f"relations_smoothed{suffix}"] = relations_error(stamps, sm_poses, rels, on_missing=on_missing).summary()
         rel_figure = {
-            "weighted mean": rel_errors,
+            f"RBPF-{config.method.upper()}, weighted mean": rel_errors,
             "mode-seeking": rel_mode,
             "best particle's path": rel_path,
             "highest-weight particle": rel_max_weight,
@@ -398,9 +452,10 @@ def _write_outputs(
                 "crlam_version": __version__,
                 "continue": None if prior is None else prior.source,
             },
-            "input": input_description(reader),
+            "input": input_info,
             "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
-        },
+        }
+        | ({} if front_end is None else {"scan_odometry": front_end.config.to_dict()}),
     )
 
     if figures:
@@ -413,6 +468,7 @@ def _write_outputs(
             poses,
             reference=None if ref_poses is None else ref_poses[1],
             title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, {config.particles} particles",
+            label=f"RBPF-{config.method.upper()}",
         )
         if ref_poses is not None:
             save_error_figure(out / "errors.png", ref_poses[2], title=f"{Path(log_path).name}: error against the reference")
@@ -423,11 +479,51 @@ def _write_outputs(
                 t0=float(stamps[0]),
                 title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, relations metric",
             )
+    write_run_readme(out, written, figures=figures, reference=ref_poses is not None, relations=rel_figure is not None)
     # metrics.json is written last and atomically: its presence marks a finished run (sweeps resume).
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
     tmp.replace(out / "metrics.json")
     return SlamResult(run, metrics, out)
+
+
+ESTIMATES = {
+    "trajectory.tum": "the filter's estimate, one pose per laser scan sorted by time: the weighted mean of the "
+    "particles at processed scans, carried by the odometry in between (use this one)",
+    "estimates/best_path.tum": "the final best particle's path (the trajectory GMapping reports)",
+    "estimates/best_path_means.tum": "the same lineage with each pose replaced by the mean of the proposal it was drawn from",
+    "estimates/max_weight.tum": "the highest-weight particle at each processed scan, chosen online",
+    "estimates/mode.tum": "mode-seeking estimate: the weighted mean of the densest group of particles",
+    "estimates/smoothed.tum": "lineage smoother: each scan's weighted mean of the particles' ancestors (final weights, "
+    "or --smoothing-lag)",
+    "estimates/smoothed_means.tum": "the lineage smoother over the ancestors' proposal means",
+}
+"""What each trajectory file of a run folder holds (the lines of its ``README.txt``)."""
+
+
+def write_run_readme(out: Path, written: dict[str, str], *, figures: bool, reference: bool, relations: bool) -> None:
+    """``README.txt``: one line per file of the run folder saying what it holds."""
+    rows = [*written.items()]
+    rows += [
+        ("config.toml", "every setting of the run; crlam slam LOG --config config.toml repeats it"),
+        ("metrics.json", "timing, memory, particle-set summary and the errors of every trajectory"),
+        ("steps.csv", "one row per processed scan: N_eff, resampling, particle spread, estimates"),
+        ("map.pgm, map.yaml", "the best particle's map as a Nav2 map (opens in RViz)"),
+    ]
+    if (out / "belief.npz").exists():
+        rows.append(("belief.npz", "the best particle's confidence-rich map, lossless (crlam.io.belief)"))
+    if (out / "run.mcap").exists():
+        rows.append(("run.mcap", "scans, TF, particles, path and map as ROS 2 messages (Foxglove, ros2 bag play)"))
+    if figures:
+        rows.append(("trajectory.png", "the trajectory over the map"))
+        if reference:
+            rows.append(("errors.png", "error against the reference over time"))
+        if relations:
+            rows.append(("relations_errors.png", "every relation's error against the time of its first pose"))
+    width = max(len(k) for k, _ in rows)
+    lines = ["crlam slam run folder: what each file holds", ""]
+    lines += [f"{k:<{width}}  {v}" for k, v in rows]
+    (out / "README.txt").write_text("\n".join(lines) + "\n", encoding="utf-8")
 
 
 STEPS_COLUMNS = (

@@ -10,7 +10,6 @@ context, because a forked child of a process whose rayon pool has started hangs.
 
 from __future__ import annotations
 
-import json
 import re
 import sys
 from collections.abc import Sequence
@@ -23,13 +22,22 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-from crlam.errors import ConfigError
+from crlam.errors import ConfigError, CrlamError
+from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs
+from crlam.experiments.resume import load_json_dict
+from crlam.io.npz_check import check_npz
+from crlam.io.tum import read_tum
+from crlam.run_folder import staged_folder
 from crlam.slam import SlamConfig
 
 __all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics", "stored_setting_differences"]
 
 _UNSET_LINE = re.compile(r"^# (\w+) = \(unset\)$", re.MULTILINE)
+
+#: A SLAM run reads its log, reference and relations and writes ``metrics.json`` last; its map
+#: (``belief.npz``, hundreds of MB for a large log) is the file a remote executor may leave out.
+SLAM_RUN_LAYOUT = RunLayout(inputs=("log", "reference", "relations"), maps=("belief.npz",))
 
 
 @dataclass(frozen=True)
@@ -49,12 +57,25 @@ class RunSpec:
 
 
 def run_is_finished(folder: Path) -> bool:
-    """A run is finished when its metrics.json exists (it is written last)."""
-    return (folder / "metrics.json").is_file()
+    """A run is finished when its metrics.json (written last) reads as a JSON object and the files
+    the report reads back, where present, read too: a run with a corrupt file is done again."""
+    if load_json_dict(folder / "metrics.json") is None:
+        return False
+    try:
+        if (folder / "config.toml").is_file():
+            tomllib.loads((folder / "config.toml").read_text())
+        if (folder / "trajectory.tum").is_file():
+            read_tum(folder / "trajectory.tum")
+        if (folder / "belief.npz").is_file():
+            check_npz(folder / "belief.npz", "belief archive")
+    except (CrlamError, OSError, ValueError, tomllib.TOMLDecodeError):
+        return False
+    return True
 
 
 def load_metrics(folder: Path) -> dict[str, Any]:
-    return json.loads((folder / "metrics.json").read_text())
+    """The metrics of a finished run (an empty dict if they cannot be read)."""
+    return load_json_dict(folder / "metrics.json") or {}
 
 
 def _normalised(v: Any) -> Any:
@@ -113,31 +134,38 @@ def _check_finished_runs(specs: Sequence[RunSpec], root: Path) -> None:
     if problems:
         raise ConfigError(
             f"{len(problems)} finished run(s) under {root} were made with other settings than this command asks "
-            "for (use another output folder, or delete those run folders to redo them):\n  " + "\n  ".join(problems)
+            "for (use another output folder, --force to redo every run, or delete those run folders to redo them):\n  "
+            + "\n  ".join(problems)
         )
 
 
-def _run_spec(spec_dict: dict[str, Any], root: str) -> dict[str, Any]:
-    """One SLAM run in a worker (module level, so that ``spawn`` can pickle it)."""
+def _run_spec(
+    spec_dict: dict[str, Any], folder: str, log: str, reference: str | None = None, relations: str | None = None
+) -> dict[str, Any]:
+    """One SLAM run in a worker (module level, so that ``spawn`` can pickle it). The paths are
+    arguments of their own (not in ``spec_dict``): an executor may point them at copies."""
     from crlam.experiments.slam_run import run_slam_log
 
     d = dict(spec_dict)
     cfg = SlamConfig(**d.pop("config"))
-    spec = RunSpec(config=cfg, **d)
-    res = run_slam_log(
-        spec.log,
-        spec.folder(Path(root)),
-        cfg,
-        reference=spec.reference,
-        relations=spec.relations,
-        max_scans=spec.max_scans,
-        progress=False,
-    )
+    # Staged: the run's folder appears (replacing an older, unfinished or corrupt one) only whole.
+    with staged_folder(Path(folder), command=f"crlam experiment run {Path(folder).name}") as stage:
+        res = run_slam_log(
+            log,
+            stage,
+            cfg,
+            reference=reference,
+            relations=relations,
+            max_scans=d["max_scans"],
+            progress=False,
+        )
     return dict(res.metrics)
 
 
 def _spec_dict(spec: RunSpec) -> dict[str, Any]:
     d = asdict(spec)
+    for k in ("name", "log", "reference", "relations"):
+        del d[k]
     d["config"] = spec.config.to_dict()
     for k in ("motion_params", "init_sigma", "lattice_step", "mode_bandwidth"):
         if d["config"].get(k) is not None:
@@ -152,8 +180,12 @@ def run_sweep(
     workers: int = 1,
     progress: bool = True,
     report_only: bool = False,
+    executor: Executor | None = None,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """Runs every unfinished spec; returns ({name: metrics} of all finished runs, {name: error}).
+
+    ``executor`` carries the runs out (default: ``workers`` local processes; see
+    :mod:`crlam.experiments.executor`).
 
     ``report_only`` runs nothing and returns the runs finished so far (an interim report of a
     sweep that is still going on elsewhere or was stopped).
@@ -169,7 +201,8 @@ def run_sweep(
     if report_only:
         return {s.name: load_metrics(s.folder(root)) for s in specs if run_is_finished(s.folder(root))}, {}
     threads = max((s.threads for s in specs), default=1)
-    jobs = [(s.name, {"spec_dict": _spec_dict(s), "root": str(root)}) for s in specs]
+    paths = [{"log": s.log, "reference": s.reference, "relations": s.relations} for s in specs]
+    jobs = [(s.name, {"spec_dict": _spec_dict(s), "folder": str(s.folder(root)), **p}) for s, p in zip(specs, paths)]
     return run_jobs(
         jobs,
         _run_spec,
@@ -181,4 +214,6 @@ def run_sweep(
         # Each SLAM run reports its own peak RSS.
         fresh_process=True,
         desc="runs",
+        executor=executor,
+        layout=SLAM_RUN_LAYOUT,
     )

@@ -17,7 +17,10 @@ from typing import Any
 
 import numpy as np
 
+from crlam.errors import ConfigError
 from crlam.eval.trajectory import ReferenceErrors, aggregate_runs, reference_errors
+from crlam.experiments.executor import Executor
+from crlam.experiments.resume import close_experiment, load_json_dict, open_experiment
 from crlam.experiments.sweep import RunSpec, run_sweep
 from crlam.io.belief import load_belief
 from crlam.io.tum import read_tum
@@ -45,8 +48,17 @@ PAPER_TABLE1 = "the paper reports RBPF-CLAM with lower errors than RBPF-OGM on e
 
 
 def ensure_simulation(sim_dir: Path, n_scans: int, sim_seed: int, world_seed: int) -> None:
-    """Simulates the museum log once (skipped when it is already there: resume)."""
-    if (sim_dir / "simulation.json").is_file():
+    """Simulates the museum log once (skipped when it is already there: resume). A simulation of
+    other settings is an error; one that cannot be read is made again."""
+    stored = load_json_dict(sim_dir / "simulation.json")
+    if stored is not None and (sim_dir / "log.clf").is_file() and (sim_dir / "groundtruth.tum").is_file():
+        have = {k: stored.get("config", {}).get(k) for k in ("n_scans", "seed", "world_seed")}
+        want = {"n_scans": n_scans, "seed": sim_seed, "world_seed": world_seed}
+        if have != want:
+            raise ConfigError(
+                f"{sim_dir} holds a simulation of {have}, this command asks for {want} (use --force to redo every run, "
+                "or another --out)"
+            )
         return
     log = simulate(SimulationConfig(world="museum", n_scans=n_scans, seed=sim_seed, world_seed=world_seed, sensor="paper_lidar"))
     write_simulation(log, sim_dir)
@@ -70,15 +82,33 @@ def run_table1(
     base: SlamConfig | None = None,
     progress: bool = True,
     report_only: bool = False,
+    executor: Executor | None = None,
+    resume: bool = True,
+    force: bool = False,
 ) -> dict[str, Any]:
     """Runs (or resumes) the protocol and writes the table and figures; returns the results.
+
+    An existing ``out`` is resumed (``resume``: same simulation, and every finished run's settings
+    those asked for) or replaced (``force``); see :mod:`crlam.experiments.resume`.
 
     ``base`` holds the settings of every run (each sets its method, ``particles`` and seed); without
     one the runs use the ``paper`` preset at the protocol's 8 m.
 
     ``report_only`` runs nothing: the table and figures cover the runs finished so far.
-    ``threads``: rayon threads of each run (the results do not depend on it; the wall times do)."""
-    out.mkdir(parents=True, exist_ok=True)
+    ``threads``: rayon threads of each run (the results do not depend on it; the wall times do).
+    ``executor``: where the runs go (default: ``workers`` local processes; the results do not
+    depend on it). Run 0's ``fig2_trajectories.png`` needs its map, which a Dask executor sends
+    back only with ``keep_maps``. ``resume``: keep the finished runs of an earlier call with the
+    same settings (a mismatch is an error); ``force``: empty the folder first."""
+    out = open_experiment(
+        out,
+        "table1",
+        {"scans": scans, "sim_seed": sim_seed, "world_seed": world_seed},
+        resume=resume,
+        force=force,
+        report_only=report_only,
+        runs_check_themselves=True,
+    )
     sim_dir = out / "simulation"
     ensure_simulation(sim_dir, scans, sim_seed, world_seed)
     base = base or SlamConfig.from_preset("paper", particles=particles, max_range=PROTOCOL_MAX_RANGE)
@@ -92,7 +122,7 @@ def run_table1(
                     f"{m}_run{k:02d}", str(sim_dir / "log.clf"), cfg, reference=str(sim_dir / "groundtruth.tum"), threads=threads
                 )
             )
-    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only)
+    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor)
     rows: dict[str, dict[str, Any]] = {}
     for m in methods:
         finished = [done[s.name] | {"name": s.name} for s in specs if s.config.method == m and s.name in done]
@@ -143,6 +173,8 @@ def run_table1(
     (out / "results.json").write_text(json.dumps(results, indent=2, sort_keys=True) + "\n")
     _write_tables(out, methods, rows, protocol_deviations(base))
     _write_figures(out, sim_dir, specs, done)
+    if not report_only:
+        close_experiment(out, n_runs=len(specs), failed=errors)
     return results
 
 

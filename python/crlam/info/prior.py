@@ -19,6 +19,8 @@ from numpy.typing import NDArray
 from crlam import _native
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.nav2 import read_nav2_map, read_pgm
+from crlam.limits import check_limit
+from crlam.pose import number_pair
 
 __all__ = ["MapPrior", "lattice_from_obstacles", "load_map_prior", "prior_from_crm_mean"]
 
@@ -81,10 +83,28 @@ def lattice_from_obstacles(
             raise ConfigError(f"{name} must be in (0, 1), got {p}")
     if not (math.isfinite(resolution) and resolution > 0):
         raise ConfigError(f"resolution must be finite and > 0, got {resolution}")
-    if obstacle.ndim != 2 or obstacle.size == 0:
-        raise ConfigError(f"the obstacle mask must be a non-empty 2-D array, got shape {obstacle.shape}")
-    m = int(round(margin / resolution))
+    obstacle = np.asarray(obstacle)
+    if obstacle.ndim != 2 or obstacle.size == 0 or obstacle.dtype != np.bool_:
+        raise ConfigError(
+            f"the obstacle mask must be a non-empty 2-D boolean array, got {obstacle.dtype} of shape {obstacle.shape}"
+        )
+    if unknown is not None:
+        unknown = np.asarray(unknown)
+        if unknown.shape != obstacle.shape or unknown.dtype != np.bool_:
+            raise ConfigError(
+                f"the unknown mask must be a boolean array of the obstacle mask's shape {obstacle.shape}, got "
+                f"{unknown.dtype} of shape {unknown.shape}"
+            )
+    if not (math.isfinite(margin) and margin >= 0):
+        raise ConfigError(f"margin must be finite and >= 0, got {margin}")
     ny, nx = obstacle.shape
+    m_float = round(margin / resolution)
+    check_limit(
+        "map_cells",
+        (ny + 2.0 * m_float) * (nx + 2.0 * m_float),
+        f"a map prior of {nx} x {ny} cells of {resolution} m with a {margin} m margin",
+    )
+    m = int(m_float)
     prob = np.full((ny + 2 * m, nx + 2 * m), p_free)
     inner = prob[m : m + ny, m : m + nx]
     unk = np.zeros_like(obstacle) if unknown is None else unknown
@@ -94,7 +114,8 @@ def lattice_from_obstacles(
     free[m : m + ny, m : m + nx] = ~obstacle & ~unk
     obst = np.zeros(prob.shape, dtype=bool)
     obst[m : m + ny, m : m + nx] = obstacle
-    origin = (node_origin[0] - (m + 0.5) * resolution, node_origin[1] - (m + 0.5) * resolution)
+    ox, oy = number_pair(node_origin, "node_origin")
+    origin = (ox - (m + 0.5) * resolution, oy - (m + 0.5) * resolution)
     lat = _native.OccupancyLattice(np.ascontiguousarray(prob), resolution, origin)
     return MapPrior(lattice=lat, free=free, obstacle=obst, source="obstacles")
 

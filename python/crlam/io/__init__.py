@@ -22,6 +22,7 @@ from crlam.io.carmen import (
     read_carmen,
     read_scans,
 )
+from crlam.io.carmen_types import ImuReading
 from crlam.io.carmen_writer import CarmenWriter, write_carmen
 from crlam.io.datasets import (
     DATASETS,
@@ -55,6 +56,7 @@ __all__ = [
     "CarmenWriter",
     "Dataset",
     "DatasetNotFoundError",
+    "ImuReading",
     "LaserScan",
     "Nav2Map",
     "OdometryReading",

@@ -32,6 +32,7 @@ import json
 import math
 import os
 import zipfile
+import zlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +42,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crlam.errors import DataFormatError
+from crlam.io.npz_check import check_npz
+from crlam.limits import check_limit
 
 __all__ = ["FORMAT_VERSION", "PMF_TOLERANCE", "BeliefArchive", "load_belief", "save_belief"]
 
@@ -174,6 +177,16 @@ def save_belief(path: str | os.PathLike[str], archive: BeliefArchive) -> None:
         )
 
 
+def _check_before_loading(path: str | os.PathLike[str]) -> None:
+    """Refuses, before anything is decompressed, an archive over the ``archive_bytes`` limit or
+    whose belief grid exceeds the ``map_cells`` limit (:mod:`crlam.limits`)."""
+    members = check_npz(path, "belief archive")
+    beliefs = members.get("beliefs")
+    if beliefs is not None and len(beliefs.shape) == 3:
+        ny, nx, _ = beliefs.shape
+        check_limit("map_cells", ny * nx, f"belief archive {path} ({ny} x {nx} cells)")
+
+
 def load_belief(path: str | os.PathLike[str]) -> BeliefArchive:
     """Read and validate a belief archive written by :func:`save_belief`.
 
@@ -182,12 +195,16 @@ def load_belief(path: str | os.PathLike[str]) -> BeliefArchive:
     DataFormatError
         If the file is not such an archive, has a newer format version, misses a key, or
         holds inconsistent arrays (the message names the field).
+    ResourceLimitError
+        If its content exceeds the ``archive_bytes`` or ``map_cells`` limit (checked before
+        anything is decompressed).
     """
     where = str(path)
+    _check_before_loading(path)
     try:
         with np.load(Path(path), allow_pickle=False) as npz:
             arrays = {k: npz[k] for k in npz.files}
-    except (zipfile.BadZipFile, ValueError, EOFError, OSError) as exc:
+    except (zipfile.BadZipFile, ValueError, EOFError, OSError, zlib.error) as exc:
         if isinstance(exc, FileNotFoundError):
             raise
         raise DataFormatError(f"not a belief archive ({exc})", path=where) from exc

@@ -61,6 +61,7 @@ from crlam.io.carmen_types import (
     flaser_geometry,
 )
 from crlam.io.carmen_writer import CarmenWriter, write_carmen
+from crlam.io.lines import text_lines
 from crlam.pose import between
 
 __all__ = [
@@ -250,6 +251,8 @@ class CarmenReader:
             raise ValueError(f"flaser_max_range must be positive, got {flaser_max_range}")
         self.path = Path(path)
         if not self.path.is_file():
+            if self.path.exists():
+                raise DataFormatError("not a regular file (a folder, a device or a pipe)", path=str(self.path))
             raise FileNotFoundError(f"CARMEN log not found: {self.path}")
         self.on_error: OnError = on_error
         self.flaser_fov = float(flaser_fov)
@@ -273,17 +276,9 @@ class CarmenReader:
         self._rear = np.array([0.0, 0.0, math.pi])
         path = str(self.path)
         with open_binary(self.path) as fh:
-            number = 0
-            while True:
-                try:
-                    raw = fh.readline()
-                except (OSError, EOFError, ValueError) as exc:
-                    raise DataFormatError(f"corrupt or truncated compressed stream ({exc})", path=path, line=number + 1) from exc
-                if not raw:
-                    break
-                number += 1
+            for number, text in text_lines(fh, path):
                 stats.n_lines = number
-                tokens = raw.decode("utf-8", "replace").split()
+                tokens = text.split()
                 if not tokens:
                     _bump(stats.ignored, "blank")
                     continue

@@ -20,7 +20,9 @@ __all__ = [
     "CarmenLog",
     "CarmenRecord",
     "CarmenStats",
+    "ImuReading",
     "LaserScan",
+    "LogRecord",
     "OdometryReading",
     "flaser_geometry",
 ]
@@ -139,7 +141,33 @@ class OdometryReading:
         self.pose = _as_vec3(self.pose, "pose")
 
 
+@dataclass(eq=False)
+class ImuReading:
+    """The yaw rate of one ``sensor_msgs/msg/Imu`` message of a ROS bag (only read for
+    scan-matching odometry, :mod:`crlam.scan_odometry`).
+
+    Attributes
+    ----------
+    yaw_rate : float
+        Angular velocity about the robot's vertical axis (rad/s, counter-clockwise): the IMU's
+        angular velocity rotated into the base frame by the IMU's mount, z component.
+    timestamp : float
+        Header stamp (s).
+    host : str
+        Topic.
+    logger_timestamp : float
+        The bag's receive time (s).
+    """
+
+    yaw_rate: float
+    timestamp: float = 0.0
+    host: str = "nohost"
+    logger_timestamp: float = 0.0
+
+
 CarmenRecord = LaserScan | OdometryReading
+#: A record of any reader: a bag reader asked for IMU readings also yields :class:`ImuReading` s.
+LogRecord = LaserScan | OdometryReading | ImuReading
 
 
 @dataclass

@@ -82,6 +82,8 @@ def _pose(p: np.ndarray) -> str:
 class CarmenWriter:
     """Write CARMEN records to ``path`` (plain, or gzip / bzip2 if it ends in ``.gz`` / ``.bz2``).
 
+    Use it as a context manager, or call :meth:`close`.
+
     Parameters
     ----------
     path : str or PathLike
@@ -94,8 +96,6 @@ class CarmenWriter:
         Maximum range (m) that makes a scan eligible for ``FLASER``; must match the reader's.
     robotlaser_pose : {"strict", "pose", "odom"}
         Which field becomes the ROBOTLASER1 robot pose (see the module docstring).
-
-    Use it as a context manager, or call :meth:`close`.
     """
 
     def __init__(

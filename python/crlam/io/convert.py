@@ -40,7 +40,7 @@ import numpy as np
 
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.carmen import CarmenReader
-from crlam.io.carmen_types import DEFAULT_FLASER_MAX_RANGE, LaserScan, OdometryReading, flaser_geometry
+from crlam.io.carmen_types import DEFAULT_FLASER_MAX_RANGE, ImuReading, LaserScan, OdometryReading, flaser_geometry
 from crlam.io.carmen_writer import CarmenWriter
 from crlam.io.logs import open_log
 from crlam.io.rosbag import RosbagReader, is_bag
@@ -162,6 +162,8 @@ def bag_to_carmen(source: str | os.PathLike[str], target: str | os.PathLike[str]
     assert isinstance(reader, RosbagReader)
     with CarmenWriter(dst, header=f"converted from the ROS bag {src.name} by crlam convert", robotlaser_pose="odom") as out:
         for rec in reader:
+            if isinstance(rec, ImuReading):
+                continue  # CARMEN logs have no IMU records
             if isinstance(rec, LaserScan):
                 _snap_flaser(rec)
             out.write(rec)

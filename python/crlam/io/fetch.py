@@ -11,17 +11,15 @@ of the decompressed copy and ``local_sha256`` is that of the ``.bz2`` file itsel
 Lookup order of :func:`find_dataset`: the data folder (``$CRLAM_DATA``, or ``../shared/data``
 beside a source checkout, see :mod:`crlam.io.datasets`), then the cache (``--cache DIR``, else
 ``$XDG_CACHE_HOME/crlam``, else ``~/.cache/crlam``). Downloads are atomic: the bytes go to a
-temporary file in the destination folder, are checked against the expected size and SHA-256,
-and only then renamed into place, so an interrupted or corrupted download never leaves a file
+temporary file in the destination folder (pooch), are checked against the expected size and
+SHA-256, and only then moved into place, so an interrupted or corrupted download never leaves a file
 that the lookup would find.
 """
 
 from __future__ import annotations
 
-import hashlib
 import http.client
 import os
-import tempfile
 import urllib.error
 import urllib.request
 from collections.abc import Callable
@@ -31,6 +29,7 @@ from typing import IO, Any
 
 from crlam.errors import CrlamError
 from crlam.io.datasets import DATASETS, DatasetNotFoundError, data_root
+from crlam.limits import check_limit, limits
 
 __all__ = [
     "REMOTE",
@@ -252,11 +251,9 @@ def find_dataset(name: str, *, cache: str | os.PathLike[str] | None = None) -> P
 
 def sha256_file(path: str | os.PathLike[str]) -> str:
     """SHA-256 (hex) of a file."""
-    h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        for block in iter(lambda: fh.read(_CHUNK), b""):
-            h.update(block)
-    return h.hexdigest()
+    import pooch
+
+    return str(pooch.file_hash(str(path), alg="sha256"))
 
 
 def _urlopen(url: str, timeout: float) -> IO[bytes]:
@@ -272,6 +269,57 @@ def _content_length(response: Any) -> int | None:
         return None
 
 
+@dataclass(frozen=True)
+class _StreamDownloader:
+    """A pooch downloader that reads ``url`` through ``opener`` (``file://`` copies, mirrors, tests).
+
+    Pooch calls it with a temporary file in the destination folder, then checks the SHA-256 and
+    moves the file into place; this class adds the size check and the progress bar.
+    """
+
+    opener: Opener
+    timeout: float
+    size: int | None
+    progress: bool
+    label: str
+
+    def __call__(self, url: str, output_file: str, pooch_instance: object, check_only: bool = False) -> None:
+        from tqdm import tqdm
+
+        n = 0
+        # Never more than the expected size (or, with none, the download_bytes limit) is written:
+        # a server (or a file:// URL such as /dev/zero) sending more is stopped at once.
+        cap = self.size if self.size is not None else limits().download_bytes
+        try:
+            with self.opener(url, self.timeout) as response, open(output_file, "wb") as out:
+                announced = _content_length(response)
+                if announced is not None and announced > cap:
+                    _too_large(url, announced, self.size)
+                total = announced or self.size
+                with tqdm(
+                    total=total, unit="B", unit_scale=True, unit_divisor=1024, desc=self.label, disable=not self.progress
+                ) as bar:
+                    for block in iter(lambda: response.read(_CHUNK), b""):
+                        if n + len(block) > cap:
+                            _too_large(url, n + len(block), self.size)
+                        out.write(block)
+                        n += len(block)
+                        bar.update(len(block))
+        except CrlamError:
+            raise
+        except (urllib.error.URLError, http.client.HTTPException, OSError, ValueError) as exc:
+            reason = getattr(exc, "reason", None) or exc
+            raise DownloadError(f"download of {url} failed: {reason}") from exc
+        if self.size is not None and n != self.size:
+            raise ChecksumError(f"download of {url} has {n} bytes, expected {self.size}; discarded")
+
+
+def _too_large(url: str, n: int, size: int | None) -> None:
+    if size is not None:
+        raise ChecksumError(f"download of {url} sends {n:,} bytes or more, expected {size:,}; discarded")
+    check_limit("download_bytes", n, f"download of {url}")
+
+
 def download(
     url: str,
     dest: str | os.PathLike[str],
@@ -283,20 +331,27 @@ def download(
     timeout: float = DEFAULT_TIMEOUT,
     label: str | None = None,
 ) -> Path:
-    """Download ``url`` to ``dest`` atomically, verifying its size and SHA-256.
+    """Download ``url`` to ``dest`` with pooch, verifying its SHA-256 (and size), atomically.
+
+    Pooch downloads into a temporary file beside ``dest``, checks the SHA-256 and only then moves
+    the file into place, so an interrupted or corrupted download never leaves a file that the
+    lookup would find, and a good file already at ``dest`` is never replaced by a bad one.
 
     Parameters
     ----------
     url : str
-        ``http(s)://`` or ``file://`` URL.
+        ``http(s)://`` or ``file://`` URL (read by ``urllib.request.urlopen``).
     dest : str or PathLike
-        Final path; its folder is created. Replaced only by verified bytes.
+        Final path; its folder is created. Replaced only by verified bytes, and downloaded
+        again only when it does not verify.
     sha256 : str
         Expected SHA-256 (hex).
     size : int, optional
-        Expected size (bytes), also the progress bar's total when the server sends none.
+        Expected size (bytes): a source sending more is stopped at once, one sending less is
+        refused; the progress bar's total when the server sends none.
     opener : callable, optional
-        ``opener(url, timeout)`` -> binary stream; ``urllib.request.urlopen`` by default.
+        ``opener(url, timeout)`` -> binary stream; given, it reads the URL instead of
+        ``urllib.request.urlopen`` (mirrors, tests).
     progress : bool
         Show a tqdm progress bar (on stderr).
     timeout : float
@@ -309,41 +364,28 @@ def download(
     DownloadError
         When the URL cannot be read; the message names it.
     ChecksumError
-        When the bytes have the wrong size or SHA-256; nothing is written at ``dest``.
+        When the bytes have the wrong size or SHA-256; nothing is written at ``dest``. A source
+        sending more than ``size`` bytes is stopped as soon as it does.
+    ResourceLimitError
+        When no ``size`` is given and the source sends more than the ``download_bytes`` limit.
     """
-    from tqdm import tqdm
+    import pooch
 
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp_name = tempfile.mkstemp(dir=dest.parent, prefix=f".{dest.name}.", suffix=".part")
-    tmp = Path(tmp_name)
-    h = hashlib.sha256()
-    n = 0
+    pooch.get_logger().setLevel("WARNING")
+    # Pooch checks the hash and moves the file into place; the bytes come through our streaming
+    # downloader on every scheme, so the size cap holds for http(s) too.
+    downloader = _StreamDownloader(opener or _urlopen, timeout, size, progress, label or dest.name)
     try:
-        with os.fdopen(fd, "wb") as out:
-            try:
-                with (opener or _urlopen)(url, timeout) as response:
-                    total = _content_length(response) or size
-                    with tqdm(
-                        total=total, unit="B", unit_scale=True, unit_divisor=1024, desc=label or dest.name, disable=not progress
-                    ) as bar:
-                        for block in iter(lambda: response.read(_CHUNK), b""):
-                            out.write(block)
-                            h.update(block)
-                            n += len(block)
-                            bar.update(len(block))
-            except (urllib.error.URLError, http.client.HTTPException, OSError, ValueError) as exc:
-                reason = getattr(exc, "reason", None) or exc
-                raise DownloadError(f"download of {url} failed: {reason}") from exc
-        if size is not None and n != size:
-            raise ChecksumError(f"download of {url} has {n} bytes, expected {size}; discarded")
-        if h.hexdigest() != sha256.lower():
-            raise ChecksumError(f"download of {url} has SHA-256 {h.hexdigest()}, expected {sha256}; discarded")
-        os.replace(tmp, dest)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
+        fetched = pooch.retrieve(
+            url, known_hash=f"sha256:{sha256.lower()}", fname=dest.name, path=dest.parent, downloader=downloader
+        )
+    except CrlamError:
         raise
-    return dest
+    except ValueError as exc:  # pooch: the SHA-256 does not match
+        raise ChecksumError(f"download of {url} does not have SHA-256 {sha256} ({exc}); discarded") from exc
+    return Path(fetched)
 
 
 def fetch(
@@ -384,9 +426,13 @@ def fetch(
     dest = cache_dir(cache) / remote.cache_path
     if not force and dest.is_file() and dest.stat().st_size == remote.size and sha256_file(dest) == remote.sha256:
         return dest
-    return download(
+    # Forced: download beside the cached copy and replace it only once the new bytes verify.
+    target = dest.with_name(f".{dest.name}.forced") if force else dest
+    if force:
+        target.unlink(missing_ok=True)
+    got = download(
         url or remote.url,
-        dest,
+        target,
         sha256=remote.sha256,
         size=remote.size,
         opener=opener,
@@ -394,3 +440,6 @@ def fetch(
         timeout=timeout,
         label=name,
     )
+    if force:
+        os.replace(got, dest)
+    return dest

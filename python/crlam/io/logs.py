@@ -16,13 +16,25 @@ from typing import Any, Literal
 
 from crlam.errors import ConfigError
 from crlam.io.carmen import CarmenReader
-from crlam.io.carmen_types import CarmenRecord, LaserScan
+from crlam.io.carmen_types import LaserScan, LogRecord
 from crlam.io.rosbag import RosbagReader, is_bag
 
 __all__ = ["BAG_OPTIONS", "LogReader", "input_description", "open_log", "read_records", "read_scans_any"]
 
 #: The keyword options only a bag takes (see :class:`~crlam.io.rosbag.RosbagReader`).
-BAG_OPTIONS = ("scan_topic", "odom_topic", "base_frame", "odom_frame", "laser_mount", "upside_down", "odom_tolerance")
+BAG_OPTIONS = (
+    "scan_topic",
+    "odom_topic",
+    "base_frame",
+    "odom_frame",
+    "laser_mount",
+    "upside_down",
+    "odom_tolerance",
+    "echo",
+    "odometry",
+    "imu",
+    "imu_topic",
+)
 
 LogReader = CarmenReader | RosbagReader
 
@@ -78,7 +90,7 @@ def open_log(
     return CarmenReader(p, on_error=on_error)
 
 
-def read_records(path: str | os.PathLike[str], **options: Any) -> Iterator[CarmenRecord]:
+def read_records(path: str | os.PathLike[str], **options: Any) -> Iterator[LogRecord]:
     """Stream the records (scans and odometry) of a CARMEN log or a ROS bag (see :func:`open_log`)."""
     return iter(open_log(path, **options))
 

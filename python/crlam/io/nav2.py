@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +23,9 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike, NDArray
 
-from crlam.errors import ConfigError, DataFormatError
+from crlam.errors import ConfigError, DataFormatError, ResourceLimitError
+from crlam.io.lines import read_small_text
+from crlam.limits import check_limit
 
 __all__ = ["Nav2Map", "read_image", "read_nav2_map", "read_pgm", "write_nav2_map", "write_pgm"]
 
@@ -70,78 +71,83 @@ def _pgm_error(path: str | os.PathLike[str], message: str, field: str) -> DataFo
     return DataFormatError(message, path=str(path), field=field)
 
 
-def _read_pgm(path: str | os.PathLike[str]) -> tuple[NDArray[np.uint16] | NDArray[np.uint8], int]:
-    data = Path(path).read_bytes()
-    if data[:2] not in (b"P5", b"P2"):
-        raise _pgm_error(path, f"not a PGM file (magic {data[:2]!r}, want P5 or P2)", "magic")
-    pos = 2
-    header: list[int] = []
-    while len(header) < 3:
-        while pos < len(data) and data[pos : pos + 1].isspace():
-            pos += 1
-        if pos < len(data) and data[pos : pos + 1] == b"#":
-            end = data.find(b"\n", pos)
-            pos = len(data) if end < 0 else end + 1
-            continue
-        start = pos
-        while pos < len(data) and not data[pos : pos + 1].isspace() and data[pos] != ord("#"):
-            pos += 1
-        name = ("width", "height", "maxval")[len(header)]
-        token = data[start:pos]
-        if not token.isdigit():
-            raise _pgm_error(path, f"bad header value {token[:16]!r}", name)
-        header.append(int(token))
-    width, height, maxval = header
-    if width <= 0 or height <= 0:
-        raise _pgm_error(path, f"image size {width} x {height} is empty", "width")
-    if not 0 < maxval < 65536:
-        raise _pgm_error(path, f"maxval {maxval} outside 1..65535", "maxval")
-    dtype = np.dtype(np.uint8) if maxval < 256 else np.dtype(">u2")
-    count = width * height
-    if data[:2] == b"P5":
-        # Exactly one whitespace byte separates maxval from the raster.
-        raster = data[pos + 1 : pos + 1 + count * dtype.itemsize]
-        if len(raster) < count * dtype.itemsize:
-            raise _pgm_error(path, f"raster truncated: {len(raster)} of {count * dtype.itemsize} bytes", "raster")
-        values = np.frombuffer(raster, dtype=dtype).astype(dtype.newbyteorder("="))
-    else:
-        text = re.sub(rb"#[^\n]*", b" ", data[pos:]).split()
-        if len(text) < count:
-            raise _pgm_error(path, f"raster truncated: {len(text)} of {count} values", "raster")
-        try:
-            ints = np.array([int(t) for t in text[:count]], dtype=np.int64)
-        except ValueError:
-            raise _pgm_error(path, "non-integer pixel value", "raster") from None
-        if ints.min() < 0 or ints.max() > maxval:
-            raise _pgm_error(path, f"pixel values must lie in 0..{maxval}", "raster")
-        values = ints.astype(np.uint8 if maxval < 256 else np.uint16)
-    if int(values.max()) > maxval:
-        raise _pgm_error(path, f"pixel value {int(values.max())} above maxval {maxval}", "raster")
-    return values.reshape(height, width), maxval
+def check_image_size(path: str | os.PathLike[str], width: int, height: int) -> None:
+    """Refuses an image of more pixels than the ``image_pixels`` limit, before it is decoded."""
+    check_limit("image_pixels", float(width) * float(height), f"image {path} ({width} x {height} pixels)")
+
+
+def open_pil_image(path: str | os.PathLike[str], field: str = "image"):  # type: ignore[no-untyped-def]
+    """A Pillow image, opened (header read, nothing decoded) and checked against the
+    ``image_pixels`` limit (ResourceLimitError naming its size). A file Pillow cannot read raises
+    DataFormatError naming ``field``."""
+    from PIL import Image, UnidentifiedImageError
+
+    p = Path(path)
+    if not p.is_file():
+        if not p.exists():
+            raise FileNotFoundError(f"{p}: no such image file")
+        raise DataFormatError("not a regular file", path=str(p), field="image")
+    # Pillow's own decompression-bomb guard is off while the header is read: crlam's limit is
+    # checked right after, on the size the header declares, before anything is decoded.
+    saved = Image.MAX_IMAGE_PIXELS
+    Image.MAX_IMAGE_PIXELS = None
+    try:
+        img = Image.open(p)
+    except (UnidentifiedImageError, OSError, ValueError, SyntaxError) as exc:
+        raise DataFormatError(f"cannot read image ({exc})", path=str(p), field=field) from exc
+    finally:
+        Image.MAX_IMAGE_PIXELS = saved
+    try:
+        check_image_size(p, *img.size)
+    except ResourceLimitError:
+        img.close()
+        raise
+    return img
 
 
 def read_pgm(path: str | os.PathLike[str]) -> NDArray[np.uint8] | NDArray[np.uint16]:
-    """Read a binary (P5) or ASCII (P2) PGM image, comments allowed.
+    """Read a binary (P5) or ASCII (P2) PGM image with Pillow, comments allowed.
 
     Returns
     -------
     ndarray, shape (height, width)
-        Pixel values as stored, row 0 = top of the image: ``uint8`` when maxval <= 255,
-        ``uint16`` otherwise (native byte order).
+        Pixel values, row 0 = top of the image, scaled to the full range of the type as Pillow
+        does: ``uint8`` (0..255) when maxval <= 255, ``uint16`` (0..65535) otherwise. A file with
+        maxval 15 holding 15 reads as 255.
+
+    Raises
+    ------
+    DataFormatError
+        Naming the file and the field: ``magic`` (not a PGM), ``header`` (bad size or maxval)
+        or ``raster`` (truncated or out-of-range pixel data).
     """
-    return _read_pgm(path)[0]
+    p = Path(path)
+    if p.is_file():  # anything else (missing, a FIFO, /dev/zero) is refused by open_pil_image
+        with open(p, "rb") as fh:
+            magic = fh.read(2)
+        if magic not in (b"P5", b"P2"):
+            raise _pgm_error(path, f"not a PGM file (magic {magic!r}, want P5 or P2)", "magic")
+    img = open_pil_image(p, field="header")
+    with img:
+        try:
+            img.load()
+        except (ValueError, OSError) as exc:
+            raise _pgm_error(path, f"bad PGM raster ({exc})", "raster") from exc
+        if img.mode == "L":
+            return np.asarray(img, dtype=np.uint8).copy()
+        return np.asarray(img, dtype=np.int64).astype(np.uint16)
 
 
-def write_pgm(path: str | os.PathLike[str], image: ArrayLike, *, comment: str | None = None) -> None:
-    """Write a binary (P5) PGM, row 0 = top of the image.
+def write_pgm(path: str | os.PathLike[str], image: ArrayLike) -> None:
+    """Write a binary (P5) PGM with Pillow, row 0 = top of the image.
 
     Parameters
     ----------
     image : array_like, shape (height, width), integer
         ``uint8`` (maxval 255) or wider integers up to 65535 (maxval 65535, 16-bit big endian).
-    comment : str, optional
-        One comment line written in the header.
     """
+    from PIL import Image
+
     a = np.asarray(image)
     if a.ndim != 2 or a.size == 0:
         raise DataFormatError(f"image must be a non-empty 2-D array, got shape {a.shape}", path=str(path), field="image")
@@ -150,10 +156,8 @@ def write_pgm(path: str | os.PathLike[str], image: ArrayLike, *, comment: str | 
     if int(a.min()) < 0 or int(a.max()) > 65535:
         raise DataFormatError("pixel values must lie in 0..65535", path=str(path), field="image")
     wide = a.dtype == np.uint16 or (a.dtype.itemsize > 1 and int(a.max()) > 255)
-    maxval = 65535 if wide else 255
-    raster = a.astype(">u2" if wide else np.uint8).tobytes()
-    head = "P5\n" + ("" if comment is None else f"# {comment}\n") + f"{a.shape[1]} {a.shape[0]}\n{maxval}\n"
-    Path(path).write_bytes(head.encode("ascii") + raster)
+    img = Image.fromarray(np.ascontiguousarray(a, dtype=np.uint16 if wide else np.uint8))
+    img.save(path, format="PPM")
 
 
 def _image_planes(path: Path) -> tuple[FloatArray, FloatArray | None]:
@@ -161,14 +165,12 @@ def _image_planes(path: Path) -> tuple[FloatArray, FloatArray | None]:
     with open(path, "rb") as fh:
         magic = fh.read(2)
     if magic in (b"P5", b"P2"):
-        values, maxval = _read_pgm(path)
-        return values.astype(np.float64) / maxval, None
-    from PIL import Image, UnidentifiedImageError
-
+        values = read_pgm(path)
+        return values.astype(np.float64) / (255.0 if values.dtype == np.uint8 else 65535.0), None
+    img = open_pil_image(path)
     try:
-        img: Image.Image = Image.open(path)
         img.load()
-    except (UnidentifiedImageError, OSError) as exc:
+    except (OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"cannot read image ({exc})", path=str(path), field="image") from exc
     if img.mode == "P":
         img = img.convert("RGBA" if "transparency" in img.info else "RGB")
@@ -224,14 +226,6 @@ def _class_pixels(occupied_thresh: float, free_thresh: float, negate: int) -> di
             )
         out[cls] = int(ok[np.argmin(np.abs(ok - px))])
     return out
-
-
-def _yaml_float(v: float) -> str:
-    text = repr(float(v))
-    # PyYAML (YAML 1.1) reads "1e-05" as a string; "1.0e-05" is a float for every parser.
-    if "e" in text and "." not in text:
-        text = text.replace("e", ".0e")
-    return text
 
 
 def write_nav2_map(
@@ -293,16 +287,17 @@ def write_nav2_map(
         image[classes == cls] = px
     write_pgm(pgm, image[::-1])
     yaml_path = pgm.with_suffix(".yaml")
-    yaml_path.write_text(
-        f"image: {pgm.name}\n"
-        "mode: trinary\n"
-        f"resolution: {_yaml_float(resolution)}\n"
-        f"origin: [{', '.join(_yaml_float(v) for v in org.tolist())}]\n"
-        f"negate: {negate}\n"
-        f"occupied_thresh: {_yaml_float(occupied_thresh)}\n"
-        f"free_thresh: {_yaml_float(free_thresh)}\n",
-        encoding="utf-8",
-    )
+    doc = {
+        "image": pgm.name,
+        "mode": "trinary",
+        "resolution": float(resolution),
+        "origin": [float(v) for v in org.tolist()],
+        "negate": negate,
+        "occupied_thresh": float(occupied_thresh),
+        "free_thresh": float(free_thresh),
+    }
+    # PyYAML writes a float without a dot as "1.0e-05", which every YAML parser reads as a float.
+    yaml_path.write_text(yaml.safe_dump(doc, sort_keys=False, default_flow_style=None), encoding="utf-8")
     return yaml_path
 
 
@@ -338,10 +333,11 @@ def read_nav2_map(yaml_path: str | os.PathLike[str], *, free_thresh: float | Non
     """
     path = Path(yaml_path)
     try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+        doc = yaml.safe_load(read_small_text(path, "Nav2 map YAML"))
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        raise DataFormatError(f"invalid YAML ({exc})", path=str(path), line=None if mark is None else mark.line + 1) from exc
+        reason = " ".join(str(exc).split())
+        raise DataFormatError(f"invalid YAML ({reason})", path=str(path), line=None if mark is None else mark.line + 1) from exc
     if not isinstance(doc, dict):
         raise DataFormatError("not a YAML mapping", path=str(path))
     if not isinstance(doc.get("image"), str) or not doc["image"]:
@@ -355,6 +351,12 @@ def read_nav2_map(yaml_path: str | os.PathLike[str], *, free_thresh: float | Non
     org = np.array([_yaml_number({"origin": v}, "origin", path, None) for v in origin] + [0.0])[:3]
     occ_t = _yaml_number(doc, "occupied_thresh", path, 0.65)
     free_t = _yaml_number(doc, "free_thresh", path, 0.196) if free_thresh is None else float(free_thresh)
+    if not 0.0 <= free_t <= occ_t <= 1.0:
+        raise DataFormatError(
+            f"need 0 <= free_thresh <= occupied_thresh <= 1, got free_thresh {free_t}, occupied_thresh {occ_t}",
+            path=str(path),
+            field="free_thresh",
+        )
     negate_raw = doc.get("negate", 0)
     if negate_raw not in (0, 1):  # True/False compare equal to 1/0
         raise DataFormatError(f"must be 0 or 1, got {negate_raw!r}", path=str(path), field="negate")

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import DataFormatError
+from crlam.io.lines import text_lines
 
 __all__ = ["Relations", "read_relations", "write_relations"]
 
@@ -75,8 +76,8 @@ def read_relations(path: str | os.PathLike[str], *, planar_tol: float = 1e-6) ->
     """
     name = str(path)
     rows: list[list[float]] = []
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for number, text in enumerate(fh, start=1):
+    with open(path, "rb") as fh:
+        for number, text in text_lines(fh, name):
             tokens = text.split()
             if not tokens or tokens[0].startswith("#"):
                 continue

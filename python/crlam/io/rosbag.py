@@ -8,9 +8,10 @@ experiments take a bag wherever they take a CARMEN log.
 What is read
 ------------
 Scans
-    ``sensor_msgs/msg/LaserScan`` (or ``MultiEchoLaserScan``: the first echo of every beam) of the
-    scan topic: the only laser topic of the bag unless ``scan_topic`` names one. The stamp is the
-    message header's (the bag's receive time when the header stamp is zero). Beam ``i`` has the
+    ``sensor_msgs/msg/LaserScan`` (or ``MultiEchoLaserScan``: the first echo of every beam, or
+    the last or the strongest with ``echo``) of the scan topic: the only laser topic of the bag
+    unless ``scan_topic`` names one. The stamp is the message header's (the bag's receive time
+    when the header stamp is zero). Beam ``i`` has the
     bearing ``angle_min + i * angle_increment``; any layout works (0..360 deg, -180..180 deg, a
     negative increment: such a scan is reversed so that its increment is positive).
 Invalid readings
@@ -28,11 +29,21 @@ Odometry
     :class:`OdometryReading` (pose projected to the plane: x, y, yaw), and each scan's ``odom``
     field is the odometry interpolated to the scan's stamp (linear in x and y, shortest arc in
     yaw). A scan stamped up to ``odom_tolerance`` seconds before the first or after the last
-    odometry reading takes that reading; scans further out are skipped and counted.
+    odometry reading takes that reading; scans further out are skipped and counted. With
+    ``odometry=False`` none is read: every scan is yielded as it comes, ``odom`` and ``pose`` NaN
+    (for scan-matching odometry, :mod:`crlam.scan_odometry`).
+IMU
+    With ``imu=True``, the yaw rate of each ``sensor_msgs/msg/Imu`` message of the IMU topic (the
+    only one unless ``imu_topic`` names one) as an :class:`~crlam.io.carmen_types.ImuReading`:
+    the angular velocity rotated into the base frame by the IMU's mount, z component.
 Laser mount
     ``laser_offset`` (the laser pose in the base frame, x, y, yaw) comes from ``/tf_static``: the
     chain of static transforms from the base frame (``base_frame``, by default the odometry's
-    ``child_frame_id``) to the scan's ``frame_id``, composed in 3D and projected to the plane. A
+    ``child_frame_id``) to the scan's ``frame_id``, composed in 3D and projected to the plane.
+    When ``/tf_static`` links neither ``base_link`` nor ``base_footprint`` to the laser, the
+    transforms of the first 500 ``/tf`` messages that never change (the odometry's and the map's
+    left out: :class:`~crlam.io.rosbag_tf.FixedTransforms`) join the chain: some bags publish
+    the mount on ``/tf`` (``mount_source = "tf"``). A
     laser whose z axis points down (a roll or pitch of pi: mounted upside down) sees the world
     mirrored: its beam bearings are negated. ``laser_mount=(x, y, yaw)`` replaces the mount
     found in ``/tf_static`` and ``upside_down=True`` mirrors the bearings (once: a mount that
@@ -47,8 +58,8 @@ topic and ``line`` the 1-based index of the scan message in its topic.
 Streaming: the bag is read message by message in time order; only the scans waiting for the
 next odometry reading (at most 5 s of bag time each, then they are skipped as after the
 odometry) and a short odometry history are held. A bag whose scans and odometry are stamped on
-different clocks gives no scan: the error says so, with both stamp spans. ``/tf_static`` is read first in a
-separate pass (a few messages).
+different clocks gives no scan: the error says so, with both stamp spans. ``/tf_static`` (and,
+when it lacks the mount, the first ``/tf`` messages) is read first in a separate pass.
 """
 
 from __future__ import annotations
@@ -65,11 +76,18 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from crlam.errors import ConfigError, DataFormatError
-from crlam.io.carmen_types import CarmenRecord, CarmenStats, LaserScan, OdometryReading
+from crlam.errors import ConfigError, CrlamError, DataFormatError
+from crlam.io.carmen_types import CarmenStats, ImuReading, LaserScan, LogRecord, OdometryReading
+from crlam.io.rosbag_tf import FixedTransforms, TransformTree, planar, transform_matrix, wrap, yaw_of
 from crlam.pose import compose
 
+# Kept under their former private names (the writer's tests compare against the reader's yaw).
+_yaw_of = yaw_of
+_wrap = wrap
+
 __all__ = [
+    "ECHOES",
+    "IMU_TYPE",
     "LASER_TYPES",
     "ODOMETRY_TYPE",
     "TF_TYPE",
@@ -82,6 +100,11 @@ __all__ = [
 LASER_TYPES = ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/MultiEchoLaserScan")
 ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
+IMU_TYPE = "sensor_msgs/msg/Imu"
+#: Which return of a MultiEchoLaserScan beam is the range.
+ECHOES = ("first", "last", "strongest")
+#: /tf messages read to find a fixed base -> laser transform there when /tf_static has none.
+_TF_MOUNT_PROBE = 500
 
 #: Odometry readings kept to interpolate scans that arrive late.
 _ODOM_HISTORY = 4096
@@ -112,7 +135,12 @@ class BagStats(CarmenStats):
     upside_down : bool
         True when the beam bearings were mirrored.
     mount_source : str
-        ``"tf_static"``, ``"user"`` or ``"none (laser at the base frame's origin)"``.
+        ``"tf_static"``, ``"tf"`` (a fixed transform published on ``/tf``), ``"user"``,
+        ``"same frame"`` or ``"none (laser at the base frame's origin)"``.
+    echo : str
+        The return of a MultiEchoLaserScan beam used (``"first"``, ``"last"``, ``"strongest"``).
+    imu_topic : str
+        The IMU topic read ("" when none was).
     n_inf_ranges, n_nan_ranges, n_above_max_ranges, n_below_min_ranges : int
         Readings made no-returns, per cause (``n_nonpositive_ranges`` counts 0 and negative ones).
     skipped_before_odometry, skipped_after_odometry : int
@@ -127,6 +155,8 @@ class BagStats(CarmenStats):
     laser_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
     upside_down: bool = False
     mount_source: str = ""
+    echo: str = "first"
+    imu_topic: str = ""
     n_inf_ranges: int = 0
     n_nan_ranges: int = 0
     n_above_max_ranges: int = 0
@@ -145,6 +175,8 @@ class BagStats(CarmenStats):
             "laser_mount": [float(v) for v in self.laser_offset],
             "upside_down": self.upside_down,
             "mount_source": self.mount_source,
+            "echo": self.echo,
+            "imu_topic": self.imu_topic,
         }
 
 
@@ -154,87 +186,6 @@ def _stamp(header: Any) -> float:
     return (int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)) / 1_000_000_000
 
 
-def _quat_matrix(q: Any) -> NDArray[np.float64]:
-    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
-    n = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
-    x, y, z, w = x / n, y / n, z / n, w / n
-    return np.array(
-        [
-            [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-            [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-            [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
-        ]
-    )
-
-
-def _transform(t: Any) -> NDArray[np.float64]:
-    """A ``geometry_msgs/Transform`` or ``Pose`` as a 4x4 matrix."""
-    m = np.eye(4)
-    rot = getattr(t, "rotation", None) or t.orientation
-    tr = getattr(t, "translation", None) or t.position
-    m[:3, :3] = _quat_matrix(rot)
-    m[:3, 3] = [float(tr.x), float(tr.y), float(tr.z)]
-    return m
-
-
-def _planar(m: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
-    """``(x, y, yaw)`` of a 3D transform and whether its z axis points down (upside down)."""
-    yaw = math.atan2(m[1, 0], m[0, 0])
-    return np.array([m[0, 3], m[1, 3], yaw]), bool(m[2, 2] < 0.0)
-
-
-def _yaw_of(q: Any) -> float:
-    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
-    return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def _wrap(a: float) -> float:
-    return (a + math.pi) % (2.0 * math.pi) - math.pi
-
-
-class _StaticTree:
-    """The static transforms as a forest of parent links; resolves the transform between two frames."""
-
-    def __init__(self) -> None:
-        self.parent: dict[str, tuple[str, NDArray[np.float64]]] = {}
-
-    def add(self, parent: str, child: str, m: NDArray[np.float64]) -> None:
-        self.parent[child.lstrip("/")] = (parent.lstrip("/"), m)
-
-    def _to_root(self, frame: str) -> tuple[list[str], dict[str, NDArray[np.float64]]]:
-        chain = [frame]
-        poses = {frame: np.eye(4)}  # frame's pose in each ancestor, filled below
-        acc = np.eye(4)
-        seen = {frame}
-        f = frame
-        while f in self.parent:
-            p, m = self.parent[f]
-            if p in seen:
-                break
-            acc = m @ acc
-            poses[p] = acc.copy()
-            chain.append(p)
-            seen.add(p)
-            f = p
-        return chain, poses
-
-    def lookup(self, base: str, child: str) -> NDArray[np.float64] | None:
-        """The pose of ``child`` in ``base`` (4x4), or None when no static chain links them."""
-        base, child = base.lstrip("/"), child.lstrip("/")
-        if base == child:
-            return np.eye(4)
-        chain_b, poses_b = self._to_root(base)
-        chain_c, poses_c = self._to_root(child)
-        common = next((f for f in chain_c if f in poses_b), None)
-        if common is None:
-            return None
-        # T_common_base^-1 @ T_common_child
-        return np.asarray(np.linalg.inv(poses_b[common]) @ poses_c[common])
-
-    def reaches(self, base: str, child: str) -> bool:
-        return self.lookup(base, child) is not None
-
-
 def _topics_text(connections: Sequence[Any]) -> str:
     seen: dict[str, str] = {}
     for c in connections:
@@ -242,8 +193,28 @@ def _topics_text(connections: Sequence[Any]) -> str:
     return ", ".join(f"{t} ({ty})" for t, ty in sorted(seen.items())) or "(none)"
 
 
+def _library_errors() -> tuple[type[BaseException], ...]:
+    """What reading a damaged bag raises in the bag library (and the standard library under it)."""
+    import struct
+
+    # MemoryError: a damaged length field makes the library ask for an absurd buffer at once.
+    errors: list[type[BaseException]] = [KeyError, IndexError, ValueError, EOFError, OSError, struct.error, AssertionError]
+    # TypeError: the MCAP parser on a truncated record; AttributeError: a ROS 1 bag whose damaged
+    # message definition gives a known type name other fields.
+    errors += [MemoryError, TypeError, ArithmeticError, AttributeError]
+    try:
+        from rosbags.highlevel import AnyReaderError
+        from rosbags.rosbag1 import ReaderError as Ros1Error
+        from rosbags.rosbag2 import ReaderError as Ros2Error
+
+        errors += [AnyReaderError, Ros1Error, Ros2Error]
+    except ImportError:  # pragma: no cover - rosbags is a dependency
+        pass
+    return tuple(errors)
+
+
 class RosbagReader:
-    """Streaming ROS bag reader; iterate it to get :data:`~crlam.io.carmen_types.CarmenRecord` s.
+    """Streaming ROS bag reader; iterate it to get :data:`~crlam.io.carmen_types.LogRecord` s.
 
     Parameters
     ----------
@@ -265,6 +236,21 @@ class RosbagReader:
     odom_tolerance : float
         How far (s) before the first / after the last odometry reading a scan may be stamped and
         still take that reading's pose.
+    echo : str
+        The return of a ``MultiEchoLaserScan`` beam used as its range: ``"first"`` (default),
+        ``"last"`` or ``"strongest"`` (the echo of highest intensity).
+    odometry : bool
+        Read the odometry (default). ``False`` reads none, whatever the bag holds: every scan is
+        yielded at once with ``odom`` and ``pose`` NaN (for scan-matching odometry,
+        :mod:`crlam.scan_odometry`); the base frame is then ``base_frame``, else ``base_link`` or
+        ``base_footprint`` when a fixed chain reaches the laser from it, else the top of the
+        laser frame's chain.
+    imu : bool
+        Also yield the yaw rate of every ``sensor_msgs/msg/Imu`` message of the IMU topic as an
+        :class:`~crlam.io.carmen_types.ImuReading` (rotated into the base frame by the IMU's
+        mount when the fixed transforms give it). A bag without an IMU topic yields none.
+    imu_topic : str, optional
+        The IMU topic (default: the only one).
 
     Raises
     ------
@@ -283,6 +269,10 @@ class RosbagReader:
         laser_mount: Sequence[float] | None = None,
         upside_down: bool = False,
         odom_tolerance: float = 0.25,
+        echo: str = "first",
+        odometry: bool = True,
+        imu: bool = False,
+        imu_topic: str | None = None,
     ) -> None:
         self.path = Path(path)
         if not self.path.exists():
@@ -291,6 +281,8 @@ class RosbagReader:
             raise ConfigError(f"laser_mount needs 3 values (x, y, yaw), got {list(laser_mount)}")
         if not (math.isfinite(odom_tolerance) and odom_tolerance >= 0):
             raise ConfigError(f"odom_tolerance must be >= 0, got {odom_tolerance}")
+        if echo not in ECHOES:
+            raise ConfigError(f"echo must be one of {', '.join(ECHOES)}, got {echo!r}")
         self.scan_topic = scan_topic
         self.odom_topic = odom_topic
         self.base_frame = base_frame
@@ -298,9 +290,14 @@ class RosbagReader:
         self.laser_mount = None if laser_mount is None else tuple(float(v) for v in laser_mount)
         self.upside_down = bool(upside_down)
         self.odom_tolerance = float(odom_tolerance)
+        self.echo = echo
+        self.odometry = bool(odometry)
+        self.imu = bool(imu)
+        self.imu_topic = imu_topic
         self.stats = BagStats()
         self._scan_span = (math.nan, math.nan)
         self._odom_span: tuple[float, float] | None = None
+        self._static: TransformTree | None = None
 
     # -- opening and detection ---------------------------------------------------------------
 
@@ -352,15 +349,56 @@ class RosbagReader:
             return [c for c in conns if c.topic == topics[0]], False
         if tf:
             return tf, True
-        raise self._error("no odometry: neither a nav_msgs/msg/Odometry topic nor /tf (give --odom-topic)", conns)
+        raise self._error(
+            "no odometry: neither a nav_msgs/msg/Odometry topic nor /tf (give --odom-topic, or take scan-matching "
+            "odometry: crlam slam --odometry scan_match)",
+            conns,
+        )
 
-    def _static_tree(self, reader: Any) -> _StaticTree:
-        tree = _StaticTree()
+    def _pick_imu(self, conns: Sequence[Any]) -> list[Any]:
+        """The IMU connections: the given topic, else the only Imu topic, else none."""
+        if self.imu_topic is not None:
+            sel = [c for c in conns if c.topic == self.imu_topic]
+            if not sel:
+                raise self._error(f"IMU topic {self.imu_topic!r} not in the bag", conns)
+            if sel[0].msgtype != IMU_TYPE:
+                raise self._error(f"IMU topic {self.imu_topic!r} is a {sel[0].msgtype}, not {IMU_TYPE}", conns)
+            return sel
+        topics = sorted({c.topic for c in conns if c.msgtype == IMU_TYPE})
+        if len(topics) > 1:
+            raise self._error(f"several IMU topics ({', '.join(topics)}): choose one with --imu-topic", conns)
+        return [c for c in conns if c.topic in topics]
+
+    def has_odometry(self) -> bool:
+        """Whether the bag has odometry to read: a ``nav_msgs/msg/Odometry`` topic, or
+        ``odom_frame -> base`` transforms in the first ``/tf`` messages (a given ``odom_topic``
+        counts as odometry; it is checked when the bag is read)."""
+        if self.odom_topic is not None:
+            return True
+        with self._open() as reader:
+            conns = reader.connections
+            if any(c.msgtype == ODOMETRY_TYPE for c in conns):
+                return True
+            tf = [c for c in conns if c.topic in ("/tf", "tf") and c.msgtype == TF_TYPE]
+            return bool(tf) and bool(self._tf_children(reader, tf))
+
+    def _fixed_tf_tree(self, reader: Any) -> TransformTree:
+        """The transforms of the first ``/tf`` messages that never change, the odometry's and
+        the map's left out (a fixed mount published on /tf rather than /tf_static)."""
+        fixed = FixedTransforms(skip_parents=(self.odom_frame, "odom", "map", "world"))
+        conns = [c for c in reader.connections if c.topic in ("/tf", "tf") and c.msgtype == TF_TYPE]
+        for msg in self._first(reader, conns, limit=_TF_MOUNT_PROBE) if conns else []:
+            for tr in msg.transforms:
+                fixed.add(tr.header.frame_id, tr.child_frame_id, transform_matrix(tr.transform))
+        return fixed.tree()
+
+    def _static_tree(self, reader: Any) -> TransformTree:
+        tree = TransformTree()
         conns = [c for c in reader.connections if c.topic in ("/tf_static", "tf_static") and c.msgtype == TF_TYPE]
         if conns:  # an empty list would read every message
             for conn, _, raw in reader.messages(connections=conns):
                 for tr in reader.deserialize(raw, conn.msgtype).transforms:
-                    tree.add(tr.header.frame_id, tr.child_frame_id, _transform(tr.transform))
+                    tree.add(tr.header.frame_id, tr.child_frame_id, transform_matrix(tr.transform))
         return tree
 
     def _first(self, reader: Any, conns: Sequence[Any], limit: int = 1) -> list[Any]:
@@ -371,15 +409,20 @@ class RosbagReader:
                 break
         return out
 
-    def _tf_base_frame(self, reader: Any, tf_conns: Sequence[Any], tree: _StaticTree, laser_frame: str) -> str:
-        """The base frame when odometry comes from /tf: a child of the odometry frame, preferring
-        one from which a static chain reaches the laser frame."""
+    def _tf_children(self, reader: Any, tf_conns: Sequence[Any]) -> list[str]:
+        """The children of the odometry frame in the first 200 /tf messages, in order seen."""
         children: list[str] = []
         for msg in self._first(reader, tf_conns, limit=200):
             for tr in msg.transforms:
                 child = tr.child_frame_id.lstrip("/")
                 if tr.header.frame_id.lstrip("/") == self.odom_frame and child not in children:
                     children.append(child)
+        return children
+
+    def _tf_base_frame(self, reader: Any, tf_conns: Sequence[Any], tree: TransformTree, laser_frame: str) -> str:
+        """The base frame when odometry comes from /tf: a child of the odometry frame, preferring
+        one from which a fixed chain reaches the laser frame."""
+        children = self._tf_children(reader, tf_conns)
         if not children:
             raise self._error(
                 f"no {self.odom_frame} -> base transform in /tf (give --base-frame and --odom-topic)", reader.connections
@@ -389,25 +432,46 @@ class RosbagReader:
 
     # -- iteration ---------------------------------------------------------------------------
 
-    def __iter__(self) -> Iterator[CarmenRecord]:
+    def __iter__(self) -> Iterator[LogRecord]:
         return self._records()
 
-    def _records(self) -> Iterator[CarmenRecord]:
+    def _records(self) -> Iterator[LogRecord]:
+        """The records; what the bag library cannot read (a damaged, truncated or foreign file)
+        is a :class:`DataFormatError` naming the bag."""
+        try:
+            yield from self._read_records()
+        except CrlamError:
+            raise
+        except _library_errors() as exc:
+            reason = " ".join(str(exc).split())[:300]
+            raise DataFormatError(f"damaged or unreadable ROS bag ({type(exc).__name__}: {reason})", path=str(self.path)) from exc
+
+    def _read_records(self) -> Iterator[LogRecord]:
         self.stats = stats = BagStats()
         self._scan_span, self._odom_span = (math.nan, math.nan), None
         with self._open() as reader:
             conns = reader.connections
             scan_conns = self._pick_scan(conns)
-            odom_conns, from_tf = self._pick_odom(conns)
+            odom_conns, from_tf = self._pick_odom(conns) if self.odometry else ([], False)
+            imu_conns = self._pick_imu(conns) if self.imu else []
             stats.scan_topic = scan_conns[0].topic
-            stats.odom_topic = odom_conns[0].topic
-            tree = self._static_tree(reader)
+            stats.odom_topic = odom_conns[0].topic if odom_conns else ""
+            stats.imu_topic = imu_conns[0].topic if imu_conns else ""
+            stats.echo = self.echo
+            tree = self._static = self._static_tree(reader)
             first_scan = self._first(reader, scan_conns)
             if not first_scan:
                 raise self._error(f"scan topic {stats.scan_topic} holds no messages", conns)
             laser_frame = first_scan[0].header.frame_id.lstrip("/")
+            if self.laser_mount is None and not any(tree.reaches(b, laser_frame) for b in ("base_link", "base_footprint")):
+                # No base of the usual names reaches the laser through /tf_static: add the
+                # fixed transforms of /tf (some bags publish the mount there).
+                tree = tree.merged(self._fixed_tf_tree(reader))
             given = None if self.base_frame is None else self.base_frame.lstrip("/")
-            if from_tf:
+            if not self.odometry:
+                linked = [b for b in ("base_link", "base_footprint") if tree.reaches(b, laser_frame)]
+                base = given or (linked[0] if linked else tree.root(laser_frame))
+            elif from_tf:
                 base = given or self._tf_base_frame(reader, odom_conns, tree, laser_frame)
             else:
                 # The odometry gives the pose of its child frame: that is the base frame.
@@ -424,7 +488,11 @@ class RosbagReader:
             offset, mirrored = self._mount(tree, base, laser_frame)
             stats.laser_offset = (float(offset[0]), float(offset[1]), float(offset[2]))
             stats.upside_down = mirrored
-            yield from self._stream(reader, scan_conns, odom_conns, from_tf, base, offset, mirrored)
+            imu_rotation = self._imu_rotation(reader, imu_conns, tree, base)
+            if not self.odometry:
+                yield from self._stream_without_odometry(reader, scan_conns, imu_conns, imu_rotation, offset, mirrored)
+                return
+            yield from self._stream(reader, scan_conns, odom_conns, from_tf, base, offset, mirrored, imu_conns, imu_rotation)
         if stats.n_scans == 0:
             odom = self._odom_span
             span = "no odometry readings" if odom is None else f"odometry stamped {odom[0]:.3f}..{odom[1]:.3f} s"
@@ -435,7 +503,7 @@ class RosbagReader:
                 path=str(self.path),
             )
 
-    def _mount(self, tree: _StaticTree, base: str, laser_frame: str) -> tuple[NDArray[np.float64], bool]:
+    def _mount(self, tree: TransformTree, base: str, laser_frame: str) -> tuple[NDArray[np.float64], bool]:
         if self.laser_mount is not None:
             self.stats.mount_source = "user"
             return np.array(self.laser_mount), self.upside_down
@@ -444,13 +512,15 @@ class RosbagReader:
             self.stats.mount_source = "none (laser at the base frame's origin)"
             return np.zeros(3), self.upside_down
         self.stats.mount_source = "tf_static" if base != laser_frame else "same frame"
-        offset, down = _planar(m)
+        if base != laser_frame and self._static is not None and self._static.lookup(base, laser_frame) is None:
+            self.stats.mount_source = "tf"
+        offset, down = planar(m)
         return offset, down or self.upside_down
 
     def _scan_ranges(self, msg: Any) -> NDArray[np.float64]:
         raw = msg.ranges
         if hasattr(raw, "__len__") and len(raw) and hasattr(raw[0], "echoes"):  # MultiEchoLaserScan
-            r = np.array([e.echoes[0] if len(e.echoes) else np.nan for e in raw], dtype=np.float64)
+            r = self._echo_ranges(raw, msg.intensities)
         else:
             r = np.asarray(raw, dtype=np.float64).copy()
         st = self.stats
@@ -470,6 +540,99 @@ class RosbagReader:
         st.n_no_return_ranges += int(np.count_nonzero(r >= rmax))
         return r
 
+    def _echo_ranges(self, ranges: Any, intensities: Any) -> NDArray[np.float64]:
+        """One range per beam of a MultiEchoLaserScan: the first, last or strongest echo (NaN,
+        a no-return, for a beam without echoes)."""
+        out = np.full(len(ranges), np.nan)
+        for i, beam in enumerate(ranges):
+            echoes = np.asarray(beam.echoes, dtype=np.float64)
+            if not len(echoes):
+                continue
+            if self.echo == "first":
+                out[i] = echoes[0]
+            elif self.echo == "last":
+                out[i] = echoes[-1]
+            else:
+                strength = np.asarray(intensities[i].echoes, dtype=np.float64) if i < len(intensities) else np.zeros(0)
+                if len(strength) != len(echoes):
+                    raise DataFormatError(
+                        f"--echo strongest needs an intensity per echo; beam {i} has {len(echoes)} echoes and "
+                        f"{len(strength)} intensities",
+                        path=str(self.path),
+                    )
+                out[i] = echoes[int(np.argmax(strength))]
+        return out
+
+    def _imu_rotation(self, reader: Any, imu_conns: Sequence[Any], tree: TransformTree, base: str) -> NDArray[np.float64]:
+        """The rotation from the IMU's frame to the base frame (identity when the fixed
+        transforms do not link them)."""
+        first = self._first(reader, imu_conns) if imu_conns else []
+        if not first:
+            return np.eye(3)
+        m = tree.lookup(base, first[0].header.frame_id.lstrip("/") or base)
+        return np.eye(3) if m is None else np.asarray(m[:3, :3])
+
+    def _imu_reading(self, msg: Any, rotation: NDArray[np.float64], recv: float) -> ImuReading:
+        w = msg.angular_velocity
+        yaw_rate = float((rotation @ np.array([float(w.x), float(w.y), float(w.z)]))[2])
+        self.stats.records["IMU"] = self.stats.records.get("IMU", 0) + 1
+        return ImuReading(
+            yaw_rate=yaw_rate, timestamp=_stamp(msg.header) or recv, host=self.stats.imu_topic, logger_timestamp=recv
+        )
+
+    def _scan_record(self, conn: Any, msg: Any, recv: float, line: int, offset: NDArray[np.float64], mirrored: bool) -> LaserScan:
+        """A scan message as a LaserScan record without odometry (``odom``, ``pose`` NaN)."""
+        t = _stamp(msg.header) or recv
+        lo, hi = self._scan_span
+        self._scan_span = (t, t) if line == 1 else (min(lo, t), max(hi, t))
+        ranges = self._scan_ranges(msg)
+        amin, inc = float(msg.angle_min), float(msg.angle_increment)
+        if mirrored:
+            amin, inc = -amin, -inc
+        if inc < 0:
+            amin, inc = amin + inc * (len(ranges) - 1), -inc
+            ranges = ranges[::-1].copy()
+        return LaserScan(
+            ranges=ranges,
+            angle_min=_wrap(amin),
+            angle_increment=inc,
+            max_range=float(msg.range_max),
+            pose=np.full(3, np.nan),
+            odom=np.full(3, np.nan),
+            laser_offset=offset.copy(),
+            timestamp=t,
+            host=self.stats.scan_topic,
+            logger_timestamp=recv,
+            line=line,
+            kind=conn.msgtype.rsplit("/", 1)[-1],
+        )
+
+    def _stream_without_odometry(
+        self,
+        reader: Any,
+        scan_conns: Sequence[Any],
+        imu_conns: Sequence[Any],
+        imu_rotation: NDArray[np.float64],
+        offset: NDArray[np.float64],
+        mirrored: bool,
+    ) -> Iterator[LogRecord]:
+        """Every scan at once, with no odometry (``odometry=False``), and the IMU readings."""
+        st = self.stats
+        scan_ids = {c.id for c in scan_conns}
+        n_scan_msgs = 0
+        for conn, bag_t, raw in reader.messages(connections=[*scan_conns, *imu_conns]):
+            recv = bag_t * 1e-9
+            msg = reader.deserialize(raw, conn.msgtype)
+            if conn.id in scan_ids:
+                n_scan_msgs += 1
+                scan = self._scan_record(conn, msg, recv, n_scan_msgs, offset, mirrored)
+                st.records[scan.kind] = st.records.get(scan.kind, 0) + 1
+                yield scan
+            else:
+                yield self._imu_reading(msg, imu_rotation, recv)
+        if st.n_scans == 0:
+            raise self._error(f"scan topic {st.scan_topic} holds no messages", reader.connections)
+
     def _stream(
         self,
         reader: Any,
@@ -479,9 +642,12 @@ class RosbagReader:
         base: str,
         offset: NDArray[np.float64],
         mirrored: bool,
-    ) -> Iterator[CarmenRecord]:
+        imu_conns: Sequence[Any] = (),
+        imu_rotation: NDArray[np.float64] | None = None,
+    ) -> Iterator[LogRecord]:
         st = self.stats
         scan_ids = {c.id for c in scan_conns}
+        imu_ids = {c.id for c in imu_conns}
         hist_t: deque[float] = deque(maxlen=_ODOM_HISTORY)
         hist_p: deque[NDArray[np.float64]] = deque(maxlen=_ODOM_HISTORY)
         pending: deque[LaserScan] = deque()
@@ -557,46 +723,23 @@ class RosbagReader:
             self._odom_span = (t, t) if span is None else (min(span[0], t), max(span[1], t))
             return OdometryReading(pose=pose, tv=tv, rv=rv, timestamp=t, host=st.odom_topic, logger_timestamp=recv)
 
-        for conn, bag_t, raw in reader.messages(connections=[*scan_conns, *odom_conns]):
+        for conn, bag_t, raw in reader.messages(connections=[*scan_conns, *odom_conns, *imu_conns]):
             recv = bag_t * 1e-9
             msg = reader.deserialize(raw, conn.msgtype)
             if conn.id in scan_ids:
                 n_scan_msgs += 1
-                t = _stamp(msg.header) or recv
-                lo, hi = self._scan_span
-                self._scan_span = (t, t) if n_scan_msgs == 1 else (min(lo, t), max(hi, t))
-                ranges = self._scan_ranges(msg)
-                amin, inc = float(msg.angle_min), float(msg.angle_increment)
-                if mirrored:
-                    amin, inc = -amin, -inc
-                if inc < 0:
-                    amin, inc = amin + inc * (len(ranges) - 1), -inc
-                    ranges = ranges[::-1].copy()
-                kind = conn.msgtype.rsplit("/", 1)[-1]
-                pending.append(
-                    LaserScan(
-                        ranges=ranges,
-                        angle_min=_wrap(amin),
-                        angle_increment=inc,
-                        max_range=float(msg.range_max),
-                        pose=np.full(3, np.nan),
-                        odom=np.full(3, np.nan),
-                        laser_offset=offset.copy(),
-                        timestamp=t,
-                        host=st.scan_topic,
-                        logger_timestamp=recv,
-                        line=n_scan_msgs,
-                        kind=kind,
-                    )
-                )
+                pending.append(self._scan_record(conn, msg, recv, n_scan_msgs, offset, mirrored))
                 yield from flush(final=False, now=recv)
+                continue
+            if conn.id in imu_ids:
+                yield self._imu_reading(msg, np.eye(3) if imu_rotation is None else imu_rotation, recv)
                 continue
             if from_tf:
                 for tr in msg.transforms:
                     if tr.header.frame_id.lstrip("/") != self.odom_frame or tr.child_frame_id.lstrip("/") != base:
                         continue
-                    m = _transform(tr.transform)
-                    pose, _ = _planar(m)
+                    m = transform_matrix(tr.transform)
+                    pose, _ = planar(m)
                     yield add_odom(_stamp(tr.header) or recv, pose, 0.0, 0.0, recv)
             else:
                 p = msg.pose.pose
@@ -609,6 +752,6 @@ class RosbagReader:
         yield from flush(final=True)
 
 
-def read_bag(path: str | os.PathLike[str], **options: Any) -> Iterator[CarmenRecord]:
+def read_bag(path: str | os.PathLike[str], **options: Any) -> Iterator[LogRecord]:
     """Stream the records of a ROS bag (see :class:`RosbagReader` for the options)."""
     return iter(RosbagReader(path, **options))

@@ -18,6 +18,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import DataFormatError
+from crlam.io.lines import text_lines
 from crlam.pose import wrap_angle
 
 __all__ = ["Trajectory", "read_tum", "write_tum"]
@@ -114,8 +115,8 @@ def read_tum(path: str | os.PathLike[str], *, max_tilt: float = 1e-3) -> Traject
     name = str(path)
     stamps: list[float] = []
     rows: list[tuple[float, float, float]] = []
-    with open(path, encoding="utf-8", errors="replace") as fh:
-        for number, text in enumerate(fh, start=1):
+    with open(path, "rb") as fh:
+        for number, text in text_lines(fh, name):
             tokens = text.split()
             if not tokens or tokens[0].startswith("#"):
                 continue

@@ -79,8 +79,10 @@ def preset_path(name: str) -> Path:
 
 def _parse(path: Path) -> tuple[dict[str, Any], dict[str, set[str]]]:
     """The TOML document of ``path`` and, per section, the names of its ``# name = (unset)`` lines."""
+    from crlam.io.lines import read_small_text
+
     try:
-        text = path.read_text()
+        text = read_small_text(path, "config file")
     except OSError as e:
         raise ConfigError(f"{path}: cannot read ({e.strerror or e})") from e
     try:
@@ -242,16 +244,20 @@ class ConfigFile:
         The ``[slam]`` fields the file sets (field name -> value), checked and converted.
     max_scans : int or None
         ``[run] max_scans`` of a run folder (None when unset or absent).
+    input : dict
+        The ``[input]`` table of a run folder as written (how the log was read: a bag's topics,
+        frames and laser mount, the odometry used); empty when absent.
     """
 
     path: Path
     preset: str | None
     settings: dict[str, Any] = field(default_factory=dict)
     max_scans: int | None = None
+    input: dict[str, Any] = field(default_factory=dict)
 
 
 def load_config_file(path: str | Path) -> ConfigFile:
-    """Reads the ``[slam]`` settings (and ``[run] max_scans``) of a run folder's ``config.toml``.
+    """Reads the ``[slam]`` settings (and ``[run] max_scans``, ``[input]``) of a run folder's ``config.toml``.
 
     ``preset`` names the preset the run started from; ``sigma_hit_resolved`` is derived and left
     out. Raises :class:`ConfigError` naming the file and the key for unknown keys or bad values.
@@ -270,4 +276,7 @@ def load_config_file(path: str | Path) -> ConfigFile:
     if max_scans is not None and (isinstance(max_scans, bool) or not isinstance(max_scans, int) or max_scans < 1):
         raise ConfigError(f"{p}: [run] max_scans: expected an integer >= 1, got {max_scans!r}")
     _check(p, (load_preset(preset) if preset else {}) | settings)
-    return ConfigFile(p, preset, settings, max_scans)
+    table = doc.get("input", {})
+    if not isinstance(table, dict):
+        raise ConfigError(f"{p}: [input] must be a table")
+    return ConfigFile(p, preset, settings, max_scans, dict(table))

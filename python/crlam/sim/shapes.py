@@ -18,6 +18,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
+from crlam.errors import ConfigError
+from crlam.limits import check_limit
+
 __all__ = ["Box", "Canvas", "Disc", "Furnisher", "Polygon", "Shape", "blob", "l_shape", "rotated_box"]
 
 
@@ -148,6 +151,13 @@ class Canvas:
     def __init__(self, width: float, height: float, resolution: float, origin: tuple[float, float] = (0.0, 0.0)):
         self.resolution = float(resolution)
         self.origin = np.array(origin, dtype=np.float64)
+        if not (np.isfinite(resolution) and resolution > 0 and np.isfinite(width) and np.isfinite(height)):
+            raise ConfigError(f"a world canvas needs a finite size and cell size > 0, got {width} x {height} m at {resolution} m")
+        check_limit(
+            "map_cells",
+            round(width / resolution) * round(height / resolution),
+            f"a {width:g} m x {height:g} m world at {resolution:g} m cells",
+        )
         self.nx = round(width / resolution)
         self.ny = round(height / resolution)
         self.grid = np.zeros((self.ny, self.nx), dtype=bool)

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crlam.errors import ConfigError
+from crlam.limits import check_limit
 from crlam.sim.odometry import (
     GaussianIncrementNoise,
     OdometryNoise,
@@ -191,8 +192,14 @@ class SimulatedLog:
 
 def simulate(config: SimulationConfig) -> SimulatedLog:
     """Run the simulation described by ``config`` (see the module docstring)."""
-    world = get_world(config.world, config.world_seed, config.world_resolution)
     sensor = make_sensor(config.sensor)
+    # The whole log is held in memory (float64 ranges): bounded before anything is simulated.
+    check_limit(
+        "readings",
+        float(config.n_scans) * sensor.n_beams,
+        f"a simulated log of {config.n_scans} scans x {sensor.n_beams} beams",
+    )
+    world = get_world(config.world, config.world_seed, config.world_resolution)
     traj_seq, odom_seq, sensor_seq = np.random.SeedSequence(config.seed).spawn(3)
     traj = plan_trajectory(world, config.n_scans, traj_seq, config.robot_params, config.scan_rate, config.start_time)
     true_inc = increments_from_poses(traj.poses)

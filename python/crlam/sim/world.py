@@ -5,7 +5,8 @@ Grids are indexed ``[iy, ix]`` with ``iy = 0`` at the minimum y; ``origin`` is t
 ``[ox + ix*res, ox + (ix+1)*res) x [oy + iy*res, oy + (iy+1)*res)``.
 
 Images (PGM, PNG, ...) are stored top row first, so image row 0 is the maximum y: loading flips
-them. PGM (P2/P5) and the Nav2 ``map_server`` YAML are parsed here directly.
+them. PGM (P2/P5) files are read and written with Pillow, the Nav2 ``map_server`` YAML with PyYAML
+(:mod:`crlam.io.nav2`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from crlam.errors import ConfigError, DataFormatError
+from crlam.errors import ConfigError, CrlamError, DataFormatError
 from crlam.sim.grid_ops import ClearanceField, distance_map
 
 __all__ = ["World", "read_pgm", "write_pgm"]
@@ -174,7 +175,7 @@ class World:
         Parameters
         ----------
         path:
-            PGM (P2/P5, parsed here) or any image Pillow reads (PNG, ...). Colour images are
+            PGM (P2/P5) or any other image Pillow reads (PNG, ...). Colour images are
             converted to luminance; 16-bit PGMs are rescaled to 0..255.
         resolution:
             Metres per pixel (e.g. 0.2 for the Cave map).
@@ -213,7 +214,7 @@ class World:
     def to_pgm(self, path: PathLike) -> None:
         """Write the grid as a binary PGM (map_server style: 0 obstacle, 254 free), top row = max y."""
         grey = np.where(np.flipud(self.occupied), 0, 254).astype(np.uint8)
-        write_pgm(path, grey, comment=f"crlam world {self.name}")
+        write_pgm(path, grey)
 
     def to_nav2_yaml(self, yaml_path: PathLike) -> Path:
         """Write a Nav2 trinary map: ``<stem>.pgm`` (0 obstacle, 254 free) and the YAML.
@@ -238,10 +239,12 @@ def _read_grey(path: Path) -> NDArray[np.uint8]:
         magic = fh.read(2)
     if magic in (b"P5", b"P2"):
         return read_pgm(path)
-    from PIL import Image, UnidentifiedImageError
+    from PIL import Image
+
+    from crlam.io.nav2 import open_pil_image
 
     try:
-        with Image.open(path) as img:
+        with open_pil_image(path) as img:
             if img.mode in ("RGBA", "LA", "PA") or (img.mode == "P" and "transparency" in img.info):
                 img = img.convert("RGBA")
                 background = Image.new("RGBA", img.size, (255, 255, 255, 255))
@@ -251,68 +254,27 @@ def _read_grey(path: Path) -> NDArray[np.uint8]:
                 top = arr.max() if arr.max() > 255 else 255.0
                 return np.round(arr * 255.0 / top).astype(np.uint8)
             return np.asarray(img.convert("L"), dtype=np.uint8).copy()
-    except UnidentifiedImageError as exc:
+    except CrlamError:
+        raise
+    except (OSError, ValueError, SyntaxError) as exc:
         raise DataFormatError(f"not an image: {exc}", path=str(path)) from exc
 
 
 def read_pgm(path: PathLike) -> NDArray[np.uint8]:
-    """Parse a PGM file (P5 binary or P2 ASCII) into uint8 grey levels ``(rows, cols)``.
+    """Read a PGM file (P5 binary or P2 ASCII) as uint8 grey levels ``(rows, cols)``, row 0 = top.
 
-    Comments (``#`` to end of line) may appear anywhere in the header. Files with
-    ``maxval != 255`` are rescaled to 0..255 (16-bit P5 samples are big-endian).
+    Reads through :func:`crlam.io.nav2.read_pgm` (Pillow); 16-bit images are rescaled to 0..255.
     """
-    p = Path(path)
-    data = p.read_bytes()
-    magic = data[:2]
-    if magic not in (b"P5", b"P2"):
-        raise DataFormatError(f"not a PGM file (magic {magic!r})", path=str(p), line=1)
-    tokens: list[bytes] = []
-    pos = 2
-    n = len(data)
-    # The header holds width, height and maxval, separated by whitespace and comments.
-    while len(tokens) < 3:
-        while pos < n and data[pos : pos + 1].isspace():
-            pos += 1
-        if pos < n and data[pos : pos + 1] == b"#":
-            while pos < n and data[pos : pos + 1] not in (b"\n", b"\r"):
-                pos += 1
-            continue
-        start = pos
-        while pos < n and not data[pos : pos + 1].isspace() and data[pos : pos + 1] != b"#":
-            pos += 1
-        if start == pos:
-            raise DataFormatError("truncated header", path=str(p), field="header")
-        tokens.append(data[start:pos])
-    try:
-        width, height, maxval = (int(t) for t in tokens)
-    except ValueError as exc:
-        raise DataFormatError(f"bad header values {tokens!r}", path=str(p), field="header") from exc
-    if width <= 0 or height <= 0 or not 0 < maxval < 65536:
-        raise DataFormatError(f"bad size or maxval {width}x{height}/{maxval}", path=str(p), field="header")
-    if magic == b"P5":
-        pos += 1  # exactly one whitespace byte separates the header from the raster
-        dtype = np.dtype(">u2") if maxval > 255 else np.dtype(np.uint8)
-        count = width * height
-        raw = np.frombuffer(data, dtype=dtype, count=-1, offset=pos) if pos < n else np.zeros(0, dtype)
-        if raw.size < count:
-            raise DataFormatError(f"raster has {raw.size} samples, expected {count}", path=str(p), field="raster")
-        arr = raw[:count].astype(np.float64).reshape(height, width)
-    else:
-        body = data[pos:].split(b"\n")
-        vals = [tok for line in body for tok in line.split(b"#", 1)[0].split()]
-        if len(vals) < width * height:
-            raise DataFormatError(f"raster has {len(vals)} samples, expected {width * height}", path=str(p))
-        arr = np.array([int(v) for v in vals[: width * height]], dtype=np.float64).reshape(height, width)
-    if maxval != 255:
-        arr = np.round(arr * 255.0 / maxval)
-    return np.clip(arr, 0, 255).astype(np.uint8)
+    from crlam.io.nav2 import read_pgm as read_pgm_pillow
+
+    values = read_pgm_pillow(path)
+    if values.dtype == np.uint8:
+        return values.astype(np.uint8)
+    return np.round(values.astype(np.float64) * (255.0 / 65535.0)).astype(np.uint8)
 
 
-def write_pgm(path: PathLike, grey: NDArray[np.uint8], comment: str | None = None) -> None:
-    """Write uint8 grey levels ``(rows, cols)`` (row 0 = top) as a binary P5 PGM."""
-    g = np.ascontiguousarray(grey, dtype=np.uint8)
-    header = b"P5\n"
-    if comment:
-        header += b"# " + comment.replace("\n", " ").encode("ascii", "replace") + b"\n"
-    header += f"{g.shape[1]} {g.shape[0]}\n255\n".encode("ascii")
-    Path(path).write_bytes(header + g.tobytes())
+def write_pgm(path: PathLike, grey: NDArray[np.uint8]) -> None:
+    """Write uint8 grey levels ``(rows, cols)`` (row 0 = top) as a binary P5 PGM (Pillow)."""
+    from crlam.io.nav2 import write_pgm as write_pgm_pillow
+
+    write_pgm_pillow(path, np.ascontiguousarray(grey, dtype=np.uint8))

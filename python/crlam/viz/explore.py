@@ -14,6 +14,7 @@ import numpy as np
 from matplotlib.animation import FuncAnimation, PillowWriter
 
 from crlam.viz.maps import metric_axes, save_figure
+from crlam.viz.palette import colour
 
 if TYPE_CHECKING:
     from crlam.experiments.explore import ExploreRun
@@ -45,9 +46,10 @@ def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRun, *, dp
     fig, axes = plt.subplots(1, 2, figsize=(12.5, 5.2 * mean.shape[0] / max(mean.shape[1], 1) + 1.0), constrained_layout=True)
     _draw_map(axes[0], mean, ext)
     p = run.poses
-    axes[0].plot(p[:, 0], p[:, 1], color="tab:blue", linewidth=1.0)
-    axes[0].plot(p[0, 0], p[0, 1], marker="s", color="tab:green", markersize=8, label="start")
-    axes[0].plot(p[-1, 0], p[-1, 1], marker="*", color="tab:red", markersize=12, label="end")
+    c = colour(run.config.function)
+    axes[0].plot(p[:, 0], p[:, 1], color=c, linewidth=1.0)
+    axes[0].plot(p[0, 0], p[0, 1], marker="s", color=c, markeredgecolor="black", markersize=8, label="start")
+    axes[0].plot(p[-1, 0], p[-1, 1], marker="*", color=c, markeredgecolor="black", markersize=13, label="end")
     axes[0].legend(loc="upper right", fontsize=8)
     axes[0].set_title(f"{run.config.function.upper()} exploration: {run.distance:.0f} m, stop: {run.stop}")
     crmi = make_function("crmi", z_max=run.config.sensor_range, resolution=run.config.resolution)
@@ -113,8 +115,8 @@ def save_animation(path: str | os.PathLike[str], run: ExploreRun, *, max_frames:
         f = frames[i]
         _draw_map(ax, f["mean"] / 255.0, ext)
         p = f["poses"]
-        ax.plot(p[:, 0], p[:, 1], color="tab:blue", linewidth=1.0)
-        ax.plot(p[-1, 0], p[-1, 1], marker="o", color="tab:red")
+        ax.plot(p[:, 0], p[:, 1], color=colour(run.config.function), linewidth=1.0)
+        ax.plot(p[-1, 0], p[-1, 1], marker="o", color=colour(run.config.function), markeredgecolor="black")
         ax.set_title(f"decision {f['decision']}")
         ax.set_xlim(ext[0], ext[1])
         ax.set_ylim(ext[2], ext[3])
@@ -145,11 +147,18 @@ def save_sweep_figures(out: Path, rows: list[dict[str, Any]], *, dpi: int = 150)
             {k: np.array([float(p[k]) for p in prog]) for k in ("distance_m", "explored_m2", "map_error", "pose_error_m")}
         )
     fig, axes = plt.subplots(1, 3, figsize=(16.0, 4.4), constrained_layout=True)
+    # One colour per function (the palette's); variants of one function (UCRMI's alphas, several
+    # worlds) are told apart by the line style.
+    styles = ("-", "--", ":", "-.", (0, (5, 1, 1, 1, 1, 1)))
+    seen: dict[str, int] = {}
     for (world, variant), runs in sorted(curves.items()):
+        c = colour(variant)
+        ls = styles[seen.setdefault(c, 0) % len(styles)]
+        seen[c] += 1
         grid = np.linspace(0.0, max(float(c["distance_m"][-1]) for c in runs), 60)
         for ax, key in zip(axes, ("explored_m2", "map_error", "pose_error_m"), strict=True):
             ys = np.array([np.interp(grid, c["distance_m"], c[key]) for c in runs])
-            ax.plot(grid, ys.mean(axis=0), label=f"{world}: {variant}", linewidth=1.2)
+            ax.plot(grid, ys.mean(axis=0), label=f"{world}: {variant}", linewidth=1.2, color=c, linestyle=ls)
     for ax, label in zip(axes, ("explored area [m²]", "map error (observed cells)", "pose error [m]"), strict=True):
         ax.set_xlabel("distance travelled [m]")
         ax.set_ylabel(label)

@@ -18,6 +18,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.patches import Ellipse
 
 from crlam.viz.maps import metric_axes, save_figure
+from crlam.viz.palette import colour
 
 if TYPE_CHECKING:
     from crlam.info.prior import MapPrior
@@ -71,11 +72,10 @@ def draw_tree(ax: Axes, prior: MapPrior, tree: IigTree, *, ellipses: bool = True
 def save_trees(
     path: str | os.PathLike[str], prior: MapPrior, trees: Mapping[str, IigTree], labels: Mapping[str, str], *, dpi: int = 150
 ) -> Path:
-    """Fig. 3: one panel per function (GPVR omitted when UGPVR is there, as in the paper)."""
-    names = [n for n in ("crmi", "ucrmi", "ogmi", "ugpvr", "gpvr") if n in trees]
-    if "ugpvr" in names and "gpvr" in names and len(names) > 4:
-        names.remove("gpvr")
-    cols = min(len(names), 2) or 1
+    """Fig. 3: one panel per function (all five: the paper's figure leaves GPVR out), each titled in
+    the function's colour."""
+    names = [n for n in ("ogmi", "crmi", "ucrmi", "gpvr", "ugpvr") if n in trees]
+    cols = min(len(names), 3) or 1
     rows = max(1, math.ceil(len(names) / cols))
     fig, axes = plt.subplots(rows, cols, figsize=(6.0 * cols, 5.6 * rows), constrained_layout=True, squeeze=False)
     for ax in axes.flat[len(names) :]:
@@ -83,7 +83,7 @@ def save_trees(
     for ax, n in zip(axes.flat, names, strict=False):
         t = trees[n]
         draw_tree(ax, prior, t)
-        ax.set_title(f"{labels.get(n, n)}: {t.n_nodes} nodes, {t.iterations} samples, {t.stop}")
+        ax.set_title(f"{labels.get(n, n)}: {t.n_nodes} nodes, {t.iterations} samples, {t.stop}", color=colour(n))
     return save_figure(fig, path, dpi)
 
 
@@ -100,7 +100,9 @@ def save_boxplots(
     fig, axes = plt.subplots(1, 2, figsize=(11.0, 4.2), constrained_layout=True)
     for ax, key, title in ((axes[0], "planning_time_s", "planning time [s]"), (axes[1], "total_cost_m", "total cost [m]")):
         data = [[float(r[key]) for r in rows if r["function"] == f] for f in present]
-        ax.boxplot(data, tick_labels=[labels.get(f, f) for f in present])
+        box = ax.boxplot(data, tick_labels=[labels.get(f, f) for f in present], patch_artist=True)
+        for patch, f in zip(box["boxes"], present, strict=True):
+            patch.set(facecolor=colour(f), alpha=0.45)
         ax.set_ylabel(title)
         ax.grid(axis="y", alpha=0.3)
     axes[0].set_yscale("log")
@@ -116,13 +118,15 @@ def save_ric_and_gain(
     the information gain (mean Delta I of each sample's evaluations) against samples."""
     fig, axes = plt.subplots(1, 2, figsize=(12.0, 4.4), constrained_layout=True)
     for n, t in trees.items():
-        axes[0].plot(np.arange(len(t.cum_ric)), t.cum_ric, label=labels.get(n, n), linewidth=1.2)
+        axes[0].plot(np.arange(len(t.cum_ric)), t.cum_ric, label=labels.get(n, n), linewidth=1.2, color=colour(n))
         g = t.iteration_gain
         if len(g):
             # A 50-sample moving average: single samples are 0 whenever no extension was evaluated.
             w = min(50, len(g))
             smooth = np.convolve(g, np.ones(w) / w, mode="valid")
-            axes[1].plot(np.arange(len(smooth)) + w, smooth, label=f"{labels.get(n, n)} [{t.units}]", linewidth=1.0)
+            axes[1].plot(
+                np.arange(len(smooth)) + w, smooth, label=f"{labels.get(n, n)} [{t.units}]", linewidth=1.0, color=colour(n)
+            )
     axes[0].set_xlabel("nodes")
     axes[0].set_ylabel("cumulative penalized I_RIC")
     axes[0].set_title("(a) cumulative penalized I_RIC")

@@ -17,6 +17,7 @@ from matplotlib.figure import Figure  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
 from crlam.mapping import MapLayer  # noqa: E402
+from crlam.viz.palette import colour, line_style
 
 __all__ = ["add_scale_bar", "metric_axes", "plot_layer", "save_figure", "save_crm_figure", "save_world_figure"]
 
@@ -145,9 +146,57 @@ def save_world_figure(
     fig, ax = plt.subplots(figsize=(7, 7 * occupied.shape[0] / max(occupied.shape[1], 1) + 0.5), constrained_layout=True)
     ax.imshow(layer.values, origin="lower", extent=layer.extent, cmap="gray_r", vmin=0, vmax=1, interpolation="nearest")
     if trajectory is not None and len(trajectory):
-        ax.plot(trajectory[:, 0], trajectory[:, 1], color="tab:red", linewidth=0.8)
-        ax.plot(trajectory[0, 0], trajectory[0, 1], "o", color="tab:green", markersize=5)
+        ax.plot(trajectory[:, 0], trajectory[:, 1], label="ground truth", **line_style("ground truth"))
+        ax.plot(trajectory[0, 0], trajectory[0, 1], "o", color=colour("ground truth"), markersize=5, zorder=11)
     metric_axes(ax, layer.extent)
     if title:
         ax.set_title(title)
+    return save_figure(fig, path, dpi)
+
+
+def save_slam_beside_world(
+    path: str | os.PathLike[str],
+    occupied: NDArray[np.bool_],
+    origin: Sequence[float] | NDArray[np.float64],
+    resolution: float,
+    mean: MapLayer,
+    unknown: NDArray[np.bool_] | None,
+    *,
+    truth: NDArray[np.float64],
+    estimate: NDArray[np.float64],
+    title: str = "",
+    margin: float = 8.0,
+    dpi: int = 120,
+) -> Path:
+    """A SLAM map beside the ground-truth world, on the same axes.
+
+    Left: the world raster (``occupied`` ``[iy, ix]``, lower-left corner ``origin``, cells of
+    ``resolution`` m) with the true trajectory; right: the map's expected occupancy (``unknown``
+    cells grey) with the estimated trajectory (RBPF-CLAM's colour) and the true one on top.
+    ``truth`` and ``estimate`` are (n, 2 or 3) poses in m; both panels show the true path's
+    bounding box grown by ``margin`` m (the sensor's reach).
+    """
+    world = MapLayer(occupied.astype(np.float64), (float(origin[0]), float(origin[1])), resolution, "world")
+    # Both panels show the part of the world the run could see: the true path plus a margin.
+    w = world.extent
+    lo, hi = truth[:, :2].min(axis=0) - margin, truth[:, :2].max(axis=0) + margin
+    ext = (max(w[0], lo[0]), min(w[1], hi[0]), max(w[2], lo[1]), min(w[3], hi[1]))
+    aspect = (ext[3] - ext[2]) / max(ext[1] - ext[0], 1e-9)
+    fig, axes = plt.subplots(1, 2, figsize=(13.0, min(6.2 * aspect, 14.0) + 0.8), constrained_layout=True)
+    axes[0].imshow(world.values, origin="lower", extent=ext, cmap="gray_r", vmin=0, vmax=1, interpolation="nearest")
+    axes[0].set_title("ground truth: the world")
+    vals = np.ma.masked_array(mean.values, mask=unknown) if unknown is not None else mean.values
+    cm = matplotlib.colormaps["gray_r"].with_extremes(bad="#d8d8d8")
+    axes[1].set_facecolor("#d8d8d8")
+    axes[1].imshow(vals, origin="lower", extent=mean.extent, cmap=cm, vmin=0, vmax=1, interpolation="nearest")
+    axes[1].set_title("RBPF-CLAM: the best particle's map")
+    axes[1].plot(estimate[:, 0], estimate[:, 1], label="RBPF-CLAM", **(line_style("RBPF-CLAM") | {"linewidth": 2.0}))
+    for ax in axes:
+        ax.plot(truth[:, 0], truth[:, 1], label="ground truth", **line_style("ground truth"))
+        ax.set_xlim(ext[0], ext[1])
+        ax.set_ylim(ext[2], ext[3])
+        metric_axes(ax, ext)
+        ax.legend(loc="upper right", fontsize=8)
+    if title:
+        fig.suptitle(title)
     return save_figure(fig, path, dpi)

@@ -18,6 +18,7 @@ from numpy.typing import NDArray  # noqa: E402
 from crlam.eval.trajectory import ReferenceErrors, RelationsErrors  # noqa: E402
 from crlam.mapping import MapLayer  # noqa: E402
 from crlam.viz.maps import metric_axes, save_figure  # noqa: E402
+from crlam.viz.palette import colour, line_style
 
 __all__ = [
     "save_trajectory_figure",
@@ -43,9 +44,9 @@ def save_trajectories_on_map(
     ny, nx = mean.shape
     fig, ax = plt.subplots(figsize=(8, max(4.0, 8 * ny / max(nx, 1))), constrained_layout=True)
     ax.imshow(vals, origin="lower", extent=mean.extent, cmap=cm, vmin=0, vmax=1, interpolation="nearest")
-    colours = ["tab:red", "tab:green", "tab:blue", "tab:orange", "tab:purple"]
-    for (name, t), c in zip(trajectories.items(), colours):
-        ax.plot(t[:, 0], t[:, 1], color=c, linewidth=0.9, alpha=0.9, label=name)
+    # Colours from the project's palette; the ground truth is drawn dashed on top of the estimates.
+    for name, t in trajectories.items():
+        ax.plot(t[:, 0], t[:, 1], label=name, **line_style(name))
     ax.legend(loc="upper right", fontsize=8)
     metric_axes(ax, mean.extent)
     if title:
@@ -61,11 +62,13 @@ def save_trajectory_figure(
     *,
     reference: NDArray[np.float64] | None = None,
     title: str = "",
+    label: str = "estimate",
 ) -> Path:
-    """The estimated trajectory (and the reference, if given) over the best particle's map."""
-    traj = {"estimate": estimate}
+    """The estimated trajectory (and the reference, if given) over the best particle's map;
+    ``label`` names the estimate in the legend and picks its colour (:mod:`crlam.viz.palette`)."""
+    traj = {label: estimate}
     if reference is not None:
-        traj = {"reference": reference, "estimate": estimate}
+        traj = {"reference": reference, label: estimate}
     return save_trajectories_on_map(path, mean, unknown, traj, title=title)
 
 
@@ -106,8 +109,9 @@ def save_error_figure(
     fig, axes = _error_axes()
     for name, e in runs:
         t = e.stamps - e.stamps[0]
-        axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), linewidth=0.8, label=name)
-        axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), linewidth=0.8, label=name)
+        c = colour(name)
+        axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), color=c, linewidth=0.8, label=name)
+        axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), color=c, linewidth=0.8, label=name)
     return _save_error_axes(fig, axes, path, title, dpi)
 
 
@@ -120,8 +124,8 @@ def save_error_spread_figure(
 ) -> Path:
     """Position and heading error against time of every run, one colour per group (method)."""
     fig, axes = _error_axes()
-    for i, (name, runs) in enumerate(groups.items()):
-        color = f"C{i}"
+    for name, runs in groups.items():
+        color = colour(name)
         for j, e in enumerate(runs):
             t = e.stamps - e.stamps[0]
             label = f"{name} ({len(runs)} runs)" if j == 0 else None
@@ -140,6 +144,9 @@ def save_relations_error_figure(
 ) -> Path:
     """Translational and rotational error of every relation against the time of its first pose.
 
+    Each relation is a dot at its first stamp ``t1``; the dashed lines are the means the
+    metric reports, so a few large errors and where in the log they arise can be told apart.
+
     Parameters
     ----------
     errors : RelationsErrors or mapping of name to RelationsErrors
@@ -147,19 +154,17 @@ def save_relations_error_figure(
         (e.g. the weighted mean and the best particle's path), one colour each.
     t0 : float, optional
         Time (s) shown as 0, e.g. the log's first scan; default: the earliest relation stamp.
-
-    Each relation is a dot at its first stamp ``t1``; the dashed lines are the means the
-    metric reports, so a few large errors and where in the log they arise can be told apart.
     """
     runs = {"estimate": errors} if isinstance(errors, RelationsErrors) else dict(errors)
     fig, axes = _error_axes()
     start = min(float(np.min(e.t1)) for e in runs.values()) if t0 is None else t0
-    for i, (name, e) in enumerate(runs.items()):
+    for name, e in runs.items():
         t = e.t1 - start
+        c = colour(name)
         for ax, y, unit in ((axes[0], e.trans, "m"), (axes[1], e.rot, "deg")):
             mean = float(np.mean(y))
-            ax.plot(t, y, ".", markersize=2.5, color=f"C{i}", alpha=0.7, label=f"{name} ({e.n} relations)")
-            ax.axhline(mean, color=f"C{i}", linestyle="--", linewidth=0.9, label=f"{name}: mean {mean:.3g} {unit}")
+            ax.plot(t, y, ".", markersize=2.5, color=c, alpha=0.7, label=f"{name} ({e.n} relations)")
+            ax.axhline(mean, color=c, linestyle="--", linewidth=0.9, label=f"{name}: mean {mean:.3g} {unit}")
             ax.set_ylim(bottom=0.0)
     axes[1].legend(fontsize=8)
     labels = ("translational error [m]", "rotational error [deg]")

@@ -5,9 +5,10 @@
 use crate::crm::beam::{
     check_scan, plan_beam, BatchKernel, BeamPlan, ScanOptions, ScanStats, ScanUpdateMode,
 };
-use crate::crm::far_simd::LANES;
+use crate::crm::beam_job::BeamJob;
+use crate::crm::lane_io::LANES;
 use crate::crm::lanes::LaneOutcome;
-use crate::crm::map::{BeamJob, CrmMap, CrmScratch};
+use crate::crm::map::{CrmMap, CrmScratch};
 use crate::crm::scan_cells::scan_window;
 use crate::crm::windowed::{LaneStart, WindowedBeam, WindowedScan};
 use crate::error::Result;

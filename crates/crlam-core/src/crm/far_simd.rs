@@ -23,10 +23,11 @@
 //! product), so one set of eight lanes leaves the core waiting on latencies; two independent sets
 //! stepped in the same loop overlap their chains.
 
+use super::lane_io::{TailLanesIo, LANES};
 #[cfg(target_arch = "x86_64")]
 use crate::crm::windowed::TAIL_EPS;
 #[cfg(target_arch = "x86_64")]
-use crate::info::fastmath::exp_for_sums_avx512;
+use crate::numeric::fastmath::exp_for_sums_avx512;
 use crate::raycast::FastWalk;
 use crate::simd::SimdLevel;
 #[cfg(target_arch = "x86_64")]
@@ -35,8 +36,7 @@ use std::arch::x86_64::*;
 /// Lanes of one AVX-512 register of f64.
 pub(crate) const SET: usize = 8;
 
-/// Beams a call takes: two sets of lanes.
-pub(crate) const LANES: usize = 2 * SET;
+const _: () = assert!(LANES == 2 * SET, "a call steps two sets of AVX-512 lanes");
 
 /// Runs the far phase of `walks` (at most [`LANES`]) at `level` (lowered to the best the CPU
 /// supports): lane i consumes cells while their chord midpoint is below `lo[i]` (+∞ for a
@@ -67,24 +67,6 @@ pub(crate) fn far_phase(
     }
     let _ = (level, walks, lo, reach, means);
     false
-}
-
-/// Weighed beams at the first cell of their tails (past the mapping ray and the weight's hit
-/// reach), one per lane: the walk and the reach there, Σ π and Σ π/(1 − e^{−λd}) so far (0 at
-/// the start), the part `base` of the stop rule's lower bound of η that the tail does not change
-/// ((1 − R_far)·far_like + η_w) and the bound `sup_past` of every cause's likelihood past the
-/// mapping ray. On return: where each walk ended, the sums, and whether the stop rule ended it.
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-pub(crate) struct TailLanesIo<'a> {
-    /// Lanes to walk (the others are left untouched).
-    pub(crate) enabled: &'a [bool],
-    pub(crate) walks: &'a mut [FastWalk],
-    pub(crate) reach: &'a mut [f64],
-    pub(crate) mass: &'a mut [f64],
-    pub(crate) short: &'a mut [f64],
-    pub(crate) base: &'a [f64],
-    pub(crate) sup_past: &'a [f64],
-    pub(crate) stopped: &'a mut [bool],
 }
 
 /// Walks the tails of `io`'s beams (at most [`LANES`]) at `level` (lowered to the best the CPU

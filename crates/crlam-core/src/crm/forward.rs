@@ -17,7 +17,7 @@
 //! means come from the map's shared block means ([`super::mean_cache::TileMeans`]): a proposal's
 //! hill climb reads the same cells dozens of times. The result equals the backward sweep of
 //! [`super::update::cause_sweep`] to rounding (the sums run in the other order and the
-//! exponentials are [`crate::info::fastmath::exp_table`]'s), not bit for bit.
+//! exponentials are [`crate::numeric::fastmath::exp_table`]'s), not bit for bit.
 //!
 //! [`SensorModel::negligible_hit_distance`]: crate::sensor::SensorModel::negligible_hit_distance
 

@@ -8,10 +8,12 @@
 //! kernel walks the rest of that beam from there; a beam whose ray may leave the scan's mean
 //! table is left to the scalar kernel altogether.
 
-use crate::crm::far_simd::{far_phase, tail_phase, TailLanesIo, LANES};
-use crate::crm::map::{BeamJob, CrmMap, CrmScratch};
+use crate::crm::beam_job::BeamJob;
+use crate::crm::far_simd::{far_phase, tail_phase};
+use crate::crm::lane_io::{TailLanesIo, WindowLanesIo, LANES};
+use crate::crm::map::{CrmMap, CrmScratch};
 use crate::crm::update::LINEAR_ETA_MIN;
-use crate::crm::window_simd::{window_phase, WindowLanesIo};
+use crate::crm::window_simd::window_phase;
 use crate::crm::windowed::{LaneStart, WindowedScan};
 use crate::raycast::FastWalk;
 use crate::sensor::SensorModel;

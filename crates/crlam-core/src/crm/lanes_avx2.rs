@@ -10,10 +10,9 @@
 
 use std::arch::x86_64::*;
 
-use super::far_simd::{TailLanesIo, LANES};
-use super::window_simd::{WindowLanesIo, WindowModel};
+use super::lane_io::{TailLanesIo, WindowLanesIo, WindowModel, LANES};
 use crate::crm::windowed::TAIL_EPS;
-use crate::info::fastmath::{exp_for_sums_x4, exp_table_x4};
+use crate::numeric::fastmath::{exp_for_sums_x4, exp_table_x4};
 use crate::raycast::FastWalk;
 use crate::sensor::{GAUSS_CUTOFF_SIGMAS, SQRT_2PI, TRUNC_SIGMAS};
 

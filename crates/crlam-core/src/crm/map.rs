@@ -1,14 +1,15 @@
 //! The confidence-rich map: tiled f32 pmfs per cell, their means and derived layers (the scan
 //! updates and likelihoods are in `scan.rs`).
 
-use crate::crm::beam::BeamPlan;
+use crate::crm::beam_job::BeamJob;
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
 use crate::crm::mean_cache::{MeanCache, TileMeans};
-use crate::crm::reading_table::{ReadingConstants, ReadingTable};
+use crate::crm::reading_table::ReadingTable;
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::windowed::WindowScratch;
 use crate::error::{config_err, CrlamError, Result};
-use crate::grid::{CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::grid::{check_dense_rect, CellRect, GridGeometry, TileStats, TiledGrid};
+use crate::limits::try_vec;
 use crate::raycast::RayCell;
 
 /// Configuration of a CRM (crm-spec 9).
@@ -61,16 +62,6 @@ pub struct CrmScratch {
     pub(super) jobs: Vec<BeamJob>,
     /// Pose-independent constants of the last weighed scan's readings.
     pub(super) readings: ReadingTable,
-}
-
-/// A beam of a batch scan: its weight and map plans (either may be absent) and its direction.
-#[derive(Clone, Copy, Debug)]
-pub(crate) struct BeamJob {
-    pub(crate) w_plan: Option<BeamPlan>,
-    pub(crate) m_plan: Option<BeamPlan>,
-    pub(crate) dir: [f64; 2],
-    /// The weighed reading's constants, when the scan's table has them.
-    pub(crate) consts: Option<ReadingConstants>,
 }
 
 /// The (cos, sin) of a scan's beam angles, kept while the angles stay the same (a filter's
@@ -279,15 +270,16 @@ impl CrmMap {
     /// Replaces the pmfs over `rect` (row-major `[iy][ix][k]`, normalised here).
     pub fn set_beliefs(&mut self, rect: CellRect, values: &[f64]) -> Result<()> {
         let k = self.mu.len();
-        if values.len() != rect.n_cells() * k {
+        rect.validate()?;
+        if values.len() != rect.n_cells().saturating_mul(k) {
             return Err(CrlamError::Shape(format!(
                 "beliefs for {} cells x {k} levels need {} values, got {}",
                 rect.n_cells(),
-                rect.n_cells() * k,
+                rect.n_cells().saturating_mul(k),
                 values.len()
             )));
         }
-        let mut out = Vec::with_capacity(values.len());
+        let mut out = try_vec(values.len(), "beliefs")?;
         for p in values.chunks(k) {
             let s: f64 = p.iter().sum();
             if !(s > 0.0 && s.is_finite()) || p.iter().any(|x| !(x.is_finite() && *x >= 0.0)) {
@@ -304,18 +296,38 @@ impl CrmMap {
         self.grid.import(rect, &out)
     }
 
-    /// Pmfs over `rect`, row-major `[iy][ix][k]`.
-    pub fn beliefs(&self, rect: CellRect) -> Vec<f32> {
+    /// Refuses rays reaching `reach` metres when they could cross more cells than the map-cell
+    /// limit (on a growing map a ray is not clipped, and its cells are gathered in buffers): a
+    /// huge z_max or a tiny cell must give an error before the first ray, not exhaust memory.
+    pub fn check_ray_reach(&self, reach: f64) -> Result<()> {
+        let res = self.geometry().resolution;
+        if self.grid.fixed_extent().is_some() && reach.is_finite() {
+            return Ok(()); // rays are clipped to the extent, itself within the limit
+        }
+        crate::limits::check_map_cells(
+            &format!("a ray reaching {reach} m on {res} m cells"),
+            2.0 * reach / res + 4.0,
+        )
+    }
+
+    /// Pmfs over `rect`, row-major `[iy][ix][k]` (refused above the map-cell limit).
+    pub fn beliefs(&self, rect: CellRect) -> Result<Vec<f32>> {
         self.grid.export(rect)
     }
 
-    /// (mean, variance, entropy in bits) per cell over `rect`, each row-major `[iy][ix]`.
-    pub fn derived(&self, rect: CellRect) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    /// (mean, variance, entropy in bits) per cell over `rect`, each row-major `[iy][ix]`
+    /// (refused above the map-cell limit).
+    pub fn derived(&self, rect: CellRect) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        if rect.nx <= 0 || rect.ny <= 0 {
+            return Ok((Vec::new(), Vec::new(), Vec::new()));
+        }
+        rect.validate()?;
+        check_dense_rect(rect)?;
         let n = rect.n_cells();
         let (mut m, mut v, mut h) = (
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
-            Vec::with_capacity(n),
+            try_vec(n, "mean layer")?,
+            try_vec(n, "variance layer")?,
+            try_vec(n, "entropy layer")?,
         );
         for iy in rect.iy0..rect.iy0 + rect.ny {
             for ix in rect.ix0..rect.ix0 + rect.nx {
@@ -325,6 +337,6 @@ impl CrmMap {
                 h.push(c);
             }
         }
-        (m, v, h)
+        Ok((m, v, h))
     }
 }

@@ -168,6 +168,7 @@ impl CrmMap {
     ) -> Result<(f64, usize)> {
         check_scan(angles, ranges, model, opts)?;
         check_pose(pose)?;
+        self.check_ray_reach(model.z_max)?;
         let res = self.grid.geometry().resolution;
         let mut total = 0.0;
         let mut used = 0;

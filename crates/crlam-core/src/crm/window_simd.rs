@@ -10,49 +10,18 @@
 //! mapping ray, or where the hit density needs its truncation normaliser near 0 or z_max), for
 //! the scalar kernel to take up from the same state. So a beam ends as if it had walked alone.
 
-use super::far_simd::LANES;
 #[cfg(target_arch = "x86_64")]
 use super::far_simd::SET;
 #[cfg(target_arch = "x86_64")]
 use super::far_simd::{Crossing, WalkLanes};
+use super::lane_io::{WindowLanesIo, WindowModel, LANES};
 #[cfg(target_arch = "x86_64")]
-use crate::info::fastmath::exp_table_avx512;
-use crate::raycast::FastWalk;
-use crate::sensor::SensorModel;
+use crate::numeric::fastmath::exp_table_avx512;
 #[cfg(target_arch = "x86_64")]
 use crate::sensor::{GAUSS_CUTOFF_SIGMAS, SQRT_2PI, TRUNC_SIGMAS};
 use crate::simd::SimdLevel;
 #[cfg(target_arch = "x86_64")]
 use std::arch::x86_64::*;
-
-/// Weighed beams entering their windows, one per lane: the walk and reach where the far phase
-/// ended, the reading, the end of the mapping ray (−∞ without one: the lane then stops at once)
-/// and the reading's λ e^{−λz}. On return `walks` and `reach` are where the lanes left the
-/// beams, `reach_far` the reach at the window's first cell (`NaN` if the window was not
-/// entered), `eta` the window's Σ π·L so far, and each lane either stopped before its first tail
-/// cell (`at_tail`: past the mapping ray and the hit reach), or before a cell only the scalar
-/// kernel handles (`bailed`), or reached the end of its ray (neither).
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-pub(crate) struct WindowLanesIo<'a> {
-    pub(crate) walks: &'a mut [FastWalk],
-    pub(crate) reach: &'a mut [f64],
-    pub(crate) z: &'a [f64],
-    pub(crate) map_length: &'a [f64],
-    pub(crate) short_numerator: &'a [f64],
-    pub(crate) reach_far: &'a mut [f64],
-    pub(crate) eta: &'a mut [f64],
-    pub(crate) at_tail: &'a mut [bool],
-    pub(crate) bailed: &'a mut [bool],
-}
-
-/// The weight model's constants the window needs; `hit_reach` is the kernel's (beyond it the
-/// hit term is left out).
-#[derive(Clone, Copy, Debug)]
-#[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
-pub(crate) struct WindowModel {
-    pub(crate) model: SensorModel,
-    pub(crate) hit_reach: f64,
-}
 
 /// Walks the windows of `io`'s beams (at most [`LANES`]) at `level` (lowered to the best the
 /// CPU supports), reading m̂ from `means` at the walk's window index. Every walk's cells must lie

@@ -36,7 +36,7 @@
 //! [`BatchKernel::FullRay`]: super::beam::BatchKernel::FullRay
 
 use crate::crm::beam::{BeamPlan, ScanStats};
-use crate::crm::map::BeamJob;
+use crate::crm::beam_job::BeamJob;
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::update::LINEAR_ETA_MIN;
 use crate::grid::{GridGeometry, TiledGrid};
@@ -93,7 +93,7 @@ pub(crate) struct WindowScratch {
 impl WindowScratch {
     /// Σ π / (1 − e^{−λd}) over the buffered tail, in walk order (consumes the exponents).
     fn tail_short(&mut self) -> f64 {
-        crate::info::fastmath::exp_for_sums(&mut self.tail_x);
+        crate::numeric::fastmath::exp_for_sums(&mut self.tail_x);
         self.tail_pi
             .iter()
             .zip(&self.tail_x)
@@ -182,9 +182,9 @@ impl<'a> WindowedScan<'a> {
         })
     }
 
-    /// The weight model and hit reach, for the window lanes ([`super::window_simd`]).
-    pub(crate) fn window_model(&self) -> Option<super::window_simd::WindowModel> {
-        self.weight.map(|w| super::window_simd::WindowModel {
+    /// The weight model and hit reach, for the window lanes ([`super::window_simd`], [`super::lane_io::WindowModel`]).
+    pub(crate) fn window_model(&self) -> Option<super::lane_io::WindowModel> {
+        self.weight.map(|w| super::lane_io::WindowModel {
             model: *w,
             hit_reach: self.weight_hit_reach,
         })

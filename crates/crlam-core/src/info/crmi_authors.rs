@@ -167,6 +167,7 @@ impl InformationFunction for MlScanBinary {
         _seed: u64,
     ) -> Result<Evaluation<(), VirtualScan>> {
         check_pose(candidate.pose)?;
+        map.check_ray_reach(self.cfg.model.z_max)?;
         let scan = self.cfg.most_likely_scan(map, candidate.pose);
         let cells = ray_cells(map, &scan, self.cfg.model.z_max);
         let before: f64 = cells.iter().map(|&(x, y)| h_bits(map.mean_at(x, y))).sum();
@@ -318,6 +319,7 @@ impl InformationFunction for R1Map {
         _seed: u64,
     ) -> Result<Evaluation<(), VirtualScan>> {
         check_pose(candidate.pose)?;
+        map.check_ray_reach(self.cfg.model.z_max)?;
         let scan = self.cfg.most_likely_scan(map, candidate.pose);
         let mut copy = map.clone();
         let cells = r1_mi_map(

@@ -4,8 +4,8 @@
 
 use crate::crm::update::{cause_sweep, cause_sweep_log, LINEAR_ETA_MIN};
 use crate::error::Result;
-use crate::info::crmi::{CrmiConfig, CrmiQuadrature, SUPPORT_SIGMAS};
-use crate::info::fastmath::{lower_tail_abs_slice, tail_difference};
+use crate::info::crmi_config::{CrmiConfig, CrmiQuadrature, SUPPORT_SIGMAS};
+use crate::numeric::fastmath::{lower_tail_abs_slice, tail_difference};
 use crate::sensor::{normal_cdf, SensorModelKind};
 
 /// The discretised channel of one beam: bin edges and each cause's bin masses.
@@ -20,7 +20,7 @@ pub struct BeamChannel {
     /// First and last bin (< Q) with ℓ_l(q) > 0 per cell for the pooled `ijrr` path.
     pub(crate) support: Vec<(usize, usize)>,
     /// Standardised support edges (z_e − d_l)/σ of every cell, back to back, and the value of
-    /// their [`crate::info::fastmath::normal_tail`] (whose flag is u > 0).
+    /// their [`crate::numeric::fastmath::normal_tail`] (whose flag is u > 0).
     tail_u: Vec<f64>,
     tail_v: Vec<f64>,
 }

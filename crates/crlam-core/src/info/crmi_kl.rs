@@ -5,7 +5,7 @@
 //! level (by [`crate::simd::level`]), with the scalar definition's operations in its order, so
 //! every path gives the same bits.
 
-use crate::info::fastmath::ln_normal;
+use crate::numeric::fastmath::ln_normal;
 
 /// KL(p' ‖ p) (nats) of the posterior p' = p ⊙ f / s, with f_i = max(1 + α(μ_i − m̂), 0) and
 /// s = Σ_i p_i f_i: Σ_i p_i f_i ln f_i / s − ln s. A bin's posterior never needs ln p. The scalar
@@ -207,7 +207,7 @@ fn kl_level_step(mu: f64, alpha: f64, mhat: f64, p: f64, s: &mut f64, g: &mut f6
     *g += w * ln_normal(f.max(f64::MIN_POSITIVE));
 }
 
-crate::info::fastmath::simd_by_target! {
+crate::numeric::fastmath::simd_by_target! {
     /// [`kl_level_step`] of level `mu` for every pair j (α_j, m̂_j, p_j), into the pair's sums.
     kl_level_sums, kl_level_sums_at, kl_level_sums_avx2, kl_level_sums_body,
     (mu: f64, alpha: &[f64], mhat: &[f64], p: &[f64], s: &mut [f64], g: &mut [f64])
@@ -261,7 +261,7 @@ unsafe fn kl_jobs_wide(probs: &[f64], mu: &[f64], jobs: &[KlJob], kl: &mut [f64]
 #[target_feature(enable = "avx512f")]
 #[inline]
 unsafe fn kl_group_wide(probs: &[f64], mu: &[f64], jobs: &[KlJob]) -> [f64; 8] {
-    use crate::info::fastlog::ln_normal_x8;
+    use crate::numeric::fastlog::ln_normal_x8;
     use std::arch::x86_64::*;
     assert!(jobs.len() >= 8);
     let (one, zero) = (_mm512_set1_pd(1.0), _mm512_setzero_pd());
@@ -324,7 +324,7 @@ unsafe fn kl_jobs_x4(probs: &[f64], mu: &[f64], jobs: &[KlJob], kl: &mut [f64]) 
 #[target_feature(enable = "avx2")]
 #[inline]
 unsafe fn kl_group_x4(probs: &[f64], mu: &[f64], jobs: &[KlJob]) -> [f64; 4] {
-    use crate::info::fastlog::ln_normal_x4;
+    use crate::numeric::fastlog::ln_normal_x4;
     use std::arch::x86_64::*;
     assert!(jobs.len() >= 4);
     let (one, zero) = (_mm256_set1_pd(1.0), _mm256_setzero_pd());

@@ -18,7 +18,7 @@
 use std::f64::consts::LN_2;
 
 use crate::error::{config_err, CrlamError, Result};
-use crate::info::fastmath::exp_for_sums;
+use crate::numeric::fastmath::exp_for_sums;
 use crate::pose::wrap;
 use crate::rng::Rng;
 

@@ -16,9 +16,9 @@
 //! on the lattice; [`crate::info::iig_mi::IigMi`] is the IIG reference 'mi' heuristic (4.3).
 
 use crate::error::{config_err, CrlamError, Result};
-use crate::info::fastmath::{ln_1p_slice, normal_cdf_slice};
 use crate::info::lattice::{traverse_lattice, BeamAngles, LatticeCell, OccupancyLattice};
 use crate::info::{Candidate, Evaluation, InfoUnits, InformationFunction};
+use crate::numeric::fastmath::{ln_1p_slice, normal_cdf_slice};
 use crate::raycast::rect_box;
 use crate::sensor::normal_cdf;
 

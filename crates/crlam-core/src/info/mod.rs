@@ -7,15 +7,22 @@
 //! mutation (planner-spec 3.5) is `evaluate` followed by `commit`; a surface or a batch of
 //! candidates is many `evaluate`s on one map state, which [`evaluate_batch`] runs in parallel with
 //! results identical to the serial loop (each candidate draws from its own random stream).
+//!
+//! Dependencies point one way (a module uses only this file's items and modules listed before
+//! it; `tests/test_rust_modules.py` checks that there are no loops):
+//!
+//! 1. [`lattice`] (occupancy lattices and their beams), [`posecov`], [`gp_kernel`], [`entropy`],
+//!    [`shared_likelihood`], `crmi_kl` (the CRMI divergences);
+//! 2. [`prior`] (a CRM from a lattice), [`fsmi`], then [`iig_mi`]; [`gp`] (GPVR, UGPVR);
+//! 3. CRMI: `crmi_config` (settings), [`crmi_channel`] (one beam's channel), [`crmi`] (the
+//!    pose evaluation), then [`crmi_authors`] and [`ucrmi`].
 
-pub mod bench;
 pub mod crmi;
 pub mod crmi_authors;
 pub mod crmi_channel;
+mod crmi_config;
 mod crmi_kl;
 pub mod entropy;
-pub mod fastlog;
-pub mod fastmath;
 pub mod fsmi;
 pub mod gp;
 pub mod gp_kernel;

@@ -12,7 +12,7 @@
 //!   deviations its term is below 2⁻⁶⁰ of the random floor w_rand / z_max that every L_l carries,
 //!   so adding it would not change a single bit of L_l; where the density's truncation normaliser
 //!   is 1 (causes more than 8.3σ from both range limits) it is one inlined table exponential
-//!   ([`crate::info::fastmath::exp_table`], libm's call was a sixth of the time) times precomputed
+//!   ([`crate::numeric::fastmath::exp_table`], libm's call was a sixth of the time) times precomputed
 //!   w_hit/(σ√(2π)), without the divisions of the general density.
 //!
 //! Beams the fast path does not cover exactly (a hit beyond where the map's fixed extent cuts the
@@ -26,7 +26,7 @@ use crate::crm::update::LINEAR_ETA_MIN;
 use crate::crm::{with_thread_scratch, CrmMap, CrmScratch, ScanOptions};
 use crate::error::{CrlamError, Result};
 use crate::grid::{check_pose, CellRect};
-use crate::info::fastmath::exp_table;
+use crate::numeric::fastmath::exp_table;
 use crate::raycast::traverse_with;
 use crate::sensor::{normal_cdf, CauseKernel, SensorModel, SensorModelKind, GAUSS_CUTOFF_SIGMAS};
 

@@ -104,12 +104,10 @@ impl UcrmiConfig {
                 format!("must be in [0, 1], got {}", self.alpha),
             ));
         }
-        if self.n_particles == 0 || self.n_particles > 100_000 {
-            return Err(config_err(
-                "n_particles",
-                format!("must be in [1, 100000], got {}", self.n_particles),
-            ));
+        if self.n_particles == 0 {
+            return Err(config_err("n_particles", "must be >= 1"));
         }
+        crate::limits::check_particles("UCRMI n_particles", self.n_particles)?;
         if !(0.0..=1.0).contains(&self.resample_threshold) {
             return Err(config_err(
                 "resample_threshold",
@@ -224,6 +222,7 @@ impl InformationFunction for Ucrmi {
         candidate: &Candidate,
         seed: u64,
     ) -> Result<Evaluation<ParticleBelief, VirtualScan>> {
+        map.check_ray_reach(self.cfg.crmi.model.z_max.max(self.cfg.weight_model.z_max))?;
         let n = parent.particles.len();
         if n == 0 || parent.log_weights.len() != n {
             return Err(crate::error::CrlamError::Shape(format!(

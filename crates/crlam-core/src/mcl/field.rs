@@ -15,9 +15,6 @@ use crate::grid::{floor_to_i64, CellRect, GridGeometry};
 use crate::pose::{wrap, Pose};
 use crate::rng::Rng;
 
-/// Largest field accepted (cells, margin included): 2^27 cells are 1 GiB of f64 means.
-pub const MAX_FIELD_CELLS: usize = 1 << 27;
-
 /// Expected occupancy over a rectangle of cells, with the value every cell outside it reads, and
 /// the free cells (m̂ at most a threshold) that global initialisation and recovery sample from.
 #[derive(Clone, Debug)]
@@ -46,7 +43,7 @@ impl MeanField {
         margin: usize,
     ) -> Result<Self> {
         check_rect(rect)?;
-        let mut mean = vec![0.0; rect.n_cells()];
+        let mut mean = crate::limits::try_filled(rect.n_cells(), 0.0, "the localization field")?;
         map.means_into(rect, &mut mean)?;
         let outside: f64 = map
             .levels()
@@ -110,7 +107,8 @@ impl MeanField {
             .filter(|(_, &m)| m <= free_threshold)
             .map(|(i, _)| i as u32)
             .collect();
-        let mut values = vec![outside; store.n_cells()];
+        let mut values =
+            crate::limits::try_filled(store.n_cells(), outside, "the localization field")?;
         for (row, src) in mean.chunks(rect.nx as usize).enumerate() {
             let start = (row as i64 + m) * store.nx + m;
             values[start as usize..start as usize + src.len()].copy_from_slice(src);
@@ -283,16 +281,11 @@ fn check_rect(rect: CellRect) -> Result<()> {
             format!("needs at least one cell, got {} x {}", rect.nx, rect.ny),
         ));
     }
-    if (rect.nx as u128) * (rect.ny as u128) > MAX_FIELD_CELLS as u128 {
-        return Err(config_err(
-            "rect",
-            format!(
-                "{} x {} cells exceed the limit of {MAX_FIELD_CELLS} cells",
-                rect.nx, rect.ny
-            ),
-        ));
-    }
-    Ok(())
+    // The map-cell limit in force (`crate::limits`), before the dense layer is allocated.
+    crate::limits::check_map_cells(
+        &format!("the localization field of {} x {} cells", rect.nx, rect.ny),
+        rect.cells_f64(),
+    )
 }
 
 /// Squared distance transform of a sampled function along one line: the lower envelope of the

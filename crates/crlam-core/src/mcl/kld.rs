@@ -43,20 +43,16 @@ impl Default for KldSettings {
     }
 }
 
-/// Most particles any setting may ask for (memory bound: 10^7 poses are 240 MB).
-pub const MAX_PARTICLES: usize = 10_000_000;
-
 impl KldSettings {
     pub fn validate(&self) -> Result<()> {
-        if !(1 <= self.n_min && self.n_min <= self.n_max && self.n_max <= MAX_PARTICLES) {
+        if !(1 <= self.n_min && self.n_min <= self.n_max) {
             return Err(config_err(
                 "particles",
-                format!(
-                    "need 1 <= min ({}) <= max ({}) <= {MAX_PARTICLES}",
-                    self.n_min, self.n_max
-                ),
+                format!("need 1 <= min ({}) <= max ({})", self.n_min, self.n_max),
             ));
         }
+        // The particle limit in force (`crate::limits`), before any set is allocated.
+        crate::limits::check_particles("the localizer's max_particles", self.n_max)?;
         if !(self.epsilon.is_finite() && self.epsilon > 0.0) {
             return Err(config_err(
                 "kld_err",

@@ -23,7 +23,8 @@
 //! cells of the window and past it evaluate likelihoods.
 
 use crate::crm::beam::{plan_beam, ScanOptions};
-use crate::crm::far_simd::{far_phase, LANES};
+use crate::crm::far_simd::far_phase;
+use crate::crm::lane_io::LANES;
 use crate::error::{config_err, CrlamError, Result};
 use crate::mcl::field::MeanField;
 use crate::pose::Pose;

@@ -27,81 +27,18 @@
 use crate::crm::{CrmMap, CrmScratch};
 use crate::error::Result;
 use crate::pose::{compose, wrap, Pose};
-use crate::rbpf::clam::{weigh_at_pose, ClamConfig};
+use crate::rbpf::clam_config::ClamConfig;
+pub use crate::rbpf::clam_config::{ScanMatchSettings, ScanMatchWeight};
+use crate::rbpf::clam_particle::weigh_at_pose;
 use crate::rbpf::common::{ProposalPose, ScanInput};
 use crate::rbpf::motion_prior::MotionPrior;
 use crate::rbpf::proposal::Proposed;
-use crate::rbpf::scanmatch::{MatcherParams, PreparedScan, ProposalParams, ScanMatcher};
+use crate::rbpf::scanmatch::{PreparedScan, ScanMatcher};
 use crate::rng::Rng;
 
 /// Standard deviations (m, m, rad) added in quadrature to the motion density the lattice uses,
 /// so that a robot standing still (zero variance under Thrun's model) still has a proper prior.
 const MOTION_FLOOR: [f64; 3] = [0.01, 0.01, 0.01];
-
-/// The measurement model of the scan-match proposal's weights.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub enum ScanMatchWeight {
-    /// The paper's: the CRM predictive likelihood of the scan, as the importance weight of the
-    /// drawn pose (see the module documentation).
-    #[default]
-    Crm,
-    /// GMapping's: the log of the lattice normaliser of the endpoint likelihood × motion
-    /// density (Grisetti et al. 2007, Eq. 12), the same model the proposal was fitted to, so the
-    /// weight does not depend on the draw. The CRM is then the map, not the weight's model.
-    Endpoint,
-}
-
-impl ScanMatchWeight {
-    pub fn parse(s: &str) -> Result<Self> {
-        match s {
-            "crm" => Ok(Self::Crm),
-            "endpoint" => Ok(Self::Endpoint),
-            _ => Err(crate::error::config_err(
-                "scan_match_weight",
-                format!("must be 'crm' or 'endpoint', got {s:?}"),
-            )),
-        }
-    }
-}
-
-/// Settings of the scan-match proposal.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ScanMatchSettings {
-    /// The endpoint matcher (GMapping's score and likelihood kernels, window, steps).
-    pub matcher: MatcherParams,
-    /// The lattice around the match, the acceptance score and the pose rule.
-    pub lattice: ProposalParams,
-    /// Expected occupancy above which the matcher reads a cell as occupied (0.5: the uniform
-    /// prior's mean, so "more evidence of a wall than of free space").
-    pub occupied_above: f64,
-    /// The weights' measurement model.
-    pub weight: ScanMatchWeight,
-}
-
-impl Default for ScanMatchSettings {
-    fn default() -> Self {
-        Self {
-            matcher: MatcherParams::default(),
-            lattice: ProposalParams::default(),
-            occupied_above: 0.5,
-            weight: ScanMatchWeight::Crm,
-        }
-    }
-}
-
-impl ScanMatchSettings {
-    pub fn validate(&self) -> Result<()> {
-        self.matcher.validate()?;
-        self.lattice.validate()?;
-        if !(self.occupied_above.is_finite() && (0.0..1.0).contains(&self.occupied_above)) {
-            return Err(crate::error::config_err(
-                "occupied_above",
-                format!("must be in [0, 1), got {}", self.occupied_above),
-            ));
-        }
-        Ok(())
-    }
-}
 
 /// The scan's beams as the matcher uses them: every `matcher.beam_stride`-th reading below the
 /// weight model's z_max (longer ones are no-returns and leave nothing in the map to match).

@@ -4,16 +4,32 @@
 //! Both filters share the input (a laser scan with the odometry pose at its time), the update
 //! triggers (like GMapping's linearUpdate / angularUpdate, with odometry carried between
 //! processed scans), the weighted-mean estimate and the resampling rule.
+//!
+//! Dependencies point one way (a module uses only modules listed before it;
+//! `tests/test_rust_modules.py` checks that there are no loops):
+//!
+//! 1. [`lineage`] (the path tree), [`estimate`], [`common`] (the filters' shared input, triggers
+//!    and estimate), `motion_prior`;
+//! 2. `scanmatch_params`, `prepared_scan` (a scan's matching beams), [`match_surface`] (the
+//!    cells the matcher reads), [`scanmatch`] (GMapping's matcher and improved proposal);
+//! 3. RBPF-OGM: `ogm_config`, then [`ogm`];
+//! 4. RBPF-CLAM: `clam_config` (settings), `clam_particle` (the particle and its weight at a
+//!    pose), `proposal` (the likelihood-mode proposal), [`clam_match`] (the scan-match
+//!    proposal), then [`clam`] (the filter).
 
 pub mod clam;
+mod clam_config;
 pub mod clam_match;
+mod clam_particle;
 pub mod common;
 pub mod estimate;
 pub mod lineage;
+pub mod local_match;
 pub mod match_surface;
 mod motion_prior;
 pub mod ogm;
 mod ogm_config;
+mod prepared_scan;
 mod proposal;
 pub mod scanmatch;
 mod scanmatch_params;
@@ -26,6 +42,7 @@ pub use common::{
 };
 pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
 pub use lineage::{NodeId, PathTree, NO_NODE};
+pub use local_match::{LocalMapMatcher, LocalMatch};
 pub use match_surface::MatchSurface;
 pub use ogm::{MotionDraws, OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
 pub use scanmatch::{FreeTest, MatcherParams, PreparedScan, ProposalParams, ScanFit, ScanMatcher};

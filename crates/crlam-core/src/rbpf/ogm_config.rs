@@ -8,9 +8,6 @@ use crate::grid::GridGeometry;
 use crate::motion::MotionModel;
 use crate::ogm::LogOddsParams;
 
-/// Largest particle count accepted (memory guard).
-const MAX_PARTICLES: usize = 100_000;
-
 /// When the motion model perturbs the particles.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MotionDraws {
@@ -140,12 +137,10 @@ impl OgmFilterConfig {
 
     /// Checks every field; the error names the offending one.
     pub fn validate(&self) -> Result<()> {
-        if !(1..=MAX_PARTICLES).contains(&self.n_particles) {
-            return Err(config_err(
-                "n_particles",
-                format!("must be in 1..={MAX_PARTICLES}, got {}", self.n_particles),
-            ));
+        if self.n_particles == 0 {
+            return Err(config_err("n_particles", "must be >= 1"));
         }
+        crate::limits::check_particles("RBPF-OGM n_particles", self.n_particles)?;
         self.motion.validate()?;
         self.trigger.validate()?;
         if !(0.0..=1.0).contains(&self.resample_threshold) {

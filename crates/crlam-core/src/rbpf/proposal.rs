@@ -6,7 +6,8 @@
 use crate::crm::{CrmMap, CrmScratch};
 use crate::error::Result;
 use crate::pose::{compose, wrap, Pose};
-use crate::rbpf::clam::{scan_opts, ClamConfig, ClamParticle, ClamProposal};
+use crate::rbpf::clam_config::{scan_opts, ClamConfig, ClamProposal};
+use crate::rbpf::clam_particle::ClamParticle;
 use crate::rbpf::common::{ProposalPose, ScanInput};
 use crate::rng::Rng;
 

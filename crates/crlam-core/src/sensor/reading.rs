@@ -49,14 +49,14 @@ impl<'a> MixtureReading<'a> {
 
     /// [`Self::cell`] for a midpoint cause at `d` of a range reading, to rounding: the hit term
     /// `hit` is given (e.g. [`SensorModel::hit_density_fast`], or 0 where it is negligible) and
-    /// e^{−λd} comes from [`crate::info::fastmath::exp_table`].
+    /// e^{−λd} comes from [`crate::numeric::fastmath::exp_table`].
     #[inline]
     pub fn range_cell_fast(&self, d: f64, hit: f64) -> f64 {
         let m = self.model;
         let short = if self.z > d || d <= 0.0 {
             0.0
         } else {
-            self.short_numerator / (1.0 - crate::info::fastmath::exp_table(-m.lambda_short * d))
+            self.short_numerator / (1.0 - crate::numeric::fastmath::exp_table(-m.lambda_short * d))
         };
         m.w_hit * hit + m.w_short * short + self.rand
     }
