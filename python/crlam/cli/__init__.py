@@ -31,6 +31,7 @@ COMMANDS = (
     "simulate",
     "map",
     "slam",
+    "localize",
     "eval",
     "data",
     "info",

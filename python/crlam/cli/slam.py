@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, print_settings
@@ -69,7 +70,23 @@ def slam_input_of(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 def cmd_slam(args: argparse.Namespace) -> int:
     from crlam.experiments.slam_run import run_slam_log
 
+    prior = None
+    saved_settings = False
+    if args.continue_from is not None:
+        from crlam.slam_continue import load_slam_prior
+
+        prior = load_slam_prior(args.continue_from)
+        # The continued run keeps the saved run's settings unless a preset or a config is given.
+        saved = Path(args.continue_from) / "config.toml"
+        if args.config is None and args.preset is None and saved.is_file():
+            args.config, saved_settings = str(saved), True
     config, max_scans = slam_config_of(args)
+    if saved_settings and args.max_scans is None:
+        max_scans = None  # the saved run's scan limit was for its own log
+    if prior is not None and Path(args.out).resolve() == Path(args.continue_from).resolve():
+        from crlam.errors import ConfigError
+
+        raise ConfigError(f"--out {args.out} is the run being continued: write the continued run to a new folder")
     input_options, odometry = slam_input_of(args)
     print_settings(args, slam_settings=config, input_options=input_options | {"odometry": odometry, "max_scans": max_scans})
     with staged_output(args) as stage:
@@ -84,6 +101,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
             bag_options=input_options,
             mcap=args.mcap,
             odometry=odometry,
+            prior=prior,
             verbose=args.verbose,
         )
     m = res.metrics
@@ -136,6 +154,14 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         metavar="FILE",
         help="start from the [slam] settings (and [run] max_scans) of FILE, a run folder's config.toml, instead of a "
         "preset: re-runs that configuration; flags given beside it still override it",
+    )
+    settings.add_argument(
+        "--continue",
+        dest="continue_from",
+        metavar="DIR",
+        help="continue a saved crlam slam run: every particle starts with DIR's map, around DIR's final estimate (its "
+        "covariance), and the run goes on mapping LOG (which takes up where DIR's log ended); DIR's settings unless "
+        "--preset or --config is given; DIR is only read",
     )
     add_slam_flags(p, list(SLAM_FLAGS))
     ev = group(p, "evaluation")

@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from crlam import __version__
-from crlam.errors import DataFormatError
+from crlam.errors import ConfigError, DataFormatError
 from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
@@ -48,6 +48,7 @@ from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
 from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
+from crlam.slam_continue import SlamPrior, pose_covariance
 
 __all__ = ["ESTIMATES", "FILL_RULE", "SlamResult", "run_slam_log", "write_run_readme", "write_toml"]
 
@@ -153,6 +154,7 @@ def run_slam_log(
     figures: bool = True,
     bag_options: dict[str, Any] | None = None,
     mcap: bool = False,
+    prior: SlamPrior | None = None,
     odometry: str = "auto",
     verbose: bool = False,
 ) -> SlamResult:
@@ -166,10 +168,13 @@ def run_slam_log(
     ``wheel`` (the log's odometry), ``scan_match`` (scan-matching odometry; the log's odometry is
     not read, and the filter takes :func:`~crlam.scan_odometry.scan_match_filter_config`'s motion
     noise) or ``auto`` (``scan_match`` when the input has no odometry); ``config.toml`` and
-    ``metrics.json`` record which was used and why."""
+    ``metrics.json`` record which was used and why. ``prior`` continues a saved run
+    (:mod:`crlam.slam_continue`): its folder is only read, and must not be ``out_dir``."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
+    if prior is not None and out.resolve() == Path(prior.source).resolve():
+        raise ConfigError(f"--out {out} is the run being continued: write the continued run to a new folder")
     out.mkdir(parents=True, exist_ok=True)
     # The wall time includes the odometry-noise pre-pass, which is part of the run.
     t0 = time.perf_counter()
@@ -207,7 +212,7 @@ def run_slam_log(
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0, verbose)
+        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0, prior, verbose)
     except BaseException:
         if recorder is not None:
             recorder.close()
@@ -226,6 +231,7 @@ def run_slam_log(
         noise_estimate,
         odometry_info,
         front_end,
+        prior,
     )
 
 
@@ -244,6 +250,7 @@ def _run_filter(
     progress: bool,
     recorder: Any,
     t0: float,
+    prior: SlamPrior | None = None,
     verbose: bool = False,
 ) -> tuple[SlamRun, float]:
     """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s).
@@ -261,7 +268,7 @@ def _run_filter(
             continue
         if run is None:
             config = within_sensor_range(config, rec.max_range)
-            run = SlamRun(config)
+            run = SlamRun(config, prior=prior)
         if max_scans is not None and run.n_scans >= max_scans:
             break
         angles, ranges = _scan_inputs(rec)
@@ -300,6 +307,7 @@ def _write_outputs(
     noise_estimate: MotionNoiseEstimate | None = None,
     odometry_info: dict[str, str] | None = None,
     front_end: Any = None,
+    prior: SlamPrior | None = None,
 ) -> SlamResult:
     run, wall = run_wall
     input_info = input_description(reader) | (odometry_info or {})
@@ -381,6 +389,7 @@ def _write_outputs(
         "motion_noise_estimate": None if noise_estimate is None else noise_estimate.to_dict(),
         "input": input_info,
         "scan_odometry": None if front_end is None else front_end.config.to_dict() | front_end.stats.to_dict(),
+        "continued_from": None if prior is None else prior.describe(),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
@@ -428,7 +437,11 @@ def _write_outputs(
     std = None
     if isinstance(best, ConfidenceRichMap):
         mean, var, ent = best.layers()
-        save_belief(out / "belief.npz", best.to_archive())
+        archive = best.to_archive()
+        # The final estimate and the spread of the last weighed set: what --continue starts from.
+        archive.estimate = np.array(poses[-1], dtype=np.float64)
+        archive.estimate_cov = pose_covariance(*run.filter.weighed_set(), archive.estimate)
+        save_belief(out / "belief.npz", archive)
         unknown = unknown_mask(best, ent)
         std = MapLayer(np.sqrt(np.maximum(var.values, 0.0)), var.origin, var.resolution, "standard deviation")
     else:
@@ -452,6 +465,7 @@ def _write_outputs(
                 "relations": str(relations) if relations else None,
                 "max_scans": max_scans,
                 "crlam_version": __version__,
+                "continue": None if prior is None else prior.source,
             },
             "input": input_info,
             "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
