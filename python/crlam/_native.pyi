@@ -290,7 +290,7 @@ class MclFilter:
         motion_params: list[float] | None = None,
         linear_update: float = 0.0,
         angular_update: float = 0.0,
-        spread_update: tuple[float, float] = ...,  # (0.0, 0.0): PyO3 shows a tuple default as ...
+        spread_update: tuple[float, float] = ...,  # (0.0, 0.0): pyo3 cannot render a tuple default
         spread_limit: float = 0.5,
         resample_threshold: float = 0.5,
         tail_tolerance: float = 1e-06,
