@@ -91,7 +91,7 @@ def test_simulate_then_map_end_to_end(tmp_path: Path) -> None:
 
 
 def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert main(["bench", "--quick", "--repeats", "1", "--json", str(tmp_path / "b.json")]) == 0
+    assert main(["bench", "--quick", "--repeats", "1", "--out", str(tmp_path / "b.json")]) == 0
     figures = json.loads(capsys.readouterr().out)
     assert figures["crm_beam_updates_per_s"] > 0 and figures["raycast_cells_per_s"] > 0
     # The windowed kernel's speed-up over the full sweep, both measured in this run.

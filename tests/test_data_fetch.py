@@ -183,7 +183,7 @@ def test_unknown_and_undownloadable_names(no_data_folder: Path) -> None:
 
 
 def data_parser() -> argparse.ArgumentParser:
-    from crlam.cli_eval import add_data_parser
+    from crlam.cli.data import add_parser as add_data_parser
 
     parser = argparse.ArgumentParser(prog="crlam")
     add_data_parser(parser.add_subparsers(dest="command"))

@@ -66,7 +66,7 @@ def test_degenerate_inputs_are_clean_errors() -> None:
 
 def _eval_json(tmp_path: Path, est: Path, ref: Path, align: str) -> dict:
     out = tmp_path / f"eval-{align}.json"
-    assert main(["eval", str(est), "--reference", str(ref), "--align", align, "--json", str(out)]) == 0
+    assert main(["eval", str(est), "--reference", str(ref), "--align", align, "--out", str(out)]) == 0
     return json.loads(out.read_text())
 
 

@@ -306,7 +306,7 @@ def test_gmapping_corrected_with_odometry_fill_oracle(real: dict[str, object], n
 
 
 def eval_parser() -> argparse.ArgumentParser:
-    from crlam.cli_eval import add_eval_parser
+    from crlam.cli.eval import add_parser as add_eval_parser
 
     parser = argparse.ArgumentParser(prog="crlam")
     add_eval_parser(parser.add_subparsers(dest="command"))
@@ -325,7 +325,7 @@ def test_cli_eval_reproduces_the_aces_oracle(data_dir: Path, tmp_path: Path, cap
             "--raw-log",
             str(data_dir / "aces" / "aces.clf.bz2"),
             "--no-backfill",
-            "--json",
+            "--out",
             str(out),
         ]
     )
@@ -346,7 +346,7 @@ def test_cli_eval_tum_against_reference_and_clean_errors(tmp_path: Path, capsys:
     write_tum(tmp_path / "gt.tum", stamps, poses)
     write_tum(tmp_path / "est.tum", stamps, poses + np.array([0.1, 0.0, 0.0]))
     args = eval_parser().parse_args(
-        ["eval", str(tmp_path / "est.tum"), "--reference", str(tmp_path / "gt.tum"), "--json", str(tmp_path / "r.json")]
+        ["eval", str(tmp_path / "est.tum"), "--reference", str(tmp_path / "gt.tum"), "--out", str(tmp_path / "r.json")]
     )
     assert args.func(args) == 0
     assert "RMSE position (m)  0.1" in capsys.readouterr().out

@@ -164,7 +164,7 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(
     from crlam.cli import main
 
     argv = ["experiment", "real-logs", "--out", str(tmp_path), "--datasets", "aces", "--methods", "ogm"]
-    argv += ["--particles", "2", "--seeds", "1", "--ranges", "8", "--max-scans", "200", "--workers", "1"]
+    argv += ["--particles", "2", "--runs", "1", "--ranges", "8", "--max-scans", "200", "--workers", "1"]
     argv += ["--motion", "thrun", "--motion-params", "0.1", "0.1", "0.002", "0.1"]
     assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet"]) == 0
     (run,) = (tmp_path / "runs").iterdir()
@@ -174,7 +174,7 @@ def test_real_logs_command_passes_the_update_triggers_to_every_run(
     assert slam["motion"] == "thrun" and slam["motion_params"] == [0.1, 0.1, 0.002, 0.1]
     assert 0 < metrics["n_processed"] < metrics["n_scans"] == 200
     # --report-only with one more seed: the table has the finished run, nothing new is run.
-    argv[argv.index("--seeds") + 1] = "2"
+    argv[argv.index("--runs") + 1] = "2"
     assert main([*argv, "--linear-update", "1.0", "--angular-update", "0.5", "--quiet", "--report-only"]) == 0
     assert [p.name for p in (tmp_path / "runs").iterdir()] == [run.name]
     assert "RBPF-OGM" in (tmp_path / "table.md").read_text()
@@ -330,11 +330,14 @@ def test_table1_reports_every_setting_that_differs_from_the_paper() -> None:
 
 
 @pytest.mark.slow
-def test_table1_command_takes_the_grid_and_reports_it(tmp_path: Path) -> None:
+def test_table1_command_takes_the_grid_and_reports_it(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     from crlam.cli import main
 
     argv = ["experiment", "table1", "--out", str(tmp_path), "--runs", "1", "--scans", "20", "--particles", "2"]
-    assert main([*argv, "--methods", "clam", "--resolution", "0.1", "--workers", "1", "--quiet"]) == 0
+    assert main([*argv, "--methods", "clam", "--resolution", "0.1", "--workers", "1", "--verbose"]) == 0
+    err = capsys.readouterr().err  # -v: the settings, the base configuration and each finished run
+    assert "crlam experiment table1: base settings" in err and "  resolution = 0.1" in err
+    assert "clam_run00 finished (1 of 1)" in err
     config = (tmp_path / "runs" / "clam_run00" / "config.toml").read_text()
     assert "resolution = 0.1\n" in config
     assert "resolution = 0.1 (paper: 0.2)" in (tmp_path / "table.md").read_text()

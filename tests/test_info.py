@@ -144,7 +144,7 @@ def test_cli_info_writes_surface_figure_and_json(tmp_path: Path, name: str) -> N
     out = tmp_path / name
     args = [str(pgm), "--function", name, "--out", str(out)]
     if name == "ucrmi":
-        args += ["--particles", "20"]
+        args += ["--ucrmi-particles", "20"]
     assert main(["info", *args]) == 0
     surface = np.load(out / "surface.npy")
     info = json.loads((out / "info.json").read_text())
@@ -171,7 +171,7 @@ def test_cli_info_from_a_belief(tmp_path: Path) -> None:
 
 def test_cli_info_refuses_bad_input(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["info", str(tmp_path / "missing.pgm"), "--function", "crmi", "--out", str(tmp_path / "o")]) == 2
-    assert "no such map file" in capsys.readouterr().err
+    assert "missing.pgm: no such file or folder, and not a dataset name" in capsys.readouterr().err
     (tmp_path / "bad.txt").write_text("x")
     assert main(["info", str(tmp_path / "bad.txt"), "--function", "crmi", "--out", str(tmp_path / "o")]) == 2
     assert main(["info", "--function", "crmi", "--out", str(tmp_path / "o")]) == 2

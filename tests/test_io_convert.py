@@ -35,10 +35,10 @@ def _trajectory_rows(run: Path) -> list[str]:
 
 def test_carmen_to_bag_and_back_keeps_the_scans(sim_log: Path, tmp_path: Path) -> None:
     bag = tmp_path / "bag"
-    assert main(["convert", str(sim_log), str(bag)]) == 0
+    assert main(["convert", str(sim_log), "-o", str(bag)]) == 0
     assert (bag / "metadata.yaml").is_file() and len(list(bag.glob("*.mcap"))) == 1
     back = tmp_path / "back.clf"
-    assert main(["convert", str(bag), str(back)]) == 0
+    assert main(["convert", str(bag), "-o", str(back)]) == 0
     original, in_bag, again = _scans(sim_log), _scans(bag), _scans(back)
     assert len(original) == len(in_bag) == len(again) == 30
     for a, b, c in zip(original, in_bag, again):

@@ -596,7 +596,7 @@ def test_eval_fills_a_trajectory_from_a_bag_and_diagnose_reads_one(tmp_path: Pat
     assert main(["slam", str(bag), "--out", str(run), "--particles", "3", "--max-scans", "4", "--quiet"]) == 0
     report = tmp_path / "eval.json"
     args = ["eval", str(run / "trajectory.tum"), "--reference", str(run / "trajectory.tum"), "--raw-log", str(bag)]
-    assert main([*args, "--json", str(report)]) == 0
+    assert main([*args, "--out", str(report)]) == 0
     fill = json.loads(report.read_text())["fill"]
     assert fill["n_scans"] == 10 and fill["n_processed"] == 4
     out = tmp_path / "diag"

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from crlam.cli import main
-from crlam.cli_diagnose import reference_pose_scans
+from crlam.cli.diagnose import reference_pose_scans
 from crlam.errors import ConfigError
 from crlam.eval.likelihood_bias import LineSearchGrid, likelihood_bias
 from crlam.experiments.known_poses import KnownPoseScan

@@ -111,7 +111,7 @@ def test_a_huge_image_is_refused_before_it_is_decoded(tmp_path: Path, capsys: py
     (tmp_path / "big.yaml").write_text("image: big.png\nresolution: 0.05\norigin: [0, 0, 0]\n")
     t0 = time.perf_counter()
     # A bare image (read by the simulator's reader) and a Nav2 map (read by crlam.io.nav2).
-    world = [str(png), "--world-resolution", "0.05"] if command == "explore" else [str(tmp_path / "big.yaml")]
+    world = [str(png), "--resolution", "0.05"] if command == "explore" else [str(tmp_path / "big.yaml")]
     msg = _cli_error([command, "--world", *world, "--out", str(tmp_path / "o"), "--quiet"], capsys)
     assert time.perf_counter() - t0 < 30
     _assert_limit_message(msg, "--max-image-pixels")
@@ -121,9 +121,7 @@ def test_a_huge_image_is_refused_before_it_is_decoded(tmp_path: Path, capsys: py
 def test_a_procedural_world_on_tiny_cells_is_refused_before_it_is_drawn(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    msg = _cli_error(
-        ["explore", "--world", "office", "--world-resolution", "0.0001", "--out", str(tmp_path / "o"), "--quiet"], capsys
-    )
+    msg = _cli_error(["explore", "--world", "office", "--resolution", "0.0001", "--out", str(tmp_path / "o"), "--quiet"], capsys)
     _assert_limit_message(msg, "--max-map-cells")
     assert "world at 0.0001 m cells" in msg
 

@@ -160,12 +160,13 @@ def test_cli_experiment_iig(tmp_path: Path) -> None:
         "--runs",
         "1",
         "--functions",
-        "crmi,ucrmi",
+        "crmi",
+        "ucrmi",
         "--start",
         "2",
         "2",
     ]
-    assert main([*args, "--particles", "10", "--workers", "2", "--max-seconds", "3", "--quiet"]) == 0
+    assert main([*args, "--ucrmi-particles", "10", "--workers", "2", "--max-seconds", "3", "--quiet"]) == 0
     summary = json.loads((out / "runs" / "ucrmi-s00" / "result.json").read_text())
     assert summary["units"] == "bits" and summary["nodes"] >= 2
     assert main(["experiment", "iig", "--map", str(tmp_path / "none.pgm"), "--out", str(out)]) == 2

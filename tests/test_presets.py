@@ -299,7 +299,7 @@ def test_real_logs_sweeps_use_the_robust_preset(office: Path, tmp_path: Path, mo
     monkeypatch.setattr(real_logs, "find_dataset", lambda name: files[name])
     out = tmp_path / "cli"
     argv = ["experiment", "real-logs", "--out", str(out), "--datasets", "intel", "--methods", "clam"]
-    argv += ["--particles", "2", "--seeds", "1", "--ranges", "8", "--max-scans", "12", "--workers", "1", "--quiet"]
+    argv += ["--particles", "2", "--runs", "1", "--ranges", "8", "--max-scans", "12", "--workers", "1", "--quiet"]
     assert main(argv) == 0
     (run,) = (out / "runs").iterdir()
     stored = presets.load_config_file(run / "config.toml")

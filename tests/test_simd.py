@@ -71,7 +71,7 @@ def test_bench_json_records_the_level_it_ran_at(tmp_path: Path) -> None:
     out = tmp_path / "bench.json"
     code = "import sys; from crlam.cli import main; sys.exit(main(sys.argv[1:]))"
     figures = ("crmi_us_per_pose", "rbpf_clam_scans_per_s_180x30")
-    args = ("bench", "--quick", "--repeats", "1", "--only", *figures, "--json", str(out))
+    args = ("bench", "--quick", "--repeats", "1", "--only", *figures, "--out", str(out))
     r = _run(code, "scalar", *args)
     assert r.returncode == 0, r.stderr
     full = json.loads(out.read_text())

@@ -60,7 +60,8 @@ def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
         return markdown
     from crlam.cli import build_parser
 
-    return markdown.replace(MARKER, cli_reference(build_parser()))
+    parser = build_parser()
+    return markdown.replace(MARKER, cli_reference(parser) + "\n" + renamed_options(parser))
 
 
 _MATH = re.compile(r'<(span|div) class="arithmatex">\\[(\[](.*?)\\[)\]]</\1>', re.S)
@@ -120,8 +121,7 @@ def cli_reference(parser: argparse.ArgumentParser, prog: str | None = None, leve
         actions = [
             a
             for a in group._group_actions
-            if not isinstance(a, (argparse._HelpAction, argparse._SubParsersAction))
-            and a.help != argparse.SUPPRESS
+            if not isinstance(a, (argparse._HelpAction, argparse._SubParsersAction)) and a.help != argparse.SUPPRESS
         ]
         if not actions:
             continue
@@ -137,3 +137,34 @@ def cli_reference(parser: argparse.ArgumentParser, prog: str | None = None, leve
         for name, child in sub.choices.items():
             out.append(cli_reference(child, f"{prog} {name}", min(level + 1, 4)))
     return "\n".join(out)
+
+
+def renamed_options(parser: argparse.ArgumentParser, prog: str | None = None) -> str:
+    """Markdown table of the renamed flags: the old spellings (hidden from ``--help``, still read
+    with a warning) and the names to use, per command."""
+    rows: list[tuple[str, str, str]] = []
+
+    def walk(p: argparse.ArgumentParser, name: str) -> None:
+        for action in p._actions:
+            target = getattr(action, "target", None)
+            if action.help == argparse.SUPPRESS and target is not None:
+                olds = action.option_strings or [f"{action.metavar or action.dest.upper()} (positional)"]
+                rows.extend((name, old, max(target.option_strings, key=len)) for old in olds)
+        sub = _subparsers(p)
+        if sub is not None:
+            for child_name, child in sub.choices.items():
+                walk(child, f"{name} {child_name}")
+
+    walk(parser, prog or parser.prog)
+    if not rows:
+        return ""
+    out = [
+        "## Renamed options",
+        "",
+        "These older spellings still work, with a one-line warning on standard error; use the new names.",
+        "",
+        "| command | old | new |",
+        "|---|---|---|",
+    ]
+    out += [f"| `{cmd}` | `{old}` | `{new}` |" for cmd, old, new in rows]
+    return "\n".join(out) + "\n"

@@ -17,6 +17,7 @@ __all__ = [
     "InfoUpdate",
     "LocalMapMatcher",
     "LogOddsMap",
+    "MclFilter",
     "OccupancyLattice",
     "OgmFilter",
     "ParticleBelief",
@@ -224,6 +225,8 @@ class ClamFilter:
         scan_match_weight: str = "crm",
         match_range: str | float = ...,  # "z_max"
         seed: int = 0,
+        prior_map: CrmMap | None = None,
+        initial_cov: NDArray[np.float64] | None = None,
     ) -> ClamFilter: ...
     def process(
         self,
@@ -257,6 +260,73 @@ class ClamFilter:
     def n_particles(self) -> int: ...
     def best_map(self) -> CrmMap: ...
     def map_memory(self) -> tuple[int, int, int]: ...
+
+@final
+class MclFilter:
+    def __new__(
+        cls,
+        crm: CrmMap,
+        rect: _CellRect,
+        model: SensorModel,
+        *,
+        initial_pose: NDArray[np.float64] | None = None,
+        initial_cov: NDArray[np.float64] | None = None,
+        free_threshold: float = 0.25,
+        margin: int = 0,
+        n_min: int = 100,
+        n_max: int = 5000,
+        kld_err: float = 0.01,
+        kld_z: float = ...,  # 2.3263478740408408
+        bin_xy: float = 0.5,
+        bin_theta: float = ...,  # 10 deg
+        alpha_slow: float = 0.001,
+        alpha_fast: float = 0.1,
+        tempering: float = 1.0,
+        min_neff: float = 0.0,
+        sigma_max: float = 0.0,
+        anneal: float = 0.5,
+        beam_stride: int = 1,
+        max_beams: int = 0,
+        motion: str = "gmapping",
+        motion_params: list[float] | None = None,
+        linear_update: float = 0.0,
+        angular_update: float = 0.0,
+        spread_update: tuple[float, float] = ...,  # (0.0, 0.0): pyo3 cannot render a tuple default
+        spread_limit: float = 0.5,
+        resample_threshold: float = 0.5,
+        tail_tolerance: float = 1e-06,
+        skip_no_returns: bool = False,
+        seed: int = 0,
+    ) -> MclFilter: ...
+    def process(
+        self,
+        odom: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> dict[str, Any]: ...
+    def reset_pose(self, pose: NDArray[np.float64], cov: NDArray[np.float64]) -> None: ...
+    def reset_global(self) -> None: ...
+    def estimate(self) -> tuple[float, float, float]: ...
+    def particle_poses(self) -> NDArray[np.float64]: ...
+    def weights(self) -> NDArray[np.float64]: ...
+    def clusters(self) -> list[dict[str, Any]]: ...
+    @property
+    def averages(self) -> tuple[float, float] | None: ...
+    @property
+    def n_particles(self) -> int: ...
+    @property
+    def n_processed(self) -> int: ...
+    @property
+    def n_free(self) -> int: ...
+    def scan_fit(
+        self,
+        pose: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> tuple[float, float, int]: ...
+    def occupied_distance(self, occupied: float) -> NDArray[np.float64]: ...
 
 @final
 class OgmFilter:

@@ -59,6 +59,9 @@ BENCHMARKS: tuple[BenchSpec, ...] = (
     BenchSpec("rbpf_ogm_gmapping_scans_per_s_180x30", size=100, quick_size=5),
     # The baseline in the Table I setting, the same workload as rbpf_clam_scans_per_s_1079x100.
     BenchSpec("rbpf_ogm_scans_per_s_1079x100", size=10, quick_size=2),
+    # Issue 32: Monte Carlo localization on a fixed CRM, 1000 particles, 180 beams, 0.05 m map:
+    # at least the sensor's rate (the TurtleBot 4 bag's 7.7 scans/s; the Intel log's is 5.1).
+    BenchSpec("mcl_scans_per_s_1000p", size=20, quick_size=3, target_per_s=7.7),
     # Issue 4: information functions, 10 beams over 360 deg, 5 m, 0.2 m grid, one thread.
     BenchSpec("crmi_us_per_pose", size=2000, quick_size=50, target_us=100.0),
     BenchSpec("crmi_mixture_us_per_pose", size=300, quick_size=10),
@@ -114,20 +117,35 @@ def simd_info() -> dict[str, Any]:
     return dict(_native.simd_info())
 
 
-def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repeats: int = 3) -> dict[str, Any]:
-    """Runs the benchmarks (best of ``repeats``) and returns ``{"figures": {...}, ...}``."""
+def run_benchmarks(
+    names: list[str] | None = None, *, quick: bool = False, repeats: int = 3, progress: bool = False, verbose: bool = False
+) -> dict[str, Any]:
+    """Runs the benchmarks (best of ``repeats``) and returns ``{"figures": {...}, ...}``.
+    ``progress`` shows a bar over the timed runs (tqdm, on stderr); ``verbose`` prints each
+    figure as it is measured."""
+    from tqdm import tqdm
+
     specs = [b for b in BENCHMARKS if names is None or b.name in names]
     unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES}
     if unknown:
         raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS]}")
     figures: dict[str, Any] = {}
     details: dict[str, Any] = {}
+    extra = [n for n in (SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES) if names is None or n in names]
+    bar = tqdm(total=len(specs) * max(1, repeats) + len(extra), desc="bench", unit="run", disable=not progress, leave=False)
+
+    def done(name: str, steps: int = 1) -> None:
+        bar.update(steps)
+        if verbose and name in figures:
+            tqdm.write(f"{name}: {figures[name]}", file=sys.stderr)
+
     for spec in specs:
         best: dict[str, Any] | None = None
         for _ in range(max(1, repeats)):
             r = _native.run_benchmark(spec.name, spec.quick_size if quick else spec.size)
             if best is None or r["per_second"] > best["per_second"]:
                 best = r
+            bar.update(1)
         assert best is not None
         if spec.per_pose:
             figures[spec.name] = round(float(best["us_per_pose"]), 1)
@@ -135,21 +153,30 @@ def run_benchmarks(names: list[str] | None = None, *, quick: bool = False, repea
         else:
             figures[spec.name] = round(float(best["per_second"]), 1)
             details[spec.name] = {**best, "target_per_s": spec.target_per_s, "repeats": repeats}
+            cpu = float(best.get("cpu_seconds", float("nan")))
+            if cpu == cpu and cpu > 0:
+                # Operations per second of CPU time: what the figure would be on an idle core.
+                details[spec.name]["per_cpu_second"] = best["operations"] / cpu
+        done(spec.name, 0)
     if names is None or SURFACE_BENCH in names:
         surface = cave_surface_seconds(quick=quick)
         if surface is not None:
             figures[SURFACE_BENCH] = round(surface["seconds"], 3)
             details[SURFACE_BENCH] = {**surface, "target_s": 1.0}
+        done(SURFACE_BENCH)
     if names is None or EXPLORE_BENCH in names:
         dec = explore_decision_ms(quick=quick)
         figures[EXPLORE_BENCH] = round(dec["ms"], 1)
         details[EXPLORE_BENCH] = dec
+        done(EXPLORE_BENCH)
     for name in IIG_BENCHES:
         if names is None or name in names:
             run = iig_run_seconds(name.split("_")[1], quick=quick)
             if run is not None:
                 figures[name] = round(run["seconds"], 3)
                 details[name] = run
+            done(name)
+    bar.close()
     if "crm_beam_updates_per_s" in figures and "raycast_cells_per_s" in figures:
         cells = details["crm_beam_updates_per_s"]["cells_per_ray"]
         # Cost of a CRM beam update relative to just walking its cells.

@@ -17,6 +17,7 @@ from crlam import _native
 from crlam.errors import ConfigError, CrlamError
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
 from crlam.pose import between, compose, number_pair
+from crlam.slam_continue import SlamPrior
 
 __all__ = [
     "SlamConfig",
@@ -324,16 +325,26 @@ class SlamConfig:
 NativeFilter = _native.ClamFilter | _native.OgmFilter
 
 
-def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
+def make_filter(config: SlamConfig, initial_pose: ArrayLike, prior: SlamPrior | None = None) -> NativeFilter:
     """The native filter for ``config``, with particles at ``initial_pose``.
 
     RBPF-OGM takes the same particle count, seed, triggers, motion model and grid; its map range
-    is ``max_range`` and its scan matcher has GMapping's settings.
+    is ``max_range`` and its scan matcher has GMapping's settings. With a ``prior`` (a saved run,
+    :mod:`crlam.slam_continue`; RBPF-CLAM only) every particle starts with its map, at a draw
+    from N(prior.pose, prior.cov), and ``initial_pose`` is not used.
     """
     if not isinstance(config, SlamConfig):
         raise TypeError(f"config must be a SlamConfig, got {type(config).__name__}")
-    pose = np.ascontiguousarray(initial_pose, dtype=np.float64)
+    pose = np.ascontiguousarray(initial_pose if prior is None else prior.pose, dtype=np.float64)
     params = list(config.motion_params) if config.motion_params is not None else None
+    if prior is not None:
+        if config.method != "clam":
+            raise ConfigError("SlamConfig.method: continuing a saved run needs RBPF-CLAM (the saved map is a CRM)")
+        if prior.map.config.resolution != config.resolution:
+            raise ConfigError(
+                f"SlamConfig.resolution: {config.resolution} m, but the saved map ({prior.source}) has "
+                f"{prior.map.config.resolution} m cells"
+            )
     if config.method == "ogm":
         try:
             return _native.OgmFilter(
@@ -385,6 +396,8 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike) -> NativeFilter:
             scan_match_weight=config.scan_match_weight,
             match_range=config.match_range if isinstance(config.match_range, str) else float(config.match_range),
             seed=config.seed,
+            prior_map=None if prior is None else prior.map.native,
+            initial_cov=None if prior is None else np.ascontiguousarray(prior.cov, dtype=np.float64),
         )
     except ValueError as e:
         raise ConfigError(f"SlamConfig: {e}") from e
@@ -504,6 +517,8 @@ class SlamRun:
 
     config: SlamConfig
     filter: NativeFilter | None = None
+    #: A saved run to continue (:mod:`crlam.slam_continue`): its map and final estimate.
+    prior: SlamPrior | None = None
     estimates: list[NDArray[np.float64]] = field(default_factory=list)
     stamps: list[float] = field(default_factory=list)
     processed: list[bool] = field(default_factory=list)
@@ -518,7 +533,7 @@ class SlamRun:
         """Feeds one scan (odometry pose of the robot, beam bearings, ranges, laser offset)."""
         odom = np.ascontiguousarray(odom, dtype=np.float64)
         if self.filter is None:
-            self.filter = make_filter(self.config, odom)
+            self.filter = make_filter(self.config, odom, self.prior)
         p, e, n, r = self.filter.process(
             odom,
             np.ascontiguousarray(angles, dtype=np.float64),

@@ -4,8 +4,10 @@
 //! profiling, and the core's tests borrow the synthetic lattices of [`info`].
 //!
 //! - [`slam`]: ray casting, CRM beam updates and the particle filters.
+//! - [`mcl`]: Monte Carlo localization on a fixed CRM.
 //! - [`info`]: the information functions (CRMI, UCRMI, FSMI and Julian's OGMI, IIG 'mi', GPVR,
 //!   UGPVR) on a synthetic cave-like lattice.
 
 pub mod info;
+pub mod mcl;
 pub mod slam;

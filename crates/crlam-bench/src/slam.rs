@@ -20,6 +20,18 @@ pub struct BenchFigure {
     pub unit: &'static str,
     /// Mean cells per ray in the workload.
     pub cells_per_ray: f64,
+    /// CPU time of the timing thread over the timed part (s), where the system reports it
+    /// (Linux: `/proc/thread-self/schedstat`), else NaN. On a loaded machine the wall time
+    /// `seconds` also counts the time the thread waited for a core; this does not.
+    pub cpu_seconds: f64,
+}
+
+/// CPU time (s) the calling thread has run, from `/proc/thread-self/schedstat` (Linux); None
+/// elsewhere.
+pub fn thread_cpu_seconds() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    let ns: f64 = text.split_whitespace().next()?.parse().ok()?;
+    Some(ns * 1e-9)
 }
 
 /// The paper's LIDAR: 1079 beams over 270°.
@@ -117,6 +129,7 @@ pub fn crm_beam_updates(n_scans: usize, kind: CrmWorkload) -> Result<BenchFigure
         seconds: secs,
         unit,
         cells_per_ray: cells as f64 / ops as f64,
+        cpu_seconds: f64::NAN,
     })
 }
 
@@ -145,17 +158,18 @@ pub fn raycast_cells(n_rays: usize) -> Result<BenchFigure> {
         seconds: secs,
         unit: "cell visited (Amanatides-Woo, 8 m rays, 0.2 m cells)",
         cells_per_ray: cells as f64 / n_rays as f64,
+        cpu_seconds: f64::NAN,
     })
 }
 
 /// A 20 m x 20 m room with pillars and a loop through it: exact scans for the filter benchmarks.
-struct FilterWorkload {
-    odom: Vec<crlam_core::pose::Pose>,
-    angles: Vec<f64>,
-    ranges: Vec<Vec<f64>>,
+pub(crate) struct FilterWorkload {
+    pub(crate) odom: Vec<crlam_core::pose::Pose>,
+    pub(crate) angles: Vec<f64>,
+    pub(crate) ranges: Vec<Vec<f64>>,
 }
 
-fn filter_workload(
+pub(crate) fn filter_workload(
     n_scans: usize,
     n_beams: usize,
     fov_deg: f64,
@@ -205,7 +219,19 @@ fn filter_workload(
 }
 
 /// Seconds to feed scans 1..=n of a workload (after scan 0) to `process`, on one thread.
-fn time_filter<F>(w: &FilterWorkload, n_scans: usize, mut process: F) -> Result<f64>
+fn time_filter<F>(w: &FilterWorkload, n_scans: usize, process: F) -> Result<f64>
+where
+    F: FnMut(&crlam_core::rbpf::ScanInput) -> Result<crlam_core::rbpf::FilterStep> + Send,
+{
+    Ok(time_filter_cpu(w, n_scans, process)?.0)
+}
+
+/// [`time_filter`]'s wall time and the timing thread's CPU time (NaN where not reported).
+pub(crate) fn time_filter_cpu<F>(
+    w: &FilterWorkload,
+    n_scans: usize,
+    mut process: F,
+) -> Result<(f64, f64)>
 where
     F: FnMut(&crlam_core::rbpf::ScanInput) -> Result<crlam_core::rbpf::FilterStep> + Send,
 {
@@ -220,14 +246,25 @@ where
         laser_offset: [0.0; 3],
     };
     pool.install(|| process(&scan(0)))?;
+    let cpu0 = pool.install(thread_cpu_seconds);
     let t = Instant::now();
     for k in 1..=n_scans {
         pool.install(|| process(&scan(k)))?;
     }
-    Ok(t.elapsed().as_secs_f64())
+    let wall = t.elapsed().as_secs_f64();
+    let cpu = match (cpu0, pool.install(thread_cpu_seconds)) {
+        (Some(a), Some(b)) => b - a,
+        _ => f64::NAN,
+    };
+    Ok((wall, cpu))
 }
 
-fn filter_figure(name: &'static str, unit: &'static str, n_scans: usize, secs: f64) -> BenchFigure {
+pub(crate) fn filter_figure(
+    name: &'static str,
+    unit: &'static str,
+    n_scans: usize,
+    secs: f64,
+) -> BenchFigure {
     BenchFigure {
         name,
         per_second: n_scans as f64 / secs,
@@ -235,6 +272,7 @@ fn filter_figure(name: &'static str, unit: &'static str, n_scans: usize, secs: f
         seconds: secs,
         unit,
         cells_per_ray: f64::NAN,
+        cpu_seconds: f64::NAN,
     }
 }
 

@@ -1,4 +1,5 @@
-//! crlam-core: confidence-rich mapping (CRM), RBPF-CLAM and information functions.
+//! crlam-core: confidence-rich mapping (CRM), RBPF-CLAM, Monte Carlo localization and information
+//! functions.
 //!
 //! Pure Rust, no Python. Every fallible entry point returns [`Result`] with [`CrlamError`];
 //! nothing here panics on user input.
@@ -11,6 +12,7 @@ pub mod error;
 pub mod grid;
 pub mod info;
 pub mod limits;
+pub mod mcl;
 pub mod motion;
 pub mod numeric;
 pub mod ogm;

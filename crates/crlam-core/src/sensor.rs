@@ -331,7 +331,7 @@ impl SensorModel {
 
     /// Hit density of a cause spread uniformly over the chord [a, b] ([`CauseKernel::Chord`]).
     #[inline]
-    fn chord_hit_density(&self, z: f64, a: f64, b: f64) -> f64 {
+    pub(crate) fn chord_hit_density(&self, z: f64, a: f64, b: f64) -> f64 {
         let s = self.sigma_hit;
         let (ua, ub) = ((z - a) / s, (z - b) / s);
         if ua < -GAUSS_CUTOFF_SIGMAS || ub > GAUSS_CUTOFF_SIGMAS {

@@ -700,3 +700,58 @@ fn a_full_range_matcher_uses_the_returns_beyond_z_max() {
         "full range {err:.3} m vs odometry {odo_err:.3} m"
     );
 }
+
+#[test]
+fn a_filter_with_a_prior_map_continues_where_the_saved_run_ended() {
+    use crlam_core::rbpf::ClamPrior;
+    let run = simulate(160);
+    // The first half maps; its best map and final estimate start the second half.
+    let half = 80;
+    let cfg = config(ClamProposal::Odometry);
+    let mut first = RbpfClam::new(cfg.clone(), run.truth[0]).unwrap();
+    for k in 0..half {
+        let s = ScanInput {
+            odom: run.odom[k],
+            angles: &run.angles,
+            ranges: &run.ranges[k],
+            laser_offset: [0.0; 3],
+        };
+        first.process(&s).unwrap();
+    }
+    let cov = [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.003]];
+    let prior = ClamPrior {
+        map: first.best_map().clone(),
+        cov,
+    };
+    let start = first.estimate();
+    let mut second = RbpfClam::with_prior(cfg.clone(), start, prior.clone()).unwrap();
+    // The particles are drawn from the covariance around the saved estimate, all with its map.
+    let xs: Vec<f64> = second
+        .particles()
+        .iter()
+        .map(|p| p.pose[0] - start[0])
+        .collect();
+    let var = xs.iter().map(|x| x * x).sum::<f64>() / xs.len() as f64;
+    assert!(var > 0.002 && var < 0.03, "{var}");
+    // The first scan is weighed against that map (and counted as processed), and the second half
+    // tracks the truth with the odometry of its own frame.
+    let mut est = Vec::new();
+    for k in half..run.odom.len() {
+        let s = ScanInput {
+            odom: run.odom[k],
+            angles: &run.angles,
+            ranges: &run.ranges[k],
+            laser_offset: [0.0; 3],
+        };
+        let step = second.process(&s).unwrap();
+        assert!(step.processed);
+        est.push(step.estimate);
+    }
+    assert_eq!(second.n_processed(), run.odom.len() - half);
+    let err = mean_position_error(&est, &run.truth[half..]);
+    assert!(err < 0.15, "{err}");
+    // A prior map on another grid is refused.
+    let mut other = cfg;
+    other.crm = CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2).unwrap());
+    assert!(RbpfClam::with_prior(other, start, prior).is_err());
+}

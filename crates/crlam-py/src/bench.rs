@@ -59,6 +59,7 @@ pub fn run_benchmark<'py>(
                     Some(bench::rbpf_ogm_gmapping_scans(size, 30))
                 }
                 "rbpf_ogm_scans_per_s_1079x100" => Some(bench::rbpf_ogm_scans_table1(size)),
+                "mcl_scans_per_s_1000p" => Some(crlam_bench::mcl::mcl_scans(size, 1000, 180)),
                 _ => None,
             })
             .ok_or_else(|| shape_err(format!("unknown benchmark {name:?}")))?
@@ -70,6 +71,7 @@ pub fn run_benchmark<'py>(
         d.set_item("seconds", fig.seconds)?;
         d.set_item("unit", fig.unit)?;
         d.set_item("cells_per_ray", fig.cells_per_ray)?;
+        d.set_item("cpu_seconds", fig.cpu_seconds)?;
         Ok(d)
     })
 }

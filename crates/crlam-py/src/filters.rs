@@ -6,7 +6,7 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::MatchRange;
 use crlam_core::rbpf::{
-    mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamProposal, FilterStep,
+    mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamPrior, ClamProposal, FilterStep,
     LocalMapMatcher as CoreLocalMapMatcher, MatcherParams, ModeBandwidth, MotionDraws,
     OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput,
     ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
@@ -342,7 +342,8 @@ filter_pymethods!(ClamFilter {
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
         batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
-        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm", match_range=MatchRangeArg::Name("z_max".to_owned()), seed=0))]
+        proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm",
+        match_range=MatchRangeArg::Name("z_max".to_owned()), seed=0, prior_map=None, initial_cov=None))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -375,6 +376,8 @@ filter_pymethods!(ClamFilter {
         scan_match_weight: &str,
         match_range: MatchRangeArg,
         seed: u64,
+        prior_map: Option<PyRef<'_, CrmMap>>,
+        initial_cov: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<Self> {
         guard("ClamFilter.new", || {
         let geometry = GridGeometry::new([origin.0, origin.1], resolution).py_err()?;
@@ -463,8 +466,32 @@ filter_pymethods!(ClamFilter {
             seed,
             defer_map_updates: true,
         };
+        let initial = pose3(&initial_pose)?;
+        let inner = match (prior_map, initial_cov) {
+            (None, None) => RbpfClam::new(cfg, initial),
+            (Some(map), Some(cov)) => {
+                let c = cov.as_array();
+                if c.shape() != [3, 3] {
+                    return Err(shape_err(format!(
+                        "initial_cov must have shape (3, 3), got {:?}",
+                        c.shape()
+                    )));
+                }
+                let cov = [0, 1, 2].map(|i| [0, 1, 2].map(|j| c[[i, j]]));
+                let prior = ClamPrior {
+                    map: map.core().clone(),
+                    cov,
+                };
+                RbpfClam::with_prior(cfg, initial, prior)
+            }
+            _ => {
+                return Err(shape_err(
+                    "a prior map needs its initial_cov (and the covariance its prior map)",
+                ))
+            }
+        };
         Ok(Self {
-            inner: RbpfClam::new(cfg, pose3(&initial_pose)?).py_err()?,
+            inner: inner.py_err()?,
         })
         })
     }

@@ -19,6 +19,7 @@ import csv
 import json
 import math
 import os
+import sys
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -26,6 +27,7 @@ from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+from tqdm import tqdm
 
 from crlam import _native
 from crlam.errors import ConfigError
@@ -189,8 +191,12 @@ def _resample(points: NDArray[np.float64], step: float) -> NDArray[np.float64]:
     return np.column_stack([np.interp(t, s, points[:, 0]), np.interp(t, s, points[:, 1])])
 
 
-def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig, *, progress: bool = False) -> ExploreRun:
-    """Runs an exploration of ``world`` from ``start`` (x, y, theta) with known poses. Raises
+def explore(
+    world: World, start: tuple[float, float, float], cfg: ExploreConfig, *, progress: bool = False, verbose: bool = False
+) -> ExploreRun:
+    """Runs an exploration of ``world`` from ``start`` (x, y, theta) with known poses. ``progress``
+    shows a bar of the distance travelled against the budget (tqdm, on stderr); ``verbose`` prints
+    a line per decision. Raises
     ``RuntimeError`` if the robot ever stands in an occupied cell of the world (a bug guard), and
     ``ConfigError`` if ``start`` is not finite or not in the world's free space."""
     res = cfg.resolution
@@ -268,6 +274,7 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
     frames: list[dict[str, Any]] = []
     stop = "max_decisions"
     travelled = 0.0
+    bar = tqdm(total=round(cfg.budget_m, 1), desc="explore", unit="m", disable=not progress, leave=False, mininterval=1.0)
     for k in range(cfg.max_decisions):
         t0 = time.perf_counter()
         if slam_filter is not None:
@@ -403,10 +410,11 @@ def explore(world: World, start: tuple[float, float, float], cfg: ExploreConfig,
         if consecutive_bumps >= 3:
             stop = "blocked"
             break
-        if progress:
-            print(
-                f"decision {k}: gain {row['best_gain']:.3g}, {travelled:.1f} m, explored {row['explored_m2']:.0f} m^2", flush=True
-            )
+        bar.update(max(0.0, round(min(travelled, cfg.budget_m), 1) - bar.n))
+        if verbose:
+            line = f"decision {k}: gain {row['best_gain']:.3g}, {travelled:.1f} m, explored {row['explored_m2']:.0f} m^2"
+            tqdm.write(line, file=sys.stderr)
+    bar.close()
     return ExploreRun(
         config=cfg,
         world_name=world.name,

@@ -127,6 +127,7 @@ def run_explore_experiment(
     executor: Executor | None = None,
     resume: bool = True,
     force: bool = False,
+    verbose: bool = False,
 ) -> ExploreSweep:
     """Runs (resuming) every combination and writes ``runs.csv``, the figures and ``report.md``.
     ``executor``: where the runs go (default: ``workers`` local processes).
@@ -183,6 +184,7 @@ def run_explore_experiment(
         lambda n: _finished_exploration(root / "runs" / n) or {},
         workers=workers,
         progress=progress,
+        verbose=verbose,
         desc="explorations",
         executor=executor,
         layout=EXPLORE_RUN_LAYOUT,

@@ -104,6 +104,7 @@ def run_iig_experiment(
     executor: Executor | None = None,
     resume: bool = True,
     force: bool = False,
+    verbose: bool = False,
 ) -> IigExperiment:
     """Runs (resuming) the comparison and writes ``runs.csv``, the figures and ``report.md``.
     ``executor``: where the runs go (default: ``workers`` local processes).
@@ -113,7 +114,7 @@ def run_iig_experiment(
     :mod:`crlam.experiments.resume`. A run whose ``result.json`` or ``tree.npz`` cannot be read is
     run again."""
     if not functions:
-        raise ConfigError("no information function given (e.g. --functions crmi,ucrmi)")
+        raise ConfigError("no information function given (e.g. --functions crmi ucrmi)")
     for name in functions:
         function_for(name, mode=mode, ogmi=ogmi, particles=particles)  # validate before any run
     if map_path is None:
@@ -162,6 +163,7 @@ def run_iig_experiment(
         lambda n: _finished_run(_folder(root, n)) or {},
         workers=workers,
         progress=progress,
+        verbose=verbose,
         desc="planner runs",
         executor=executor,
         layout=IIG_RUN_LAYOUT,

@@ -24,7 +24,7 @@ from tqdm import tqdm
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
-from crlam.io.logs import input_description, open_log
+from crlam.io.logs import count_scans, input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MapLayer, MappingConfig, ScanUpdateStats
 from crlam.pose import compose
@@ -117,8 +117,10 @@ def map_scans(
     max_scans: int | None = None,
     progress: bool = True,
     desc: str = "mapping",
+    total: int | None = None,
 ) -> MappingRun:
-    """Builds a CRM and the log-odds baseline from scans with trusted poses."""
+    """Builds a CRM and the log-odds baseline from scans with trusted poses. ``total``: the number
+    of scans for the progress bar (default ``max_scans``)."""
     crm = ConfidenceRichMap(config)
     ogm = LogOddsOccupancyMap(
         ogm_config or LogOddsConfig(resolution=config.resolution, max_range=config.max_range, origin=config.origin)
@@ -126,7 +128,9 @@ def map_scans(
     poses: list[NDArray[np.float64]] = []
     stamps: list[float] = []
     t0 = time.perf_counter()
-    bar = tqdm(total=max_scans, desc=desc, unit="scan", disable=not progress, leave=False, mininterval=1.0)
+    bar = tqdm(
+        total=max_scans if total is None else total, desc=desc, unit="scan", disable=not progress, leave=False, mininterval=1.0
+    )
     for scan in scans:
         if max_scans is not None and len(poses) >= max_scans:
             break
@@ -218,7 +222,10 @@ def map_log(
     A bag's scans carry the odometry pose (composed with the laser mount) in both pose fields, so
     ``poses`` makes no difference there; ``bag_options`` go to :func:`crlam.io.logs.open_log`."""
     reader = open_log(log_path, on_error=on_error, **(bag_options or {}))
-    run = map_scans(known_pose_scans(reader, poses), config, max_scans=max_scans, progress=progress, desc=Path(log_path).name)
+    total = count_scans(log_path, max_scans) if progress else None
+    run = map_scans(
+        known_pose_scans(reader, poses), config, max_scans=max_scans, progress=progress, desc=Path(log_path).name, total=total
+    )
     st = reader.stats
     extra: dict[str, object] = {
         "log": str(log_path),

@@ -12,6 +12,7 @@ from __future__ import annotations
 import multiprocessing as mp
 import os
 import signal
+import sys
 import threading
 import time
 import traceback
@@ -176,6 +177,7 @@ def run_jobs(
     fresh_process: bool = False,
     executor: Executor | None = None,
     layout: RunLayout | None = None,
+    verbose: bool = False,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """Runs the unfinished jobs (``fn(**kwargs)`` must be a module-level function writing its own
     result and returning it); returns ({name: result} of all finished jobs, {name: error}).
@@ -185,7 +187,8 @@ def run_jobs(
     share this disk, such as Dask's).
     ``fresh_process`` runs every job in a new process (also with one worker), so that
     per-process measurements such as the peak resident memory belong to that job alone (a
-    reused worker reports the largest peak of all the jobs it ran, and more)."""
+    reused worker reports the largest peak of all the jobs it ran, and more).
+    ``verbose`` prints a line (stderr) for every run that finishes."""
     names = [n for n, _ in jobs]
     if len(set(names)) != len(names):
         raise ValueError("job names must be unique")
@@ -202,6 +205,8 @@ def run_jobs(
     def collect(name: str, result: Any, err: str | None) -> None:
         if result is not None:
             done[name] = result
+            if verbose:
+                tqdm.write(f"{name} finished ({len(done)} of {len(jobs)})", file=sys.stderr)
         else:
             errors[name] = err or "unknown error"
             tqdm.write(f"{name} failed: {errors[name].splitlines()[0]}")

@@ -64,6 +64,7 @@ def run_real_logs(
     executor: Executor | None = None,
     resume: bool = True,
     force: bool = False,
+    verbose: bool = False,
 ) -> dict[str, Any]:
     """Runs (or resumes) the grid of runs and writes the table; returns the results.
 
@@ -95,7 +96,9 @@ def run_real_logs(
                         specs.append(
                             RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans, threads=threads)
                         )
-    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor)
+    done, errors = run_sweep(
+        specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor, verbose=verbose
+    )
     rows = []
     for ds in datasets:
         for m in methods:

@@ -27,6 +27,7 @@ import json
 import math
 import os
 import resource
+import sys
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -37,16 +38,17 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from crlam import __version__
-from crlam.errors import DataFormatError
+from crlam.errors import ConfigError, DataFormatError
 from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
-from crlam.io.logs import input_description, open_log
+from crlam.io.logs import count_scans, input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
 from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
+from crlam.slam_continue import SlamPrior, pose_covariance
 
 __all__ = ["ESTIMATES", "FILL_RULE", "SlamResult", "run_slam_log", "write_run_readme", "write_toml"]
 
@@ -152,7 +154,9 @@ def run_slam_log(
     figures: bool = True,
     bag_options: dict[str, Any] | None = None,
     mcap: bool = False,
+    prior: SlamPrior | None = None,
     odometry: str = "auto",
+    verbose: bool = False,
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
@@ -164,10 +168,13 @@ def run_slam_log(
     ``wheel`` (the log's odometry), ``scan_match`` (scan-matching odometry; the log's odometry is
     not read, and the filter takes :func:`~crlam.scan_odometry.scan_match_filter_config`'s motion
     noise) or ``auto`` (``scan_match`` when the input has no odometry); ``config.toml`` and
-    ``metrics.json`` record which was used and why."""
+    ``metrics.json`` record which was used and why. ``prior`` continues a saved run
+    (:mod:`crlam.slam_continue`): its folder is only read, and must not be ``out_dir``."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
+    if prior is not None and out.resolve() == Path(prior.source).resolve():
+        raise ConfigError(f"--out {out} is the run being continued: write the continued run to a new folder")
     out.mkdir(parents=True, exist_ok=True)
     # The wall time includes the odometry-noise pre-pass, which is part of the run.
     t0 = time.perf_counter()
@@ -205,7 +212,7 @@ def run_slam_log(
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0)
+        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0, prior, verbose)
     except BaseException:
         if recorder is not None:
             recorder.close()
@@ -224,6 +231,7 @@ def run_slam_log(
         noise_estimate,
         odometry_info,
         front_end,
+        prior,
     )
 
 
@@ -242,18 +250,25 @@ def _run_filter(
     progress: bool,
     recorder: Any,
     t0: float,
+    prior: SlamPrior | None = None,
+    verbose: bool = False,
 ) -> tuple[SlamRun, float]:
-    """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s)."""
+    """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s).
+    ``verbose`` prints a line per processed scan (estimate, N_eff, resampling)."""
     run: SlamRun | None = None
     bar = tqdm(
-        desc=f"{config.method} x{config.particles} {Path(log_path).name}", unit="scan", disable=not progress, mininterval=1.0
+        total=count_scans(log_path, max_scans) if progress else None,
+        desc=f"{config.method} x{config.particles} {Path(log_path).name}",
+        unit="scan",
+        disable=not progress,
+        mininterval=1.0,
     )
     for rec in reader:
         if not isinstance(rec, LaserScan):
             continue
         if run is None:
             config = within_sensor_range(config, rec.max_range)
-            run = SlamRun(config)
+            run = SlamRun(config, prior=prior)
         if max_scans is not None and run.n_scans >= max_scans:
             break
         angles, ranges = _scan_inputs(rec)
@@ -262,6 +277,13 @@ def _run_filter(
             assert run.filter is not None
             particles = np.asarray(run.filter.particle_poses(), dtype=np.float64) if step.processed else None
             recorder.scan(rec, step.processed, step.estimate, particles)
+        if verbose and step.processed:
+            x, y, th = (float(v) for v in step.estimate)
+            tqdm.write(
+                f"scan {run.n_scans - 1} t={rec.timestamp:.3f}: estimate ({x:.3f}, {y:.3f}, {th:.4f}), "
+                f"N_eff {step.neff:.1f}{', resampled' if step.resampled else ''}",
+                file=sys.stderr,
+            )
         bar.update(1)
         if max_scans is not None and run.n_scans >= max_scans:
             break  # before the next record is read (a front end would match one scan more)
@@ -285,6 +307,7 @@ def _write_outputs(
     noise_estimate: MotionNoiseEstimate | None = None,
     odometry_info: dict[str, str] | None = None,
     front_end: Any = None,
+    prior: SlamPrior | None = None,
 ) -> SlamResult:
     run, wall = run_wall
     input_info = input_description(reader) | (odometry_info or {})
@@ -366,6 +389,7 @@ def _write_outputs(
         "motion_noise_estimate": None if noise_estimate is None else noise_estimate.to_dict(),
         "input": input_info,
         "scan_odometry": None if front_end is None else front_end.config.to_dict() | front_end.stats.to_dict(),
+        "continued_from": None if prior is None else prior.describe(),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
@@ -413,7 +437,11 @@ def _write_outputs(
     std = None
     if isinstance(best, ConfidenceRichMap):
         mean, var, ent = best.layers()
-        save_belief(out / "belief.npz", best.to_archive())
+        archive = best.to_archive()
+        # The final estimate and the spread of the last weighed set: what --continue starts from.
+        archive.estimate = np.array(poses[-1], dtype=np.float64)
+        archive.estimate_cov = pose_covariance(*run.filter.weighed_set(), archive.estimate)
+        save_belief(out / "belief.npz", archive)
         unknown = unknown_mask(best, ent)
         std = MapLayer(np.sqrt(np.maximum(var.values, 0.0)), var.origin, var.resolution, "standard deviation")
     else:
@@ -437,6 +465,7 @@ def _write_outputs(
                 "relations": str(relations) if relations else None,
                 "max_scans": max_scans,
                 "crlam_version": __version__,
+                "continue": None if prior is None else prior.source,
             },
             "input": input_info,
             "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},

@@ -181,6 +181,7 @@ def run_sweep(
     progress: bool = True,
     report_only: bool = False,
     executor: Executor | None = None,
+    verbose: bool = False,
 ) -> tuple[dict[str, dict[str, Any]], dict[str, str]]:
     """Runs every unfinished spec; returns ({name: metrics} of all finished runs, {name: error}).
 
@@ -211,6 +212,7 @@ def run_sweep(
         workers=workers,
         threads=threads,
         progress=progress,
+        verbose=verbose,
         # Each SLAM run reports its own peak RSS.
         fresh_process=True,
         desc="runs",

@@ -85,6 +85,7 @@ def run_table1(
     executor: Executor | None = None,
     resume: bool = True,
     force: bool = False,
+    verbose: bool = False,
 ) -> dict[str, Any]:
     """Runs (or resumes) the protocol and writes the table and figures; returns the results.
 
@@ -122,7 +123,9 @@ def run_table1(
                     f"{m}_run{k:02d}", str(sim_dir / "log.clf"), cfg, reference=str(sim_dir / "groundtruth.tum"), threads=threads
                 )
             )
-    done, errors = run_sweep(specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor)
+    done, errors = run_sweep(
+        specs, out, workers=workers, progress=progress, report_only=report_only, executor=executor, verbose=verbose
+    )
     rows: dict[str, dict[str, Any]] = {}
     for m in methods:
         finished = [done[s.name] | {"name": s.name} for s in specs if s.config.method == m and s.name in done]

@@ -13,7 +13,13 @@ key                 dtype / shape     meaning
 ``origin``          float64 (2,)      world (x, y) of the lower-left corner of [0, 0] (m)
 ``resolution``      float64 ()        cell size (m)
 ``metadata``        str               JSON object of str / int / float / bool values
+``estimate``        float64 (3,)      optional (version 2): the run's final pose estimate
+``estimate_cov``    float64 (3, 3)    optional (version 2): its covariance (m², rad²)
 ==================  ================  ==============================================
+
+Version 2 added the estimate: what ``crlam slam --continue`` starts from. A version-1 archive
+reads as before, without it; an archive of a later version than this crlam knows is refused
+with the version found and the versions read.
 
 Arrays round-trip bit for bit. Both :func:`save_belief` and :func:`load_belief` validate the
 content (shapes, ``K`` matches ``levels``, finite, non-negative pmfs summing to 1 within
@@ -27,8 +33,10 @@ import math
 import os
 import zipfile
 import zlib
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,7 +48,7 @@ from crlam.limits import check_limit
 __all__ = ["FORMAT_VERSION", "PMF_TOLERANCE", "BeliefArchive", "load_belief", "save_belief"]
 
 FORMAT_NAME = "crlam-belief"
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2
 PMF_TOLERANCE = 1e-4
 """Largest accepted ``|sum(pmf) - 1|`` per cell (float32 sums of K terms drift by ~K * 6e-8)."""
 
@@ -63,6 +71,10 @@ class BeliefArchive:
         Cell size (m).
     metadata : dict[str, str | int | float]
         Free-form description (sensor model, ``n_levels``, levels mode, floor, ...).
+    estimate : ndarray, shape (3,), float64, or None
+        The final pose estimate (x m, y m, θ rad) of the run that built the map.
+    estimate_cov : ndarray, shape (3, 3), float64, or None
+        Its covariance (symmetric, positive semidefinite); present with ``estimate``.
     """
 
     beliefs: NDArray[np.float32]
@@ -70,6 +82,8 @@ class BeliefArchive:
     origin: NDArray[np.float64]
     resolution: float
     metadata: dict[str, MetaValue] = field(default_factory=dict)
+    estimate: NDArray[np.float64] | None = None
+    estimate_cov: NDArray[np.float64] | None = None
 
     def __post_init__(self) -> None:
         self.beliefs = np.ascontiguousarray(self.beliefs, dtype=np.float32)
@@ -77,6 +91,10 @@ class BeliefArchive:
         self.origin = np.asarray(self.origin, dtype=np.float64)
         self.resolution = float(self.resolution)
         self.metadata = dict(self.metadata)
+        if self.estimate is not None:
+            self.estimate = np.asarray(self.estimate, dtype=np.float64)
+        if self.estimate_cov is not None:
+            self.estimate_cov = np.asarray(self.estimate_cov, dtype=np.float64)
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -115,6 +133,7 @@ class BeliefArchive:
                 f"{int(bad.sum())} cells are not pmfs (first: sum {sums[iy, ix]!r}, min {float(b[iy, ix].min())!r})",
                 f"beliefs[{iy},{ix}]",
             )
+        _validate_estimate(self.estimate, self.estimate_cov, fail)
         for key, value in self.metadata.items():
             if not isinstance(key, str) or not isinstance(value, (str, int, float)):
                 raise fail(f"entry {key!r}: {value!r} is not str/int/float", "metadata")
@@ -122,9 +141,28 @@ class BeliefArchive:
                 raise fail(f"entry {key!r} is not finite", "metadata")
 
 
+def _validate_estimate(
+    estimate: NDArray[np.float64] | None, cov: NDArray[np.float64] | None, fail: Callable[[str, str], DataFormatError]
+) -> None:
+    if (estimate is None) != (cov is None):
+        raise fail("an estimate needs its covariance and the covariance its estimate", "estimate")
+    if estimate is None or cov is None:
+        return
+    if estimate.shape != (3,) or not np.all(np.isfinite(estimate)):
+        raise fail(f"must be 3 finite numbers (x, y, theta), got {estimate!r}", "estimate")
+    if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
+        raise fail(f"must be a finite 3 x 3 matrix, got shape {cov.shape}", "estimate_cov")
+    if not np.allclose(cov, cov.T, rtol=1e-9, atol=1e-12) or np.linalg.eigvalsh(0.5 * (cov + cov.T)).min() < -1e-9:
+        raise fail("must be symmetric and positive semidefinite", "estimate_cov")
+
+
 def save_belief(path: str | os.PathLike[str], archive: BeliefArchive) -> None:
     """Validate ``archive`` and write it to ``path`` (exactly that name; no suffix added)."""
     archive.validate(path)
+    # Any: numpy's stub would match these keywords against savez_compressed's allow_pickle.
+    estimate: dict[str, Any] = {}
+    if archive.estimate is not None and archive.estimate_cov is not None:
+        estimate = {"estimate": archive.estimate, "estimate_cov": archive.estimate_cov}
     with open(path, "wb") as fh:
         np.savez_compressed(
             fh,
@@ -135,6 +173,7 @@ def save_belief(path: str | os.PathLike[str], archive: BeliefArchive) -> None:
             origin=archive.origin,
             resolution=np.array(archive.resolution, dtype=np.float64),
             metadata=np.array(json.dumps(archive.metadata, sort_keys=True, allow_nan=False)),
+            **estimate,
         )
 
 
@@ -175,9 +214,14 @@ def load_belief(path: str | os.PathLike[str]) -> BeliefArchive:
     if str(arrays["format"]) != FORMAT_NAME:
         raise DataFormatError(f"format is {str(arrays['format'])!r}, not {FORMAT_NAME!r}", path=where, field="format")
     version = arrays["format_version"]
-    if version.shape != () or not np.issubdtype(version.dtype, np.integer) or not 1 <= int(version) <= FORMAT_VERSION:
+    if version.shape != () or not np.issubdtype(version.dtype, np.integer) or int(version) < 1:
+        raise DataFormatError(f"invalid format version {version!r}", path=where, field="format_version")
+    if int(version) > FORMAT_VERSION:
         raise DataFormatError(
-            f"unsupported format version {version!r} (this crlam reads 1..{FORMAT_VERSION})", path=where, field="format_version"
+            f"format version {int(version)} was written by a newer crlam; this crlam (format {FORMAT_VERSION}) reads versions "
+            f"1..{FORMAT_VERSION}: upgrade crlam to read it",
+            path=where,
+            field="format_version",
         )
     for key, dtype in (("beliefs", np.float32), ("levels", np.float64), ("origin", np.float64), ("resolution", np.float64)):
         if arrays[key].dtype != dtype:
@@ -190,12 +234,22 @@ def load_belief(path: str | os.PathLike[str]) -> BeliefArchive:
         raise DataFormatError(f"invalid JSON ({exc})", path=where, field="metadata") from exc
     if not isinstance(metadata, dict):
         raise DataFormatError("must be a JSON object", path=where, field="metadata")
+    estimate = estimate_cov = None
+    if int(version) >= 2 and "estimate" in arrays:
+        if "estimate_cov" not in arrays:
+            raise DataFormatError("missing key (an estimate needs its covariance)", path=where, field="estimate_cov")
+        for key in ("estimate", "estimate_cov"):
+            if arrays[key].dtype != np.float64:
+                raise DataFormatError(f"dtype {arrays[key].dtype}, want float64", path=where, field=key)
+        estimate, estimate_cov = arrays["estimate"], arrays["estimate_cov"]
     archive = BeliefArchive(
         beliefs=arrays["beliefs"],
         levels=arrays["levels"],
         origin=arrays["origin"],
         resolution=float(arrays["resolution"]),
         metadata=metadata,
+        estimate=estimate,
+        estimate_cov=estimate_cov,
     )
     archive.validate(path)
     return archive

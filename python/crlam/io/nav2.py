@@ -315,8 +315,11 @@ def _yaml_number(doc: dict[str, object], key: str, path: Path, default: float | 
     return v
 
 
-def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
+def read_nav2_map(yaml_path: str | os.PathLike[str], *, free_thresh: float | None = None) -> Nav2Map:
     """Read a Nav2 map (YAML + PGM/PNG image) into an occupancy grid.
+
+    ``free_thresh`` replaces the YAML's (e.g. map_saver's 0.196 for a YAML whose 0.25 makes the
+    unknown grey 205 free).
 
     ``image`` is resolved relative to the YAML file. ``mode`` defaults to trinary, ``negate``
     to 0, the thresholds to 0.65 / 0.196 when absent. In trinary mode an alpha channel is
@@ -347,7 +350,7 @@ def read_nav2_map(yaml_path: str | os.PathLike[str]) -> Nav2Map:
         raise DataFormatError(f"must be a list [x, y, yaw], got {origin!r}", path=str(path), field="origin")
     org = np.array([_yaml_number({"origin": v}, "origin", path, None) for v in origin] + [0.0])[:3]
     occ_t = _yaml_number(doc, "occupied_thresh", path, 0.65)
-    free_t = _yaml_number(doc, "free_thresh", path, 0.196)
+    free_t = _yaml_number(doc, "free_thresh", path, 0.196) if free_thresh is None else float(free_thresh)
     if not 0.0 <= free_t <= occ_t <= 1.0:
         raise DataFormatError(
             f"need 0 <= free_thresh <= occupied_thresh <= 1, got free_thresh {free_t}, occupied_thresh {occ_t}",

@@ -18,9 +18,9 @@
 mod batch;
 pub mod beam;
 mod beam_job;
-mod far_simd;
+pub(crate) mod far_simd;
 mod forward;
-mod lane_io;
+pub(crate) mod lane_io;
 mod lanes;
 #[cfg(target_arch = "x86_64")]
 mod lanes_avx2;

@@ -5,6 +5,10 @@
 //! [`crate::simd::level`]. Every path performs the scalar's
 //! operations in its order, without FMA, so results do not depend on the CPU (tested bit for bit).
 
+#[cfg(target_arch = "x86_64")]
+use crate::numeric::lanes::simd_lanes;
+use crate::numeric::lanes::{scalar, Lanes};
+
 /// The nodes c_j (exact, as bits): 1 + j/16 for j < 8, (1 + j/16)/2 for the halved mantissas.
 const C_NODE: [u64; 16] = [
     0x3ff0000000000000,
@@ -83,6 +87,34 @@ const Q: [f64; 8] = [
     0.105_621_334_307_632_25,
 ];
 
+/// ln x = e ln 2 + ln c_j + ln(1 + r) on any lane type, from e, r and the lookup of ln c_j:
+/// ln(1 + r) = r + r² Q(r) with Q in Estrin's scheme (the last steps of [`ln_normal`] and its
+/// vector kernels). The lookup runs where the sum needs it, as in the hand-written kernels
+/// before (the instruction schedule, hence the speed, depends on that order).
+#[inline(always)]
+fn ln_from_parts<V: Copy, S, M, A, B>(
+    o: &Lanes<V, S, M, A, B>,
+    e: V,
+    r: V,
+    ln_node: impl FnOnce() -> V,
+) -> V
+where
+    S: Fn(f64) -> V,
+    M: Fn(V, V) -> V,
+    A: Fn(V, V) -> V,
+    B: Fn(V, V) -> V,
+{
+    let (c, mul, add) = (&o.splat, &o.mul, &o.add);
+    let r2 = mul(r, r);
+    let r4 = mul(r2, r2);
+    let q01 = add(c(Q[0]), mul(r, c(Q[1])));
+    let q23 = add(c(Q[2]), mul(r, c(Q[3])));
+    let q45 = add(c(Q[4]), mul(r, c(Q[5])));
+    let q67 = add(c(Q[6]), mul(r, c(Q[7])));
+    let q = add(add(q01, mul(r2, q23)), mul(r4, add(q45, mul(r2, q67))));
+    add(mul(e, c(LN_2)), add(ln_node(), add(r, mul(r2, q))))
+}
+
 /// Natural log of a positive, normal, finite x to within a few ulp (relative in [0.73, 1.47),
 /// where no e ln 2 term can cancel, absolute elsewhere), branch-free and without a division:
 /// x = 2^e·m with m ∈ [47/64, 47/32), its node c_j (1 + j/16, or half that for the halved
@@ -103,14 +135,7 @@ pub fn ln_normal(x: f64) -> f64 {
     let e = if big { e + 1.0 } else { e };
     let j = node_index(bits);
     let r = (m - f64::from_bits(C_NODE[j])) * f64::from_bits(INV_NODE[j]);
-    let r2 = r * r;
-    let r4 = r2 * r2;
-    let q01 = Q[0] + r * Q[1];
-    let q23 = Q[2] + r * Q[3];
-    let q45 = Q[4] + r * Q[5];
-    let q67 = Q[6] + r * Q[7];
-    let q = (q01 + r2 * q23) + r4 * (q45 + r2 * q67);
-    e * LN_2 + (f64::from_bits(LN_NODE[j]) + (r + r2 * q))
+    ln_from_parts(&scalar(), e, r, || f64::from_bits(LN_NODE[j]))
 }
 
 /// The node of a mantissa: round-half-up of its fraction in sixteenths, modulo 16, read from the
@@ -144,16 +169,9 @@ pub(crate) unsafe fn ln_normal_x8(x: std::arch::x86_64::__m512d) -> std::arch::x
     // vpermt2pd reads the low four bits of each lane: the node index, bit 3 choosing the half.
     let j = _mm512_srli_epi64::<48>(_mm512_add_epi64(bits, _mm512_set1_epi64(1 << 47)));
     let node = |t: &[u64; 16]| _mm512_permutex2var_pd(table(t, 0), j, table(t, 1));
-    let (mul, add) = (|a, b| _mm512_mul_pd(a, b), |a, b| _mm512_add_pd(a, b));
-    let r = mul(_mm512_sub_pd(m, node(&C_NODE)), node(&INV_NODE));
-    let r2 = mul(r, r);
-    let r4 = mul(r2, r2);
-    let q01 = add(c(Q[0]), mul(r, c(Q[1])));
-    let q23 = add(c(Q[2]), mul(r, c(Q[3])));
-    let q45 = add(c(Q[4]), mul(r, c(Q[5])));
-    let q67 = add(c(Q[6]), mul(r, c(Q[7])));
-    let q = add(add(q01, mul(r2, q23)), mul(r4, add(q45, mul(r2, q67))));
-    add(mul(e, c(LN_2)), add(node(&LN_NODE), add(r, mul(r2, q))))
+    let r = _mm512_mul_pd(_mm512_sub_pd(m, node(&C_NODE)), node(&INV_NODE));
+    let ops = simd_lanes!(_mm512_set1_pd, _mm512_mul_pd, _mm512_add_pd, _mm512_sub_pd);
+    ln_from_parts(&ops, e, r, || node(&LN_NODE))
 }
 
 /// [`ln_normal`] of four lanes with explicit AVX2: the scalar's operations in its order (the
@@ -215,14 +233,8 @@ pub(crate) unsafe fn ln_normal_x4(x: std::arch::x86_64::__m256d) -> std::arch::x
         _mm256_blendv_pd(c(1.0), c(0.5), bit3),
     );
     let r = mul(_mm256_sub_pd(m, c_node), node(&INV_NODE));
-    let r2 = mul(r, r);
-    let r4 = mul(r2, r2);
-    let q01 = add(c(Q[0]), mul(r, c(Q[1])));
-    let q23 = add(c(Q[2]), mul(r, c(Q[3])));
-    let q45 = add(c(Q[4]), mul(r, c(Q[5])));
-    let q67 = add(c(Q[6]), mul(r, c(Q[7])));
-    let q = add(add(q01, mul(r2, q23)), mul(r4, add(q45, mul(r2, q67))));
-    add(mul(e, c(LN_2)), add(node(&LN_NODE), add(r, mul(r2, q))))
+    let ops = simd_lanes!(_mm256_set1_pd, _mm256_mul_pd, _mm256_add_pd, _mm256_sub_pd);
+    ln_from_parts(&ops, e, r, || node(&LN_NODE))
 }
 
 /// `$vis fn $name(args)` runs `$at(`[`crate::simd::level`]`(), args)`; `$vis fn $at(level, args)`

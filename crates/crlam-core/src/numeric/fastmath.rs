@@ -6,6 +6,9 @@ pub use crate::numeric::fastlog::{ln_1p_slice, ln_clamped_slice, ln_normal};
 
 use std::sync::OnceLock;
 
+#[cfg(target_arch = "x86_64")]
+use crate::numeric::lanes::simd_lanes;
+use crate::numeric::lanes::{scalar, Lanes};
 use crate::numeric::normal_cdf;
 use crate::simd::SimdLevel;
 
@@ -91,21 +94,6 @@ fn lower_tail(u: f64) -> f64 {
     lower_tail_with(&table().nodes, u)
 }
 
-/// The arithmetic of one lane type (f64, or a vector of f64), so that the scalar and the vector
-/// kernels share one expression and with it the order of every operation.
-struct Lanes<V, S, M, A, B>
-where
-    S: Fn(f64) -> V,
-    M: Fn(V, V) -> V,
-    A: Fn(V, V) -> V,
-    B: Fn(V, V) -> V,
-{
-    splat: S,
-    mul: M,
-    add: A,
-    sub: B,
-}
-
 /// The quintic Hermite blend on the interval at fraction `s` of the step, from the values
 /// (Φ, φ, φ′) at its two nodes, `ab` = (a0, a1, a2, b0, b1, b2).
 #[inline(always)]
@@ -158,13 +146,7 @@ fn lower_tail_with(nodes: &[[f64; 3]], u: f64) -> f64 {
     let k = (x as usize).min(nodes.len() - 2);
     let s = x - k as f64;
     let (a, b) = (nodes[k], nodes[k + 1]);
-    let ops = Lanes {
-        splat: |v: f64| v,
-        mul: |x: f64, y: f64| x * y,
-        add: |x: f64, y: f64| x + y,
-        sub: |x: f64, y: f64| x - y,
-    };
-    let v = hermite_blend(&ops, s, [a[0], a[1], a[2], b[0], b[1], b[2]]);
+    let v = hermite_blend(&scalar(), s, [a[0], a[1], a[2], b[0], b[1], b[2]]);
     if u <= -LIMIT {
         0.0
     } else {
@@ -241,12 +223,7 @@ unsafe fn lower_tail_abs_slice_avx512<const CDF: bool>(
     let c = |v: f64| _mm512_set1_pd(v);
     let (limit, neg_limit, step) = (c(LIMIT), c(-LIMIT), c(STEP));
     let zero = _mm512_setzero_pd();
-    let ops = Lanes {
-        splat: c,
-        mul: |a, b| _mm512_mul_pd(a, b),
-        add: |a, b| _mm512_add_pd(a, b),
-        sub: |a, b| _mm512_sub_pd(a, b),
-    };
+    let ops = simd_lanes!(_mm512_set1_pd, _mm512_mul_pd, _mm512_add_pd, _mm512_sub_pd);
     let (add, sub) = (ops.add, ops.sub);
     let mut i = 0;
     while i < lanes {
@@ -295,12 +272,7 @@ unsafe fn lower_tail_abs_slice_avx2(table: &CdfTable, xs: &[f64], out: &mut [f64
     let neg_limit = _mm256_set1_pd(-LIMIT);
     let step = _mm256_set1_pd(STEP);
     let zero = _mm256_setzero_pd();
-    let ops = Lanes {
-        splat: |v: f64| _mm256_set1_pd(v),
-        mul: |a, b| _mm256_mul_pd(a, b),
-        add: |a, b| _mm256_add_pd(a, b),
-        sub: |a, b| _mm256_sub_pd(a, b),
-    };
+    let ops = simd_lanes!(_mm256_set1_pd, _mm256_mul_pd, _mm256_add_pd, _mm256_sub_pd);
     let (add, sub) = (ops.add, ops.sub);
     let mut i = 0;
     while i < lanes {
@@ -509,29 +481,76 @@ const EXP2_TABLE: [u64; 128] = [
 const EXP_TABLE_MIN: f64 = -708.0;
 const EXP_TABLE_MAX: f64 = 709.0;
 
+/// 128/ln 2, and ln2/128 split so that k·HI is exact for |k| < 2¹⁸ ([`exp_table`]).
+const INV_LN2_128: f64 = 184.664_965_233_787_3;
+const LN2_128_HI: f64 = f64::from_bits(0x3f76_2e42_fef8_0000);
+const LN2_128_LO: f64 = 1.265_508_608_332_543_8e-13;
+/// 1.5 · 2⁵²: adding it rounds to an integer, which then sits in the low mantissa bits.
+const SHIFTER: f64 = 6_755_399_441_055_744.0;
+
+/// The rounding of [`exp_table`] on any lane type: z = x·128/ln 2 + [`SHIFTER`], which holds
+/// k = round(128x/ln 2) in its low mantissa bits, and k as a float; returned as (z, k).
+#[inline(always)]
+fn exp_table_round<V: Copy, S, M, A, B>(o: &Lanes<V, S, M, A, B>, x: V) -> (V, V)
+where
+    S: Fn(f64) -> V,
+    M: Fn(V, V) -> V,
+    A: Fn(V, V) -> V,
+    B: Fn(V, V) -> V,
+{
+    let (c, mul, add, sub) = (&o.splat, &o.mul, &o.add, &o.sub);
+    let z = add(mul(x, c(INV_LN2_128)), c(SHIFTER));
+    (z, sub(z, c(SHIFTER)))
+}
+
+/// The remainder of [`exp_table`] on any lane type: r = x − k·ln2/128 (Cody–Waite), k a float.
+/// The kernels take it after reading k's integer bits, in the order of the hand-written kernels
+/// before (their instruction schedule, hence their speed, depends on it).
+#[inline(always)]
+fn exp_table_remainder<V: Copy, S, M, A, B>(o: &Lanes<V, S, M, A, B>, x: V, kf: V) -> V
+where
+    S: Fn(f64) -> V,
+    M: Fn(V, V) -> V,
+    A: Fn(V, V) -> V,
+    B: Fn(V, V) -> V,
+{
+    let (c, mul, sub) = (&o.splat, &o.mul, &o.sub);
+    sub(sub(x, mul(kf, c(LN2_128_HI))), mul(kf, c(LN2_128_LO)))
+}
+
+/// e^r of [`exp_table`] on any lane type: its series to r⁵.
+#[inline(always)]
+fn exp_table_series<V: Copy, S, M, A, B>(o: &Lanes<V, S, M, A, B>, r: V) -> V
+where
+    S: Fn(f64) -> V,
+    M: Fn(V, V) -> V,
+    A: Fn(V, V) -> V,
+    B: Fn(V, V) -> V,
+{
+    let (c, mul, add) = (&o.splat, &o.mul, &o.add);
+    let r2 = mul(r, r);
+    let inner = add(
+        add(c(0.5), mul(r, c(1.0 / 6.0))),
+        mul(r2, add(c(1.0 / 24.0), mul(r, c(1.0 / 120.0)))),
+    );
+    add(add(c(1.0), r), mul(r2, inner))
+}
+
 /// e^x within 2 ulp, inlined and without libm's call: x = (128e + j + f)·ln2/128 with
 /// |f·ln2/128| ≤ ln2/256, e^x = 2^e · 2^(j/128) · e^r, 2^(j/128) from a correctly rounded
 /// table and e^r by its series to r⁵ (truncation below 1e-18 relative). For hot loops where a
 /// call to libm's exp is the cost; x outside [−708, 709] (or NaN) goes to libm.
 #[inline(always)]
 pub fn exp_table(x: f64) -> f64 {
-    const INV_LN2_128: f64 = 184.664_965_233_787_3;
-    // ln2/128 split so that k·HI is exact for |k| < 2¹⁸.
-    const LN2_128_HI: f64 = f64::from_bits(0x3f76_2e42_fef8_0000);
-    const LN2_128_LO: f64 = 1.265_508_608_332_543_8e-13;
-    const SHIFTER: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²: adding it rounds to an integer
     if !(EXP_TABLE_MIN..=EXP_TABLE_MAX).contains(&x) {
         return x.exp();
     }
-    let z = x * INV_LN2_128 + SHIFTER;
-    let kf = z - SHIFTER;
+    let (z, kf) = exp_table_round(&scalar(), x);
     let k = (z.to_bits() as i64).wrapping_sub(SHIFTER.to_bits() as i64);
-    let r = (x - kf * LN2_128_HI) - kf * LN2_128_LO;
+    let r = exp_table_remainder(&scalar(), x, kf);
     // 2^e · 2^(j/128) by adding e to the table entry's exponent (e ∈ [−1022, 1022] here).
     let t = f64::from_bits(EXP2_TABLE[(k & 127) as usize].wrapping_add(((k >> 7) as u64) << 52));
-    let r2 = r * r;
-    let p = (1.0 + r) + r2 * ((0.5 + r * (1.0 / 6.0)) + r2 * (1.0 / 24.0 + r * (1.0 / 120.0)));
-    t * p
+    t * exp_table_series(&scalar(), r)
 }
 
 /// Eight lanes of [`exp_table`] for x in [−708, 709] (the caller checks the range; outside it
@@ -544,32 +563,20 @@ pub fn exp_table(x: f64) -> f64 {
 #[target_feature(enable = "avx512f")]
 pub(crate) unsafe fn exp_table_avx512(x: std::arch::x86_64::__m512d) -> std::arch::x86_64::__m512d {
     use std::arch::x86_64::*;
-    const INV_LN2_128: f64 = 184.664_965_233_787_3;
-    const LN2_128_HI: f64 = f64::from_bits(0x3f76_2e42_fef8_0000);
-    const LN2_128_LO: f64 = 1.265_508_608_332_543_8e-13;
-    const SHIFTER: f64 = 6_755_399_441_055_744.0;
-    let set = |v: f64| _mm512_set1_pd(v);
-    let (add, sub, mul) = (_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd);
-    let z = add(mul(x, set(INV_LN2_128)), set(SHIFTER));
-    let kf = sub(z, set(SHIFTER));
+    let ops = simd_lanes!(_mm512_set1_pd, _mm512_mul_pd, _mm512_add_pd, _mm512_sub_pd);
+    let (z, kf) = exp_table_round(&ops, x);
     let k = _mm512_sub_epi64(
         _mm512_castpd_si512(z),
         _mm512_set1_epi64(SHIFTER.to_bits() as i64),
     );
-    let r = sub(sub(x, mul(kf, set(LN2_128_HI))), mul(kf, set(LN2_128_LO)));
+    let r = exp_table_remainder(&ops, x, kf);
     let j = _mm512_and_si512(k, _mm512_set1_epi64(127));
     let entry = _mm512_i64gather_epi64::<8>(j, EXP2_TABLE.as_ptr() as *const i64);
     let t = _mm512_castsi512_pd(_mm512_add_epi64(
         entry,
         _mm512_slli_epi64::<52>(_mm512_srai_epi64::<7>(k)),
     ));
-    let r2 = mul(r, r);
-    let inner = add(
-        add(set(0.5), mul(r, set(1.0 / 6.0))),
-        mul(r2, add(set(1.0 / 24.0), mul(r, set(1.0 / 120.0)))),
-    );
-    let p = add(add(set(1.0), r), mul(r2, inner));
-    mul(t, p)
+    _mm512_mul_pd(t, exp_table_series(&ops, r))
 }
 
 /// Four lanes of [`exp_table`] with AVX2, as [`exp_table_avx512`]: x in [−708, 709] (checked by
@@ -583,41 +590,75 @@ pub(crate) unsafe fn exp_table_avx512(x: std::arch::x86_64::__m512d) -> std::arc
 #[target_feature(enable = "avx2")]
 pub(crate) unsafe fn exp_table_x4(x: std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d {
     use std::arch::x86_64::*;
-    const INV_LN2_128: f64 = 184.664_965_233_787_3;
-    const LN2_128_HI: f64 = f64::from_bits(0x3f76_2e42_fef8_0000);
-    const LN2_128_LO: f64 = 1.265_508_608_332_543_8e-13;
-    const SHIFTER: f64 = 6_755_399_441_055_744.0;
-    let set = |v: f64| _mm256_set1_pd(v);
-    let (add, sub, mul) = (
-        |a, b| _mm256_add_pd(a, b),
-        |a, b| _mm256_sub_pd(a, b),
-        |a, b| _mm256_mul_pd(a, b),
-    );
-    let z = add(mul(x, set(INV_LN2_128)), set(SHIFTER));
-    let kf = sub(z, set(SHIFTER));
+    let ops = simd_lanes!(_mm256_set1_pd, _mm256_mul_pd, _mm256_add_pd, _mm256_sub_pd);
+    let (z, kf) = exp_table_round(&ops, x);
     let k = _mm256_sub_epi64(
         _mm256_castpd_si256(z),
         _mm256_set1_epi64x(SHIFTER.to_bits() as i64),
     );
-    let r = sub(sub(x, mul(kf, set(LN2_128_HI))), mul(kf, set(LN2_128_LO)));
+    let r = exp_table_remainder(&ops, x, kf);
     let j = _mm256_and_si256(k, _mm256_set1_epi64x(127));
     let entry = _mm256_i64gather_epi64::<8>(EXP2_TABLE.as_ptr() as *const i64, j);
     let t = _mm256_castsi256_pd(_mm256_add_epi64(
         entry,
         _mm256_slli_epi64::<52>(_mm256_srai_epi32::<7>(k)),
     ));
-    let r2 = mul(r, r);
-    let inner = add(
-        add(set(0.5), mul(r, set(1.0 / 6.0))),
-        mul(r2, add(set(1.0 / 24.0), mul(r, set(1.0 / 120.0)))),
-    );
-    let p = add(add(set(1.0), r), mul(r2, inner));
-    mul(t, p)
+    _mm256_mul_pd(t, exp_table_series(&ops, r))
 }
 
 /// The range of [`exp_in_range`] (normal results, no overflow).
 const EXP_MIN: f64 = -708.3;
 const EXP_MAX: f64 = 709.7;
+
+/// log2 e, and fdlibm's split of ln 2: LN2_HI has 32 trailing zero bits, so n · LN2_HI is exact
+/// for |n| < 2²⁰ ([`exp_in_range`]).
+const LOG2E: f64 = std::f64::consts::LOG2_E;
+const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
+const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
+
+/// The reduction of [`exp_in_range`] on any lane type: k = x·log2 e + [`SHIFTER`] (n = round(x/ln 2)
+/// in its low mantissa bits) and r = x − n ln 2 (Cody–Waite), returned as (k, r).
+#[inline(always)]
+fn exp_reduce<V: Copy, S, M, A, B>(o: &Lanes<V, S, M, A, B>, x: V) -> (V, V)
+where
+    S: Fn(f64) -> V,
+    M: Fn(V, V) -> V,
+    A: Fn(V, V) -> V,
+    B: Fn(V, V) -> V,
+{
+    let (c, mul, add, sub) = (&o.splat, &o.mul, &o.add, &o.sub);
+    let k = add(mul(x, c(LOG2E)), c(SHIFTER));
+    let n = sub(k, c(SHIFTER));
+    let r = sub(sub(x, mul(n, c(LN2_HI))), mul(n, c(LN2_LO)));
+    (k, r)
+}
+
+/// e^r of [`exp_in_range`] on any lane type: its Taylor series to r¹³ in Estrin's scheme.
+#[inline(always)]
+fn exp_series<V: Copy, S, M, A, B>(o: &Lanes<V, S, M, A, B>, r: V) -> V
+where
+    S: Fn(f64) -> V,
+    M: Fn(V, V) -> V,
+    A: Fn(V, V) -> V,
+    B: Fn(V, V) -> V,
+{
+    let (c, mul, add) = (&o.splat, &o.mul, &o.add);
+    let r2 = mul(r, r);
+    let r4 = mul(r2, r2);
+    let r8 = mul(r4, r4);
+    let pair = |a: f64, b: f64| add(c(a), mul(r, c(b)));
+    let c01 = add(c(1.0), r);
+    let c23 = pair(1.0 / 2.0, 1.0 / 6.0);
+    let c45 = pair(1.0 / 24.0, 1.0 / 120.0);
+    let c67 = pair(1.0 / 720.0, 1.0 / 5_040.0);
+    let c89 = pair(1.0 / 40_320.0, 1.0 / 362_880.0);
+    let c1011 = pair(1.0 / 3_628_800.0, 1.0 / 39_916_800.0);
+    let c1213 = pair(1.0 / 479_001_600.0, 1.0 / 6_227_020_800.0);
+    let q0 = add(c01, mul(r2, c23));
+    let q1 = add(c45, mul(r2, c67));
+    let q2 = add(c89, mul(r2, c1011));
+    add(add(q0, mul(r4, q1)), mul(r8, add(q2, mul(r4, c1213))))
+}
 
 /// e^x to within a few ulp for x in [`EXP_MIN`, `EXP_MAX`], branch-free and libm-free (the body
 /// of [`exp_for_sums`]): x = n ln 2 + r with |r| ≤ ½ ln 2 (Cody–Waite split of ln 2), e^r by its
@@ -625,28 +666,8 @@ const EXP_MAX: f64 = 709.7;
 /// through the exponent bits.
 #[inline(always)]
 fn exp_in_range(x: f64) -> f64 {
-    const LOG2E: f64 = std::f64::consts::LOG2_E;
-    // fdlibm's split: LN2_HI has 32 trailing zero bits, so n · LN2_HI is exact for |n| < 2²⁰.
-    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
-    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
-    const SHIFTER: f64 = 6_755_399_441_055_744.0; // 1.5 · 2⁵²: adding it rounds to an integer
-    let k = x * LOG2E + SHIFTER;
-    let n = k - SHIFTER;
-    let r = (x - n * LN2_HI) - n * LN2_LO;
-    let r2 = r * r;
-    let r4 = r2 * r2;
-    let r8 = r4 * r4;
-    let c01 = 1.0 + r;
-    let c23 = 1.0 / 2.0 + r * (1.0 / 6.0);
-    let c45 = 1.0 / 24.0 + r * (1.0 / 120.0);
-    let c67 = 1.0 / 720.0 + r * (1.0 / 5_040.0);
-    let c89 = 1.0 / 40_320.0 + r * (1.0 / 362_880.0);
-    let c1011 = 1.0 / 3_628_800.0 + r * (1.0 / 39_916_800.0);
-    let c1213 = 1.0 / 479_001_600.0 + r * (1.0 / 6_227_020_800.0);
-    let q0 = c01 + r2 * c23;
-    let q1 = c45 + r2 * c67;
-    let q2 = c89 + r2 * c1011;
-    let poly = q0 + r4 * q1 + r8 * (q2 + r4 * c1213);
+    let (k, r) = exp_reduce(&scalar(), x);
+    let poly = exp_series(&scalar(), r);
     // n sits in the low bits of k's mantissa (two's complement around the shifter).
     let ni = (k.to_bits() as i64).wrapping_sub(SHIFTER.to_bits() as i64);
     // Split 2ⁿ in two factors so that n = 1024 (x near 709.7) does not overflow the exponent.
@@ -685,32 +706,12 @@ pub(crate) unsafe fn exp_for_sums_avx512(
     x: std::arch::x86_64::__m512d,
 ) -> std::arch::x86_64::__m512d {
     use std::arch::x86_64::*;
-    const LOG2E: f64 = std::f64::consts::LOG2_E;
-    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
-    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
-    const SHIFTER: f64 = 6_755_399_441_055_744.0;
+    let ops = simd_lanes!(_mm512_set1_pd, _mm512_mul_pd, _mm512_add_pd, _mm512_sub_pd);
     let set = |v: f64| _mm512_set1_pd(v);
-    let (add, sub, mul) = (_mm512_add_pd, _mm512_sub_pd, _mm512_mul_pd);
     // `clamp`: below the minimum the minimum, above the maximum the maximum.
     let xc = _mm512_min_pd(_mm512_max_pd(x, set(EXP_MIN)), set(EXP_MAX));
-    let k = add(mul(xc, set(LOG2E)), set(SHIFTER));
-    let n = sub(k, set(SHIFTER));
-    let r = sub(sub(xc, mul(n, set(LN2_HI))), mul(n, set(LN2_LO)));
-    let r2 = mul(r, r);
-    let r4 = mul(r2, r2);
-    let r8 = mul(r4, r4);
-    let pair = |a: f64, b: f64| add(set(a), mul(r, set(b)));
-    let c01 = add(set(1.0), r);
-    let c23 = pair(1.0 / 2.0, 1.0 / 6.0);
-    let c45 = pair(1.0 / 24.0, 1.0 / 120.0);
-    let c67 = pair(1.0 / 720.0, 1.0 / 5_040.0);
-    let c89 = pair(1.0 / 40_320.0, 1.0 / 362_880.0);
-    let c1011 = pair(1.0 / 3_628_800.0, 1.0 / 39_916_800.0);
-    let c1213 = pair(1.0 / 479_001_600.0, 1.0 / 6_227_020_800.0);
-    let q0 = add(c01, mul(r2, c23));
-    let q1 = add(c45, mul(r2, c67));
-    let q2 = add(c89, mul(r2, c1011));
-    let poly = add(add(q0, mul(r4, q1)), mul(r8, add(q2, mul(r4, c1213))));
+    let (k, r) = exp_reduce(&ops, xc);
+    let poly = exp_series(&ops, r);
     let ni = _mm512_sub_epi64(
         _mm512_castpd_si512(k),
         _mm512_set1_epi64(SHIFTER.to_bits() as i64),
@@ -722,7 +723,7 @@ pub(crate) unsafe fn exp_for_sums_avx512(
         _mm512_sub_epi64(ni, half),
         bias,
     )));
-    let e = mul(mul(poly, s1), s2);
+    let e = _mm512_mul_pd(_mm512_mul_pd(poly, s1), s2);
     let below = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(x, set(EXP_MIN));
     _mm512_mask_blend_pd(below, e, _mm512_setzero_pd())
 }
@@ -737,36 +738,12 @@ pub(crate) unsafe fn exp_for_sums_avx512(
 #[target_feature(enable = "avx2")]
 pub(crate) unsafe fn exp_for_sums_x4(x: std::arch::x86_64::__m256d) -> std::arch::x86_64::__m256d {
     use std::arch::x86_64::*;
-    const LOG2E: f64 = std::f64::consts::LOG2_E;
-    const LN2_HI: f64 = f64::from_bits(0x3fe6_2e42_fee0_0000);
-    const LN2_LO: f64 = f64::from_bits(0x3dea_39ef_3579_3c76);
-    const SHIFTER: f64 = 6_755_399_441_055_744.0;
+    let ops = simd_lanes!(_mm256_set1_pd, _mm256_mul_pd, _mm256_add_pd, _mm256_sub_pd);
     let set = |v: f64| _mm256_set1_pd(v);
-    let (add, sub, mul) = (
-        |a, b| _mm256_add_pd(a, b),
-        |a, b| _mm256_sub_pd(a, b),
-        |a, b| _mm256_mul_pd(a, b),
-    );
     // `clamp`: below the minimum the minimum, above the maximum the maximum.
     let xc = _mm256_min_pd(_mm256_max_pd(x, set(EXP_MIN)), set(EXP_MAX));
-    let k = add(mul(xc, set(LOG2E)), set(SHIFTER));
-    let n = sub(k, set(SHIFTER));
-    let r = sub(sub(xc, mul(n, set(LN2_HI))), mul(n, set(LN2_LO)));
-    let r2 = mul(r, r);
-    let r4 = mul(r2, r2);
-    let r8 = mul(r4, r4);
-    let pair = |a: f64, b: f64| add(set(a), mul(r, set(b)));
-    let c01 = add(set(1.0), r);
-    let c23 = pair(1.0 / 2.0, 1.0 / 6.0);
-    let c45 = pair(1.0 / 24.0, 1.0 / 120.0);
-    let c67 = pair(1.0 / 720.0, 1.0 / 5_040.0);
-    let c89 = pair(1.0 / 40_320.0, 1.0 / 362_880.0);
-    let c1011 = pair(1.0 / 3_628_800.0, 1.0 / 39_916_800.0);
-    let c1213 = pair(1.0 / 479_001_600.0, 1.0 / 6_227_020_800.0);
-    let q0 = add(c01, mul(r2, c23));
-    let q1 = add(c45, mul(r2, c67));
-    let q2 = add(c89, mul(r2, c1011));
-    let poly = add(add(q0, mul(r4, q1)), mul(r8, add(q2, mul(r4, c1213))));
+    let (k, r) = exp_reduce(&ops, xc);
+    let poly = exp_series(&ops, r);
     let ni = _mm256_sub_epi64(
         _mm256_castpd_si256(k),
         _mm256_set1_epi64x(SHIFTER.to_bits() as i64),
@@ -778,7 +755,7 @@ pub(crate) unsafe fn exp_for_sums_x4(x: std::arch::x86_64::__m256d) -> std::arch
         _mm256_sub_epi64(ni, half),
         bias,
     )));
-    let e = mul(mul(poly, s1), s2);
+    let e = _mm256_mul_pd(_mm256_mul_pd(poly, s1), s2);
     let below = _mm256_cmp_pd::<_CMP_LT_OQ>(x, set(EXP_MIN));
     _mm256_blendv_pd(e, _mm256_setzero_pd(), below)
 }

@@ -6,12 +6,14 @@
 //! - [`fastmath`]: Φ by table interpolation, the exponentials and their slice kernels (uses
 //!   [`fastlog`] and [`normal_cdf`]).
 //!
-//! Order inside: `fastlog` -> `fastmath`; both depend only on [`crate::simd`] below them (and the
-//! tests on [`crate::rng`]), so every layer above (grid, raycast, sensor, crm, rbpf, info, planner) may
-//! use them.
+//! Order inside: `lanes` (the arithmetic that the scalar and vector kernels share), then
+//! [`fastlog`], then [`fastmath`]. Below them only [`crate::simd`] (and, in tests,
+//! [`crate::rng`]), so every layer above (grid, raycast, sensor, crm, rbpf, info, planner) may use
+//! them.
 
 pub mod fastlog;
 pub mod fastmath;
+mod lanes;
 
 /// Standard normal CDF Φ(x), accurate in both tails (via erfc).
 #[inline]

@@ -12,9 +12,9 @@
 
 use rayon::prelude::*;
 
-use crate::crm::{with_thread_scratch, CrmMap, CrmScratch};
-use crate::error::Result;
-use crate::pose::{between, compose, wrap, Pose};
+use crate::crm::{with_thread_scratch, CrmConfig, CrmMap, CrmScratch};
+use crate::error::{config_err, Result};
+use crate::pose::{between, compose, covariance_factor, draw_pose, wrap, Pose};
 use crate::rbpf::clam_config::scan_opts;
 pub use crate::rbpf::clam_config::{ClamConfig, ClamProposal};
 use crate::rbpf::clam_match::{prepare_scan, propose_by_scan_match};
@@ -30,6 +30,42 @@ use crate::rbpf::scanmatch::PreparedScan;
 use crate::resample::{effective_sample_size, normalize_log_weights, systematic_resample};
 use crate::rng::Rng;
 
+/// What a filter continuing a saved run starts from: the saved map (given to every particle)
+/// and the covariance of the saved estimate (m², m·rad, rad²) that spreads the particles.
+#[derive(Clone, Debug)]
+pub struct ClamPrior {
+    pub map: CrmMap,
+    pub cov: [[f64; 3]; 3],
+}
+
+/// A prior map must have the configuration's grid and levels.
+fn check_prior_map(cfg: &CrmConfig, map: &CrmMap) -> Result<()> {
+    let g = map.geometry();
+    if g.resolution != cfg.geometry.resolution || g.origin != cfg.geometry.origin {
+        return Err(config_err(
+            "prior_map",
+            format!(
+                "its grid (resolution {} m, origin {:?}) differs from the filter's ({} m, {:?})",
+                g.resolution, g.origin, cfg.geometry.resolution, cfg.geometry.origin
+            ),
+        ));
+    }
+    let levels = crate::crm::level_values(cfg.n_levels, cfg.placement)?;
+    if map.levels() != levels.as_slice() || map.placement() != cfg.placement {
+        return Err(config_err(
+            "prior_map",
+            format!(
+                "its {} {} levels differ from the filter's {} {}",
+                map.levels().len(),
+                map.placement().name(),
+                levels.len(),
+                cfg.placement.name()
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The RBPF-CLAM filter.
 #[derive(Debug)]
 pub struct RbpfClam {
@@ -39,6 +75,8 @@ pub struct RbpfClam {
     step: u64,
     initial: Pose,
     started: bool,
+    /// The particles started with a saved map: the first scan is weighed, not only mapped.
+    from_prior: bool,
     estimate: Pose,
     estimate_odom: Pose,
     weighed: WeighedSet,
@@ -75,18 +113,41 @@ enum PendingUpdate {
 impl RbpfClam {
     /// A filter whose particles start at `initial` (spread by `init_sigma`) with prior maps.
     pub fn new(cfg: ClamConfig, initial: Pose) -> Result<Self> {
+        Self::build(cfg, initial, None)
+    }
+
+    /// A filter that continues a saved run: every particle starts with `prior`'s map, at a draw
+    /// from N(`initial`, `prior.cov`), and the first scan is weighed against that map like any
+    /// later one (a filter from [`Self::new`] only maps its first scan).
+    pub fn with_prior(cfg: ClamConfig, initial: Pose, prior: ClamPrior) -> Result<Self> {
+        Self::build(cfg, initial, Some(prior))
+    }
+
+    fn build(cfg: ClamConfig, initial: Pose, prior: Option<ClamPrior>) -> Result<Self> {
         cfg.validate()?;
-        let map = CrmMap::new(&cfg.crm)?;
+        let from_prior = prior.is_some();
+        let (map, factor) = match prior {
+            None => (CrmMap::new(&cfg.crm)?, None),
+            Some(p) => {
+                check_prior_map(&cfg.crm, &p.map)?;
+                (p.map, Some(covariance_factor(&p.cov)?))
+            }
+        };
         let n = cfg.n_particles;
         let particles = (0..n)
             .map(|j| {
                 let mut rng = Rng::stream(cfg.seed, 0, j as u64);
-                let s = cfg.init_sigma;
-                let pose = [
-                    initial[0] + s[0] * rng.normal(),
-                    initial[1] + s[1] * rng.normal(),
-                    wrap(initial[2] + s[2] * rng.normal()),
-                ];
+                let pose = match &factor {
+                    Some(l) => draw_pose(initial, l, &mut rng),
+                    None => {
+                        let s = cfg.init_sigma;
+                        [
+                            initial[0] + s[0] * rng.normal(),
+                            initial[1] + s[1] * rng.normal(),
+                            wrap(initial[2] + s[2] * rng.normal()),
+                        ]
+                    }
+                };
                 ClamParticle {
                     pose,
                     log_w: -(n as f64).ln(),
@@ -115,6 +176,7 @@ impl RbpfClam {
             step: 0,
             initial,
             started: false,
+            from_prior,
             estimate: initial,
             estimate_odom: [0.0; 3],
             weighed,
@@ -200,7 +262,7 @@ impl RbpfClam {
             .filter(|z| z.is_finite())
             .fold(self.largest_reading, |m, &z| m.max(z));
         let (u, n_steps, fires) = self.tracker.observe(scan.odom, &self.cfg.trigger);
-        if !self.started {
+        if !self.started && !self.from_prior {
             self.started = true;
             self.integrate_first(scan)?;
             return Ok(FilterStep {
@@ -210,6 +272,9 @@ impl RbpfClam {
                 resampled: false,
             });
         }
+        // With a prior map the first scan is processed as any other (no motion yet: the
+        // tracker's first increment is zero).
+        self.started = true;
         if !fires {
             let carried = compose(self.estimate, between(self.estimate_odom, scan.odom));
             return Ok(FilterStep {

@@ -34,7 +34,7 @@ mod proposal;
 pub mod scanmatch;
 mod scanmatch_params;
 
-pub use clam::{ClamConfig, ClamParticle, ClamProposal, RbpfClam};
+pub use clam::{ClamConfig, ClamParticle, ClamPrior, ClamProposal, RbpfClam};
 pub use clam_match::{MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE};
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,

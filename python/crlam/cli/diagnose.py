@@ -9,12 +9,13 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from crlam.cli_options import add_force_option, positive_float, positive_int, staged_output
+from crlam.cli.conventions import add_output_options, deprecated_alias, group, input_file, print_settings
+from crlam.cli.options import positive_float, positive_int, staged_output
 
 if TYPE_CHECKING:
     from crlam.experiments.known_poses import KnownPoseScan
 
-__all__ = ["add_diagnose_parser", "cmd_likelihood_bias", "reference_pose_scans"]
+__all__ = ["add_parser", "cmd_likelihood_bias", "reference_pose_scans"]
 
 
 def reference_pose_scans(
@@ -81,8 +82,9 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
         heading_half=math.radians(args.heading_half),
         heading_step=math.radians(args.heading_step),
     )
+    print_settings(args, mapping_settings=mapping, search_grid=grid)
     result = likelihood_bias(
-        scans, mapping, every=args.every, warmup=args.warmup, grid=grid, model=args.model, progress=not args.quiet
+        scans, mapping, every=args.every, warmup=args.warmup, grid=grid, model=args.crm_model, progress=not args.quiet
     )
     result.settings.update(
         {"log": str(args.log), "reference": args.reference or "the log's pose fields", "scans_without_reference": missing}
@@ -104,7 +106,8 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_diagnose_parser(sub: argparse._SubParsersAction) -> None:
+def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
+    """Add ``diagnose`` (``likelihood-bias``) to ``sub``."""
     p = sub.add_parser(
         "diagnose",
         help="diagnostics of the models (where the scan likelihood peaks)",
@@ -120,28 +123,40 @@ def add_diagnose_parser(sub: argparse._SubParsersAction) -> None:
         "before it. A consistent offset is a drift every filter weighting by this likelihood inherits. Writes "
         "summary.json, samples.csv and histograms.png.",
     )
-    lb.add_argument("log", help="CARMEN log (plain, .gz or .bz2) or ROS bag (topics and mount detected)")
-    lb.add_argument("--out", required=True, help="output folder")
-    add_force_option(lb)
-    lb.add_argument("--reference", default=None, help="TUM trajectory of the robot, matched to the scans by stamp")
-    lb.add_argument("--log-poses", action="store_true", help="use the log's own pose fields (e.g. a corrected log)")
-    lb.add_argument("--tolerance", type=float, default=1e-6, help="stamp matching tolerance in s (default: 1e-6)")
-    lb.add_argument("--resolution", type=positive_float, default=0.2, help="cell size in m (default: 0.2)")
-    lb.add_argument("--max-range", type=positive_float, default=8.0, help="z_max in m (default: 8)")
-    lb.add_argument("--cause-kernel", choices=("midpoint", "chord"), default="midpoint", help="cause kernel (default: midpoint)")
-    lb.add_argument("--sigma-range", type=float, default=0.01, help="range noise sigma_r in m (default: 0.01)")
-    lb.add_argument(
+    inp = group(lb, "input")
+    inp.add_argument(
+        "log",
+        type=input_file,
+        help="CARMEN log (plain, .gz or .bz2; - reads standard input), ROS bag (topics and mount detected) or dataset name",
+    )
+    inp.add_argument("--max-scans", type=positive_int, default=None, help="only the first N scans")
+    ref = group(lb, "reference poses", "one of --reference and --log-poses")
+    ref.add_argument(
+        "--reference", type=input_file, default=None, help="TUM trajectory of the robot, matched to the scans by stamp"
+    )
+    ref.add_argument("--log-poses", action="store_true", help="use the log's own pose fields (e.g. a corrected log)")
+    ref.add_argument("--tolerance", type=float, default=1e-6, help="stamp matching tolerance in s (default: 1e-6)")
+    m = group(lb, "map and sensor")
+    m.add_argument("--resolution", type=positive_float, default=0.2, help="cell size in m (default: 0.2)")
+    m.add_argument("--max-range", type=positive_float, default=8.0, help="z_max in m (default: 8)")
+    m.add_argument("--cause-kernel", choices=("midpoint", "chord"), default="midpoint", help="cause kernel (default: midpoint)")
+    m.add_argument("--sigma-range", type=float, default=0.01, help="range noise sigma_r in m (default: 0.01)")
+    m.add_argument(
         "--origin", type=float, nargs=2, default=(0.0, 0.0), metavar=("X", "Y"), help="grid origin in m (default: 0 0)"
     )
-    lb.add_argument("--model", choices=("mixture", "ijrr"), default="mixture", help="likelihood model (default: mixture)")
-    lb.add_argument("--every", type=positive_int, default=5, help="evaluate every n-th scan (default: 5)")
-    lb.add_argument("--warmup", type=positive_int, default=20, help="first scan evaluated (default: 20)")
-    lb.add_argument("--max-scans", type=positive_int, default=None, help="only the first N scans")
-    lb.add_argument("--xy-half", type=positive_float, default=0.2, help="half-width of the x/y searches in m (default: 0.2)")
-    lb.add_argument("--xy-step", type=positive_float, default=0.01, help="step of the x/y searches in m (default: 0.01)")
-    lb.add_argument(
+    m.add_argument("--crm-model", choices=("mixture", "ijrr"), default="mixture", help="likelihood model (default: mixture)")
+    search = group(lb, "search")
+    search.add_argument("--every", type=positive_int, default=5, help="evaluate every n-th scan (default: 5)")
+    search.add_argument("--warmup", type=positive_int, default=20, help="first scan evaluated (default: 20)")
+    search.add_argument("--xy-half", type=positive_float, default=0.2, help="half-width of the x/y searches in m (default: 0.2)")
+    search.add_argument("--xy-step", type=positive_float, default=0.01, help="step of the x/y searches in m (default: 0.01)")
+    search.add_argument(
         "--heading-half", type=positive_float, default=1.5, help="half-width of the heading search in deg (default: 1.5)"
     )
-    lb.add_argument("--heading-step", type=positive_float, default=0.05, help="step of the heading search in deg (default: 0.05)")
-    lb.add_argument("--quiet", action="store_true", help="no progress bar")
+    search.add_argument(
+        "--heading-step", type=positive_float, default=0.05, help="step of the heading search in deg (default: 0.05)"
+    )
+    add_output_options(lb)
+    deprecated_alias(lb, "--model", "--crm-model")
     lb.set_defaults(func=cmd_likelihood_bias)
+    return p

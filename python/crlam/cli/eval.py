@@ -1,7 +1,5 @@
-"""The ``crlam eval`` and ``crlam data`` commands (argparse wiring and their actions).
+"""``crlam eval``: trajectory accuracy by the relations metric or against a reference.
 
-``cli.py`` calls :func:`add_eval_parser` and :func:`add_data_parser` with its subparsers; each
-subcommand sets ``func`` to a callable taking the parsed namespace and returning an exit code.
 Errors are raised as :class:`~crlam.errors.CrlamError` (or ``FileNotFoundError``) for the main
 entry point to print.
 """
@@ -12,20 +10,21 @@ import argparse
 import json
 import math
 import os
+import sys
 import textwrap
 from dataclasses import dataclass
-from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
+from crlam.cli.conventions import add_output_options, check_file_output, deprecated_alias, group, input_file, print_settings, say
 from crlam.errors import ConfigError, DataFormatError
 
 if TYPE_CHECKING:
     from crlam.eval.trajectory import ScanIndex
 
-__all__ = ["add_data_parser", "add_eval_parser", "cmd_data_fetch", "cmd_data_list", "cmd_eval", "load_trajectory"]
+__all__ = ["add_parser", "cmd_eval", "load_trajectory"]
 
 _WIDTH = 100
 
@@ -104,11 +103,14 @@ def cmd_eval(args: argparse.Namespace) -> int:
         relations_error,
     )
     from crlam.io.relations import read_relations
+    from crlam.run_folder import staged_file
 
     if args.tolerance < 0 or not math.isfinite(args.tolerance):
         raise ConfigError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
     if args.relations and args.align != "none":
         raise ConfigError("--align applies to --reference: the relations metric does not change under a rigid motion")
+    output = check_file_output(args)
+    print_settings(args)
     traj = load_trajectory(args.trajectory)
     report: dict[str, Any] = {"trajectory": str(args.trajectory), "trajectory_format": traj.fmt, "raw_log": args.raw_log}
     lines = [_wrap("trajectory", f"{args.trajectory} ({traj.fmt.upper()}, {traj.stamps.shape[0]} poses)")]
@@ -183,14 +185,20 @@ def cmd_eval(args: argparse.Namespace) -> int:
             "  APE, translation part (m; evo's statistics)",
             "  " + "  ".join(f"{k[4:-2]} {_fmt(v)}" for k, v in ape.items()),
         ]
+    if args.quiet:
+        lines = lines[lines.index("") + 1 :]  # the table only
     print("\n".join(lines))
-    if args.json:
-        Path(args.json).write_text(json.dumps(_json_safe(report), indent=2) + "\n", encoding="utf-8")
-        print(f"\nwritten {args.json}")
+    text = json.dumps(_json_safe(report), indent=2) + "\n"
+    if args.verbose:
+        print(f"crlam eval: report\n{text}", end="", file=sys.stderr)
+    if output is not None:
+        with staged_file(output) as stage:
+            stage.write_text(text, encoding="utf-8")
+        say(args, f"\nwritten {output}")
     return 0
 
 
-def add_eval_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``eval`` to ``subparsers`` (the object ``ArgumentParser.add_subparsers`` returns)."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         "eval",
@@ -199,88 +207,44 @@ def add_eval_parser(subparsers: Any) -> argparse.ArgumentParser:
         "metric or against a reference trajectory, print a table and optionally write JSON. With --raw-log every scan "
         "of the raw log gets a pose first: processed scans keep theirs, the others take the last processed pose "
         "(in file order) carried by the raw-odometry increment; a CARMEN trajectory whose stamps are not the raw "
-        "ipc stamps (the GMapping-corrected logs) is matched to the raw scans by identical readings.",
+        "ipc stamps (the GMapping-corrected logs) is matched to the raw scans by identical readings. Every file "
+        "argument also takes a dataset name (aces-corrected, aces-relations, aces; see crlam data list) and - for "
+        "standard input.",
     )
-    p.add_argument("trajectory", help="TUM file or CARMEN log (e.g. ../shared/data/corrected/aces-corrected.log.gz)")
-    g = p.add_mutually_exclusive_group(required=True)
-    g.add_argument("--relations", help=".relations file (t1 t2 x y z roll pitch yaw)")
-    g.add_argument("--reference", help="reference trajectory (TUM or CARMEN) in the same frame, matched by stamp")
-    p.add_argument("--raw-log", help="raw CARMEN log or ROS bag whose scans' odometry fills the scans the trajectory lacks")
-    p.add_argument(
-        "--no-backfill",
-        action="store_true",
-        help="leave out the scans before the first processed one instead of filling them backwards; relations on them "
-        "are skipped and counted (this is how the README oracles were measured)",
+    inp = group(p, "input")
+    inp.add_argument(
+        "trajectory",
+        type=input_file,
+        help="TUM file or CARMEN log (e.g. ../shared/data/corrected/aces-corrected.log.gz, or aces-corrected)",
     )
-    p.add_argument("--skip-missing", action="store_true", help="skip (and count) relations whose stamps have no pose")
-    p.add_argument("--tolerance", type=float, default=1e-6, help="stamp matching tolerance after exact lookup, s (default: 1e-6)")
-    p.add_argument(
+    inp.add_argument(
+        "--raw-log", type=input_file, help="raw CARMEN log or ROS bag whose scans' odometry fills the scans the trajectory lacks"
+    )
+    metric = group(p, "metric", "one of --relations and --reference")
+    g = metric.add_mutually_exclusive_group(required=True)
+    g.add_argument("--relations", type=input_file, help=".relations file (t1 t2 x y z roll pitch yaw)")
+    g.add_argument(
+        "--reference", type=input_file, help="reference trajectory (TUM or CARMEN) in the same frame, matched by stamp"
+    )
+    metric.add_argument(
         "--align",
         choices=("none", "se2"),
         default="none",
         help="with --reference: 'se2' first moves the estimate by the rigid motion that best fits it to the reference "
         "(least squares, evo's --align in the plane); 'none' compares the poses as they are (default)",
     )
-    p.add_argument("--json", help="write the summary, the rules used and the inputs to this JSON file")
-    p.set_defaults(func=cmd_eval)
-    return p
-
-
-def cmd_data_list(args: argparse.Namespace) -> int:
-    """Print every known dataset, whether a local copy exists and where."""
-    from crlam.io.datasets import DATASETS, data_root
-    from crlam.io.fetch import REMOTE, cache_dir, locate
-
-    root = data_root()
-    print(f"data folder: {root if root is not None else '(none: set CRLAM_DATA)'}")
-    print(f"cache:       {cache_dir(args.cache)}\n")
-    print(f"{'name':<24s} {'size':>9s}  {'status':<11s} path")
-    for name in list(dict.fromkeys([*REMOTE, *DATASETS])):
-        loc = locate(name, cache=args.cache)
-        remote = REMOTE.get(name)
-        size = f"{remote.size / 1e6:.2f} MB" if remote else "-"
-        print(f"{name:<24s} {size:>9s}  {loc.source:<11s} {loc.path if loc.path is not None else '-'}")
-        desc = remote.description if remote else DATASETS[name].description
-        print(textwrap.fill(desc, width=_WIDTH, initial_indent=" " * 4, subsequent_indent=" " * 4))
-        print(f"    source: {remote.url if remote else 'no public download (derived file)'}")
-    return 0
-
-
-def cmd_data_fetch(args: argparse.Namespace) -> int:
-    """Download datasets into the cache, verifying their SHA-256."""
-    from crlam.io.fetch import REMOTE, fetch, locate
-
-    names = list(REMOTE) if args.names == ["all"] else list(args.names)
-    if args.url and len(names) != 1:
-        raise ConfigError("--url needs exactly one dataset name")
-    for name in names:
-        loc = locate(name, cache=args.cache)
-        if loc.source == "data folder" and not args.force:
-            print(f"{name}: available in the data folder at {loc.path} (use --force to download it into the cache)")
-            continue
-        path = fetch(name, cache=args.cache, url=args.url, progress=not args.quiet, force=args.force)
-        print(f"{name}: {path} (SHA-256 verified)")
-    return 0
-
-
-def add_data_parser(subparsers: Any) -> argparse.ArgumentParser:
-    """Add ``data`` (``list``, ``fetch``) to ``subparsers``."""
-    p: argparse.ArgumentParser = subparsers.add_parser(
-        "data",
-        help="list the real datasets and download them into a cache",
-        description="The real 2D laser datasets (Freiburg SLAM-evaluation logs and relations, GMapping-corrected logs) "
-        "are looked up in $CRLAM_DATA, then in the cache ($XDG_CACHE_HOME/crlam or ~/.cache/crlam).",
+    match = group(p, "matching")
+    match.add_argument(
+        "--no-backfill",
+        action="store_true",
+        help="leave out the scans before the first processed one instead of filling them backwards; relations on them "
+        "are skipped and counted (this is how the README oracles were measured)",
     )
-    sub = p.add_subparsers(dest="data_command", metavar="ACTION")
-    sub.required = True
-    q = sub.add_parser("list", help="every dataset, whether a local copy exists and where")
-    q.add_argument("--cache", help="cache folder (default: $XDG_CACHE_HOME/crlam or ~/.cache/crlam)")
-    q.set_defaults(func=cmd_data_list)
-    q = sub.add_parser("fetch", help="download datasets into the cache (SHA-256 verified, atomic)")
-    q.add_argument("names", nargs="+", metavar="NAME", help="dataset names (see `crlam data list`), or all")
-    q.add_argument("--cache", help="cache folder (default: $XDG_CACHE_HOME/crlam or ~/.cache/crlam)")
-    q.add_argument("--url", help="download from this URL instead (mirror or file:// copy); the checksum is still verified")
-    q.add_argument("--force", action="store_true", help="download even if a local copy exists")
-    q.add_argument("--quiet", action="store_true", help="no progress bar")
-    q.set_defaults(func=cmd_data_fetch)
+    match.add_argument("--skip-missing", action="store_true", help="skip (and count) relations whose stamps have no pose")
+    match.add_argument(
+        "--tolerance", type=float, default=1e-6, help="stamp matching tolerance after exact lookup, s (default: 1e-6)"
+    )
+    add_output_options(p, out="write the summary, the rules used and the inputs to this JSON file", required=False)
+    deprecated_alias(p, "--json", "--out")
+    p.set_defaults(func=cmd_eval)
     return p

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from crlam.cli_options import nonnegative_int
+from crlam.cli.options import nonnegative_int
 from crlam.errors import ConfigError
 from crlam.experiments.executor import Executor
 from crlam.experiments.pool import DEFAULT_RETRIES, LocalExecutor

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any, TypeVar
 
 __all__ = [
@@ -29,12 +29,9 @@ __all__ = [
     "WEIGHT_SMOOTHING_HELP",
     "add_bag_options",
     "add_odometry_options",
-    "add_estimate_options",
-    "add_force_option",
-    "add_likelihood_mode_options",
-    "add_map_options",
     "add_preset_option",
-    "add_resume_options",
+    "FROM_PRESET",
+    "add_slam_flags",
     "bag_options",
     "slam_overrides",
     "stored_input_options",
@@ -169,43 +166,115 @@ SIGMA_RANGE_HELP = (
     "default: the preset's)"
 )
 
+#: How every SLAM flag's help ends: the flag overrides the preset, whose value is the default.
+FROM_PRESET = "default: the preset's"
 
-def add_likelihood_mode_options(parser: argparse.ArgumentParser) -> None:
-    """``--lattice-step DXY DTHETA`` and ``--motion-outlier EPS`` of the likelihood-mode proposal, shared by
-    ``slam`` and the experiments."""
-    parser.add_argument(
-        "--lattice-step", type=positive_float, nargs=2, default=None, metavar=("DXY", "DTHETA"), help=LATTICE_STEP_HELP
-    )
-    parser.add_argument(
-        "--motion-outlier",
-        type=nonnegative_float,
-        default=None,
-        metavar="EPS",
-        help="RBPF-CLAM likelihood_mode: probability that an odometry increment is an outlier; the climb's motion "
-        "density gets a floor of log EPS, so a large likelihood gain (a loop closure) can move the pose however "
-        "tight the motion model (paper: 0, off; default: the preset's)",
-    )
+#: The SLAM flags of ``crlam slam`` and the experiments: flag -> (help group, add_argument keywords).
+#: Every one defaults to None (not given: the preset's value stays); :func:`slam_overrides` reads them.
+SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
+    "--method": ("filter", dict(choices=("clam", "ogm"), help=f"filter (paper: clam; {FROM_PRESET})")),
+    "--particles": ("filter", dict(type=positive_int, help=f"number of particles (paper: 100; {FROM_PRESET})")),
+    "--seed": ("filter", dict(type=nonnegative_int, help=f"random seed ({FROM_PRESET}; 0 unless it sets one)")),
+    "--proposal": ("filter", dict(choices=PROPOSALS, help=PROPOSAL_HELP)),
+    "--proposal-pose": ("filter", dict(choices=("sample", "match"), help=PROPOSAL_POSE_HELP)),
+    "--match-stride": ("filter", dict(type=positive_int, help=MATCH_STRIDE_HELP)),
+    "--lattice-step": ("filter", dict(type=positive_float, nargs=2, metavar=("DXY", "DTHETA"), help=LATTICE_STEP_HELP)),
+    "--motion-outlier": (
+        "filter",
+        dict(
+            type=nonnegative_float,
+            metavar="EPS",
+            help="RBPF-CLAM likelihood_mode: probability that an odometry increment is an outlier; the climb's motion "
+            "density gets a floor of log EPS, so a large likelihood gain (a loop closure) can move the pose however "
+            "tight the motion model (paper: 0, off; default: the preset's)",
+        ),
+    ),
+    "--weight-stride": ("filter", dict(type=positive_int, help=f"every n-th beam for the weights (paper: 1; {FROM_PRESET})")),
+    "--tempering": ("filter", dict(type=positive_float, help=f"weight tempering tau (paper: 1; {FROM_PRESET})")),
+    "--tempering-beams": ("filter", dict(type=positive_float, metavar="B", help=TEMPERING_BEAMS_HELP)),
+    "--scan-match-weight": ("filter", dict(choices=("crm", "endpoint"), help=SCAN_MATCH_WEIGHT_HELP)),
+    "--match-range": ("filter", dict(type=match_range, metavar="z_max|full|M", help=MATCH_RANGE_HELP)),
+    "--linear-update": (
+        "filter",
+        dict(
+            type=nonnegative_float,
+            help=f"process a scan after this travel in m (paper: 0, every scan; GMapping's default is 1; {FROM_PRESET})",
+        ),
+    ),
+    "--angular-update": (
+        "filter",
+        dict(
+            type=nonnegative_float,
+            help=f"... or this rotation in rad (paper: 0, every scan; GMapping's default is 0.5; {FROM_PRESET})",
+        ),
+    ),
+    "--ogm-map": ("filter", dict(choices=OGM_MAPS, help=OGM_MAP_HELP)),
+    "--ogm-motion-draws": ("filter", dict(choices=MOTION_DRAWS, help=MOTION_DRAWS_HELP)),
+    "--ogm-weight-smoothing": ("filter", dict(type=nonnegative_float, help=WEIGHT_SMOOTHING_HELP)),
+    "--resolution": (
+        "map and sensor",
+        dict(type=positive_float, help=f"cell size in metres (paper: 0.2; {FROM_PRESET})"),
+    ),
+    "--max-range": ("map and sensor", dict(type=positive_float, help=f"z_max in metres (paper: 8; {FROM_PRESET})")),
+    "--map-stride": (
+        "map and sensor",
+        dict(type=positive_int, help=f"every n-th beam for the map update (paper: 1; {FROM_PRESET})"),
+    ),
+    "--sigma-range": ("map and sensor", dict(type=nonnegative_float, help=SIGMA_RANGE_HELP)),
+    "--cause-kernel": ("map and sensor", dict(choices=CAUSE_KERNELS, help=CAUSE_KERNEL_HELP)),
+    "--batch-kernel": ("map and sensor", dict(choices=BATCH_KERNELS, help=f"{BATCH_KERNEL_HELP} ({FROM_PRESET})")),
+    "--motion": (
+        "motion model",
+        dict(
+            choices=("gaussian", "thrun", "gmapping"),
+            help=f"odometry noise model (paper: gaussian; {FROM_PRESET}); gmapping is GMapping's own model",
+        ),
+    ),
+    "--motion-params": (
+        "motion model",
+        dict(
+            type=float,
+            nargs="+",
+            metavar="P",
+            help="3 sigmas (gaussian), 4 alphas (thrun; RBPF-OGM's thrun default is 0.04 0.01 0.01 0.04) or srr srt "
+            f"str stt (gmapping; default 0.1 0.2 0.1 0.2) ({FROM_PRESET}; unset there: the model's own)",
+        ),
+    ),
+    "--motion-noise": ("motion model", dict(choices=("model", "estimate"), help=MOTION_NOISE_HELP)),
+    "--mode-bandwidth": (
+        "estimates",
+        dict(
+            type=positive_float,
+            nargs=2,
+            metavar=("DXY", "DTHETA"),
+            help="kernel bandwidths (m, rad) of the mode-seeking estimate written to estimates/mode.tum (the weighted "
+            "mean of the densest group of particles; it does not change the filter; paper: 0.05 0.025; default: the "
+            "preset's)",
+        ),
+    ),
+    "--smoothing-lag": (
+        "estimates",
+        dict(
+            type=nonnegative_int,
+            metavar="L",
+            help="lineage smoother written to estimates/smoothed.tum: weigh each processed scan's particle ancestors "
+            "with the weights L processed scans later (default: the preset's; unset there: the final weights, full "
+            "smoothing)",
+        ),
+    ),
+}
 
 
-def add_estimate_options(parser: argparse.ArgumentParser) -> None:
-    """``--mode-bandwidth DXY DTHETA`` and ``--smoothing-lag L``: the estimates recorded next to the weighted mean."""
-    parser.add_argument(
-        "--mode-bandwidth",
-        type=positive_float,
-        nargs=2,
-        default=None,
-        metavar=("DXY", "DTHETA"),
-        help="kernel bandwidths (m, rad) of the mode-seeking estimate written to estimates/mode.tum (the weighted mean of "
-        "the densest group of particles; it does not change the filter; paper: 0.05 0.025; default: the preset's)",
-    )
-    parser.add_argument(
-        "--smoothing-lag",
-        type=nonnegative_int,
-        default=None,
-        metavar="L",
-        help="lineage smoother written to estimates/smoothed.tum: weigh each processed scan's particle ancestors with "
-        "the weights L processed scans later (default: the preset's; unset there: the final weights, full smoothing)",
-    )
+def add_slam_flags(parser: argparse.ArgumentParser, names: Sequence[str], **changes: dict[str, Any]) -> None:
+    """Adds the SLAM flags ``names`` (keys of :data:`SLAM_FLAGS`, in that order) to their help
+    groups; ``changes`` maps a flag's argparse name (``motion_params``) to keywords that replace
+    the shared ones for this command."""
+    from crlam.cli.conventions import group
+
+    for name in names:
+        title, spec = SLAM_FLAGS[name]
+        spec = {**spec, "default": None, **changes.get(name[2:].replace("-", "_"), {})}
+        group(parser, title).add_argument(name, **spec)
 
 
 def add_preset_option(parser: argparse._ActionsContainer, default: str) -> None:
@@ -237,37 +306,6 @@ def slam_overrides(args: argparse.Namespace) -> dict[str, Any]:
         if f.name != "preset" and value is not None:
             out[f.name] = tuple(value) if isinstance(value, list) else value
     return out
-
-
-def add_map_options(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("map settings")
-    g.add_argument("--resolution", type=positive_float, default=0.2, help="cell size in metres (default: 0.2)")
-    g.add_argument(
-        "--max-range", type=positive_float, default=8.0, help="z_max in metres; longer readings are no-returns (default: 8)"
-    )
-    g.add_argument(
-        "--model",
-        choices=("ijrr", "mixture", "authors_code"),
-        default="ijrr",
-        help="sensor cause model of the CRM update (default: ijrr)",
-    )
-    g.add_argument(
-        "--levels",
-        choices=("midpoints", "endpoints", "r1_right"),
-        default="midpoints",
-        help="occupancy level placement (default: midpoints)",
-    )
-    g.add_argument(
-        "--scan-update", choices=("batch", "sequential"), default="batch", help="how the beams of a scan combine (default: batch)"
-    )
-    g.add_argument(
-        "--cause-kernel",
-        choices=CAUSE_KERNELS,
-        default="midpoint",
-        help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord",
-    )
-    g.add_argument("--batch-kernel", choices=BATCH_KERNELS, default="windowed", help=BATCH_KERNEL_HELP)
-    g.add_argument("--beam-stride", type=positive_int, default=1, help="use every n-th beam (default: 1)")
 
 
 def add_bag_options(p: argparse.ArgumentParser) -> None:
@@ -421,15 +459,6 @@ def apply_limit_options(args: argparse.Namespace) -> None:
         set_limits(**given)
 
 
-def add_force_option(parser: argparse.ArgumentParser) -> None:
-    """``--force``: replace an existing output (once the new one is complete)."""
-    parser.add_argument(
-        "--force",
-        action="store_true",
-        help="replace an existing output; the old one stays untouched until the new one is complete",
-    )
-
-
 def staged_output(args: argparse.Namespace, out: str | None = None):  # type: ignore[no-untyped-def]
     """The staging folder of the command's ``--out`` (see :mod:`crlam.run_folder`), after the
     up-front check: a context manager yielding the folder to write into."""
@@ -437,15 +466,3 @@ def staged_output(args: argparse.Namespace, out: str | None = None):  # type: ig
 
     path = check_output(out if out is not None else args.out, force=getattr(args, "force", False))
     return staged_folder(path, command=f"crlam {args.command}")
-
-
-def add_resume_options(parser: argparse.ArgumentParser) -> None:
-    """``--resume`` and ``--force`` of the resumable experiments."""
-    g = parser.add_mutually_exclusive_group()
-    g.add_argument(
-        "--resume",
-        action="store_true",
-        help="continue the experiment folder: finished runs are kept when it was made with the same settings (else an "
-        "error lists the differences); unreadable runs are done again",
-    )
-    g.add_argument("--force", action="store_true", help="empty an existing experiment folder and start anew")

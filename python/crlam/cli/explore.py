@@ -6,9 +6,10 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from crlam.cli_options import add_force_option, finite_float, positive_float, positive_int, staged_output
+from crlam.cli.conventions import add_output_options, deprecated_alias, group, print_settings, say, world_arg
+from crlam.cli.options import finite_float, positive_float, positive_int, staged_output
 
-__all__ = ["add_explore_parser", "cmd_explore"]
+__all__ = ["add_parser", "cmd_explore"]
 
 
 def cmd_explore(args: argparse.Namespace) -> int:
@@ -18,7 +19,7 @@ def cmd_explore(args: argparse.Namespace) -> int:
     from crlam.sim.worlds import get_world
 
     output = staged_output(args)  # the output is checked before the run, written after it
-    world = get_world(args.world, seed=args.world_seed, resolution=args.world_resolution)
+    world = get_world(args.world, seed=args.world_seed, resolution=args.resolution)
     cfg = ExploreConfig(
         function=args.function,
         alpha=args.alpha,
@@ -28,14 +29,15 @@ def cmd_explore(args: argparse.Namespace) -> int:
         radius_m=args.radius,
         cost_weight=args.cost_weight,
         sensor_range=args.max_range,
-        particles=args.particles,
+        particles=args.ucrmi_particles,
         seed=args.seed,
         slam=args.slam,
         slam_particles=args.slam_particles,
     )
     start = tuple(args.start) + (0.0,) if args.start else default_start(world, cfg.resolution)
-    print(f"exploring {world.name} from ({start[0]:.1f}, {start[1]:.1f}) with {cfg.function} ...", flush=True)
-    run = explore(world, (start[0], start[1], start[2]), cfg, progress=not args.quiet)
+    print_settings(args, explore_settings=cfg)
+    say(args, f"exploring {world.name} from ({start[0]:.1f}, {start[1]:.1f}) with {cfg.function} ...")
+    run = explore(world, (start[0], start[1], start[2]), cfg, progress=not args.quiet, verbose=args.verbose)
     with output as stage:
         files = write_explore_folder(run, stage, gif=not args.no_gif)
     last = run.decisions[-1] if run.decisions else {}
@@ -51,7 +53,7 @@ def cmd_explore(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
+def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     """Add ``explore`` to ``subparsers``."""
     p: argparse.ArgumentParser = subparsers.add_parser(
         "explore",
@@ -64,30 +66,41 @@ def add_explore_parser(subparsers: Any) -> argparse.ArgumentParser:
         "trajectory.tum, groundtruth.tum, map.pgm/yaml, belief.npz, metrics.json, progress.csv, exploration.png "
         "(trajectory over the final CRM and its CRMI surface), progress.png and exploration.gif.",
     )
-    p.add_argument("--world", default="office", help="museum | office | a map file (PGM/PNG/Nav2 YAML)")
-    p.add_argument("--world-seed", type=int, default=0, help="seed of a procedural world (default: 0)")
-    p.add_argument("--world-resolution", type=positive_float, default=None, help="m per pixel of a bare image")
-    p.add_argument("--function", choices=("crmi", "ucrmi", "fsmi", "frontier"), default="crmi")
-    p.add_argument("--alpha", type=finite_float, default=0.5, help="UCRMI weight of the map term (default: 0.5)")
-    p.add_argument("--budget", type=positive_float, default=150.0, help="travel budget in metres (default: 150)")
-    p.add_argument("--threshold", type=finite_float, default=0.1, help="stop when the best gain is below this (default: 0.1)")
-    p.add_argument("--candidates", type=positive_int, default=200, help="candidates per decision (default: 200)")
-    p.add_argument("--radius", type=positive_float, default=5.0, help="candidate radius in metres (default: 5)")
-    p.add_argument("--cost-weight", type=finite_float, default=0.0, help="score = gain / cost^w (default 0: pure gain)")
-    p.add_argument("--max-range", type=positive_float, default=5.0, help="sensor range in metres (default: 5)")
-    p.add_argument("--particles", type=positive_int, default=30, help="UCRMI particles (default: 30)")
-    p.add_argument(
+    inp = group(p, "world")
+    inp.add_argument(
+        "--world", type=world_arg, default="office", help="museum | office | a map file (PGM/PNG/Nav2 YAML) or map dataset"
+    )
+    inp.add_argument("--world-seed", type=int, default=0, help="seed of a procedural world (default: 0)")
+    inp.add_argument(
+        "--resolution",
+        type=positive_float,
+        default=None,
+        help="m per pixel of a bare image; cell size of a procedural world (default: 0.05)",
+    )
+    inp.add_argument("--start", type=finite_float, nargs=2, metavar=("X", "Y"), help="start position (default: a free corner)")
+    fn = group(p, "planner")
+    fn.add_argument("--function", choices=("crmi", "ucrmi", "fsmi", "frontier"), default="crmi", help="information function")
+    fn.add_argument("--alpha", type=finite_float, default=0.5, help="UCRMI weight of the map term (default: 0.5)")
+    fn.add_argument("--ucrmi-particles", type=positive_int, default=30, help="UCRMI pose particles (default: 30)")
+    fn.add_argument("--candidates", type=positive_int, default=200, help="candidates per decision (default: 200)")
+    fn.add_argument("--radius", type=positive_float, default=5.0, help="candidate radius in metres (default: 5)")
+    fn.add_argument("--cost-weight", type=finite_float, default=0.0, help="score = gain / cost^w (default 0: pure gain)")
+    fn.add_argument("--threshold", type=finite_float, default=0.1, help="stop when the best gain is below this (default: 0.1)")
+    fn.add_argument("--budget", type=positive_float, default=150.0, help="travel budget in metres (default: 150)")
+    sensor = group(p, "sensor")
+    sensor.add_argument("--max-range", type=positive_float, default=5.0, help="sensor range in metres (default: 5)")
+    slam = group(p, "filter")
+    slam.add_argument(
         "--slam",
         action="store_true",
         help="estimate the pose with RBPF-CLAM from noisy odometry and the scans (decisions use its best map and "
         "its estimate; UCRMI sees its particle set) instead of knowing it",
     )
-    p.add_argument("--slam-particles", type=positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
-    p.add_argument("--start", type=finite_float, nargs=2, metavar=("X", "Y"), help="start position (default: a free corner)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and candidate sampling")
-    p.add_argument("--out", required=True, help="output folder")
-    add_force_option(p)
-    p.add_argument("--no-gif", action="store_true", help="skip the animation")
-    p.add_argument("--quiet", action="store_true", help="no per-decision output")
+    slam.add_argument("--slam-particles", type=positive_int, default=30, help="RBPF-CLAM particles (default: 30)")
+    slam.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and candidate sampling")
+    out = add_output_options(p)
+    out.add_argument("--no-gif", action="store_true", help="skip the animation")
+    deprecated_alias(p, "--world-resolution", "--resolution")
+    deprecated_alias(p, "--particles", "--ucrmi-particles")
     p.set_defaults(func=cmd_explore)
     return p

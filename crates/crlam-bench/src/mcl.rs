@@ -1,0 +1,107 @@
+//! The Monte Carlo localization workload of `crlam bench` (`mcl_scans_per_s_1000p`): a fixed
+//! particle count on a CRM mapped from the filter workload's room.
+
+use crlam_core::crm::{CrmConfig, CrmMap, CrmScratch};
+use crlam_core::error::Result;
+use crlam_core::grid::GridGeometry;
+use crlam_core::sensor::{SensorModel, SensorModelKind};
+
+use crate::slam::{filter_figure, filter_workload, time_filter_cpu, BenchFigure};
+
+/// Monte Carlo localization scans per second on one thread with a fixed particle count: the
+/// filter workload's room mapped with known poses into a CRM at 0.05 m, then localized from a
+/// Gaussian around the start, every scan processed (motion draw, CRM likelihood of every beam,
+/// clusters, KLD resampling with `n_min = n_max = n_particles`), recovery on.
+pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<BenchFigure> {
+    use crlam_core::crm::ScanOptions;
+    use crlam_core::mcl::{KldSettings, LikelihoodSettings, Mcl, MclConfig, MclInit, MeanField};
+    use crlam_core::motion::MotionModel;
+    use crlam_core::rbpf::UpdateTrigger;
+    let fov = 180.0;
+    let z_max = 20.0;
+    let w = filter_workload(n_scans + 1, n_beams, fov, z_max)?;
+    let g = GridGeometry::new([0.0, 0.0], 0.05)?;
+    let mut map = CrmMap::new(&CrmConfig::new(g))?;
+    let ijrr = SensorModel::with_defaults(SensorModelKind::Ijrr, z_max, 0.05);
+    let mut sc = CrmScratch::default();
+    for (o, r) in w.odom.iter().zip(&w.ranges) {
+        map.update_scan(*o, &w.angles, r, &ijrr, &ScanOptions::default(), &mut sc)?;
+    }
+    let rect = map.grid().written_bounds().unwrap_or(map.grid().bounds());
+    let field = std::sync::Arc::new(MeanField::from_crm(
+        &map,
+        rect,
+        0.25,
+        (z_max / 0.05) as usize,
+    )?);
+    let cfg = MclConfig {
+        likelihood: LikelihoodSettings {
+            model: SensorModel::with_defaults(SensorModelKind::Mixture, z_max, 0.05),
+            tail_tolerance: 1e-6,
+            skip_no_returns: false,
+        },
+        motion: MotionModel::gmapping(),
+        trigger: UpdateTrigger::every_scan(),
+        spread_trigger: UpdateTrigger::every_scan(),
+        spread_limit: 0.5,
+        kld: crlam_core::mcl::KldSettings {
+            n_min: n_particles,
+            n_max: n_particles,
+            ..KldSettings::default()
+        },
+        alpha_slow: 0.001,
+        alpha_fast: 0.1,
+        tempering: 1.0,
+        min_neff: 0.0,
+        sigma_max: 0.0,
+        anneal: 0.0,
+        beam_stride: 1,
+        max_beams: 0,
+        resample_threshold: 1.0,
+        seed: 0,
+    };
+    let cov = [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.003]];
+    let mut f = Mcl::new(
+        cfg,
+        field,
+        MclInit::Pose {
+            mean: w.odom[0],
+            cov,
+        },
+    )?;
+    let (secs, cpu) = time_filter_cpu(&w, n_scans, |s| {
+        f.process(s).map(|m| crlam_core::rbpf::FilterStep {
+            processed: m.processed,
+            estimate: m.estimate,
+            neff: m.neff,
+            resampled: m.resampled,
+        })
+    })?;
+    let name = match (n_particles, n_beams) {
+        (1000, 180) => "mcl_scans_per_s_1000p",
+        _ => "mcl_scans_per_s",
+    };
+    Ok(BenchFigure {
+        cpu_seconds: cpu,
+        ..filter_figure(
+            name,
+            "processed scan (1000 particles: motion draw, CRM likelihood of 180 beams over 180 deg, 20 m, 0.05 m map; clusters; KLD resampling; one thread)",
+            n_scans,
+            secs,
+        )
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    #[ignore = "timing, run by hand"]
+    fn mcl_timing() {
+        let n = std::env::var("MCL_SCANS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(20);
+        let f = super::mcl_scans(n, 1000, 180).unwrap();
+        eprintln!("{f:?}");
+    }
+}

@@ -1,0 +1,609 @@
+//! Monte Carlo localization on a fixed confidence-rich map (Thrun, Burgard, Fox, *Probabilistic
+//! Robotics*, Table 8.3, with KLD sampling, Fox 2003): AMCL's algorithm with the CRM predictive
+//! likelihood as the measurement model.
+//!
+//! Per processed scan: move every particle by a draw of the odometry motion model, multiply its
+//! weight by the scan's likelihood (tempered: Σ log η / τ), form the clusters of the weighted set
+//! and report the heaviest one's mean; then, when N_eff falls below the threshold or recovery
+//! asks for random particles, draw a new set by KLD sampling: particles are drawn one by one,
+//! multinomially from the weights or, with probability p = max(0, 1 − w_fast / w_slow), uniformly
+//! over the map's free space, until the particles drawn from the weights reach Fox's bound for the
+//! number of histogram bins they occupy (within [n_min, n_max]), or the set reaches n_max. The
+//! random particles come on top of the bound, a share p of the set: AMCL counts their bins too,
+//! and then a dip of the fit to a few percent of random particles, each in a bin of its own, sends
+//! a tracking filter to n_max.
+//!
+//! Recovery (Augmented MCL): w_slow and w_fast follow a measure of how well the scans fit the map
+//! with rates α_slow < α_fast, and the random share is max(0, 1 − w_fast / w_slow). AMCL's measure
+//! is the mean likelihood of the scan over the particles; with the CRM likelihood that mean is
+//! ruled by the scene (a beam to a near wall has a likelihood many times that of a beam to a far
+//! one, the reach through free cells decaying with distance), so moving from a corridor into a
+//! hall reads as a lost robot. The measure here is the share of the scan the map explains: per
+//! beam the posterior probability that a cell the map holds occupied (not the mixture's noise
+//! terms, nor a cell of unknown occupancy, which would explain any reading) returned it
+//! ([`super::likelihood::BeamEta::explained`]), averaged over the beams and over the particles
+//! with their posterior weights. It is near its usual level wherever the robot is placed right,
+//! and falls when the scans stop fitting (a kidnapping, a wrong convergence). Both averages start
+//! at the first scan's value (AMCL starts them at 0, which delays any recovery until w_slow has
+//! grown over ~1/α_slow scans).
+//!
+//! Determinism: particle j's motion draw at processed scan k comes from
+//! `Rng::stream(seed, 3k, j)`, the i-th draw of the resampling from `Rng::stream(seed, 3k + 1, i)`
+//! and the initial particles from `Rng::stream(seed, 0, j)`; weights are computed per particle
+//! and combined in index order, so the results do not depend on the number of threads.
+
+use std::sync::Arc;
+
+use rayon::prelude::*;
+
+use crate::error::{config_err, Result};
+use crate::mcl::cluster::{clusters, Cluster};
+use crate::mcl::field::MeanField;
+use crate::mcl::kld::{BinCounter, KldSettings};
+use crate::mcl::likelihood::{scan_log_likelihood, select_beams, LikelihoodSettings, ScanFit};
+use crate::motion::MotionModel;
+use crate::pose::{between, compose, covariance_factor, draw_pose, Pose};
+use crate::rbpf::{OdometryTracker, ScanInput, UpdateTrigger};
+use crate::resample::{effective_sample_size, normalize_log_weights};
+use crate::rng::Rng;
+use crate::sensor::SensorModel;
+
+/// Settings of the localizer.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MclConfig {
+    pub likelihood: LikelihoodSettings,
+    pub motion: MotionModel,
+    pub trigger: UpdateTrigger,
+    /// The trigger while the set is spread (its spread, as for the annealing of the hit term,
+    /// above `spread_limit`): scans of nearly the same view are not independent evidence, and a
+    /// spread set that weighs each of them as such collapses onto whichever place fits best by
+    /// chance. AMCL processes every scan this way (update_min_d 0.25 m, update_min_a 0.2 rad).
+    pub spread_trigger: UpdateTrigger,
+    /// Spread (m) above which the set counts as spread.
+    pub spread_limit: f64,
+    pub kld: KldSettings,
+    /// Rate of the long-term average of the fit (AMCL's `recovery_alpha_slow`); 0 with
+    /// `alpha_fast` 0 turns recovery off.
+    pub alpha_slow: f64,
+    /// Rate of the short-term average (`recovery_alpha_fast`), above `alpha_slow`.
+    pub alpha_fast: f64,
+    /// Weight tempering τ: a scan multiplies the weights by exp(Σ log η / τ).
+    pub tempering: f64,
+    /// Annealing of the hit term: a scan is weighed with σ_hit = clamp(`anneal` · s, σ, `sigma_max`)
+    /// where σ is the model's and s the spread of the weighted set at the last scan: of its
+    /// heaviest cluster when that holds at least half the weight, else of the whole set (the RMS
+    /// distance of the particles from their mean position plus 1 m times their circular heading
+    /// spread in radians; a set split in several places has the spread of all). A few random
+    /// particles of recovery that gain some weight do not widen it. Particles spread over metres
+    /// (a global start) are weighed with a wide hit term, which a particle decimetres from the
+    /// true pose still fits; once they gather, σ returns to the model's. `sigma_max` ≤ σ turns
+    /// it off.
+    pub sigma_max: f64,
+    pub anneal: f64,
+    /// Smallest share of the effective sample size a scan may leave while the set is spread (see
+    /// `spread_limit`): when the weights at τ would bring N_eff below `min_neff` times its value
+    /// before the scan (the particle count right after resampling), the scan is tempered more (τ
+    /// raised until they do not). A gathered set keeps τ. 0 turns this off.
+    pub min_neff: f64,
+    /// Every n-th beam of a scan.
+    pub beam_stride: usize,
+    /// At most this many of those, spread evenly (0: all).
+    pub max_beams: usize,
+    /// Resample when N_eff < threshold · n (1: at every processed scan) or when recovery injects.
+    pub resample_threshold: f64,
+    pub seed: u64,
+}
+
+impl MclConfig {
+    pub fn validate(&self) -> Result<()> {
+        self.likelihood.validate()?;
+        self.motion.validate()?;
+        self.trigger.validate()?;
+        self.spread_trigger.validate()?;
+        if !(self.spread_limit.is_finite() && self.spread_limit >= 0.0) {
+            return Err(config_err("spread_limit", "must be finite and >= 0"));
+        }
+        self.kld.validate()?;
+        let unit = |v: f64| v.is_finite() && (0.0..=1.0).contains(&v);
+        if !(unit(self.alpha_slow) && unit(self.alpha_fast)) {
+            return Err(config_err(
+                "recovery_alpha",
+                "alpha_slow and alpha_fast must be in [0, 1]",
+            ));
+        }
+        if self.alpha_slow > 0.0 && self.alpha_fast <= self.alpha_slow {
+            return Err(config_err(
+                "recovery_alpha",
+                format!(
+                    "alpha_fast ({}) must exceed alpha_slow ({})",
+                    self.alpha_fast, self.alpha_slow
+                ),
+            ));
+        }
+        if !(self.tempering.is_finite() && self.tempering > 0.0) {
+            return Err(config_err(
+                "tempering",
+                format!("must be > 0, got {}", self.tempering),
+            ));
+        }
+        if self.beam_stride == 0 {
+            return Err(config_err("beam_stride", "must be >= 1"));
+        }
+        if !(self.sigma_max.is_finite()
+            && self.sigma_max >= 0.0
+            && self.anneal.is_finite()
+            && self.anneal >= 0.0)
+        {
+            return Err(config_err(
+                "sigma_max",
+                "sigma_max and anneal must be finite and >= 0",
+            ));
+        }
+        if !(self.min_neff.is_finite() && (0.0..1.0).contains(&self.min_neff)) {
+            return Err(config_err(
+                "min_neff",
+                format!("must be in [0, 1), got {}", self.min_neff),
+            ));
+        }
+        if !unit(self.resample_threshold) {
+            return Err(config_err("resample_threshold", "must be in [0, 1]"));
+        }
+        Ok(())
+    }
+
+    /// True when recovery can inject particles.
+    pub fn recovery(&self) -> bool {
+        self.alpha_slow > 0.0
+    }
+}
+
+/// How the particles start.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MclInit {
+    /// `n_max` particles drawn from N(mean, cov) (cov: 3 × 3, symmetric, positive semidefinite;
+    /// m², m·rad, rad²).
+    Pose { mean: Pose, cov: [[f64; 3]; 3] },
+    /// `n_max` particles uniformly over the map's free space, uniform headings.
+    Global,
+}
+
+/// What one call of [`Mcl::process`] did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MclStep {
+    /// Whether the scan was processed (the update trigger fired) or only carried by odometry.
+    pub processed: bool,
+    /// The heaviest cluster's mean (processed scans), else the last one composed with the
+    /// odometry since.
+    pub estimate: Pose,
+    /// Particles weighed at this scan (before resampling).
+    pub n_particles: usize,
+    /// Particles after this scan (after resampling, if any).
+    pub n_after: usize,
+    /// Effective sample size of the weights (before resampling); NaN when not processed.
+    pub neff: f64,
+    pub resampled: bool,
+    /// Particles drawn from the free space by recovery.
+    pub n_injected: usize,
+    /// max(0, 1 − w_fast / w_slow) at this scan.
+    pub inject_probability: f64,
+    /// The scan's fit: the share the map explains (see the module documentation), in [0, 1];
+    /// NaN when no beam was used.
+    pub fit: f64,
+    /// Beams the likelihood used.
+    pub n_beams: usize,
+    /// The tempering the scan was weighed with (τ, or more to keep N_eff at `min_neff`).
+    pub tempering: f64,
+    /// The σ_hit the scan was weighed with (see [`MclConfig::sigma_max`]).
+    pub sigma_hit: f64,
+    /// Spread of the weighted set (see [`MclConfig::sigma_max`]): m.
+    pub set_spread: f64,
+    /// The heaviest cluster of the weighted set, and how many clusters there were.
+    pub cluster: Cluster,
+    pub n_clusters: usize,
+}
+
+/// The localizer: particles over a fixed map.
+#[derive(Debug)]
+pub struct Mcl {
+    cfg: MclConfig,
+    field: Arc<MeanField>,
+    poses: Vec<Pose>,
+    log_w: Vec<f64>,
+    tracker: OdometryTracker,
+    step: u64,
+    started: bool,
+    estimate: Pose,
+    estimate_odom: Pose,
+    /// (w_slow, w_fast) in the fit's linear units; `None` before the first fit.
+    averages: Option<(f64, f64)>,
+    beams: (usize, Vec<usize>),
+    last: Option<MclStep>,
+}
+
+impl Mcl {
+    /// A localizer on `field` with particles placed by `init`.
+    pub fn new(cfg: MclConfig, field: Arc<MeanField>, init: MclInit) -> Result<Self> {
+        cfg.validate()?;
+        let mut m = Self {
+            cfg,
+            field,
+            poses: Vec::new(),
+            log_w: Vec::new(),
+            tracker: OdometryTracker::default(),
+            step: 0,
+            started: false,
+            estimate: [0.0; 3],
+            estimate_odom: [0.0; 3],
+            averages: None,
+            beams: (usize::MAX, Vec::new()),
+            last: None,
+        };
+        m.reset(init)?;
+        Ok(m)
+    }
+
+    /// Places the particles anew (uniform weights); the recovery averages restart. The odometry
+    /// tracking goes on: the next scan is processed with the odometry since the last one.
+    pub fn reset(&mut self, init: MclInit) -> Result<()> {
+        let n = self.cfg.kld.n_max;
+        let seed = self.cfg.seed;
+        // A reset after some scans draws from streams of its own step.
+        let stream_step = if self.step == 0 { 0 } else { 3 * self.step + 2 };
+        self.poses = match init {
+            MclInit::Pose { mean, cov } => {
+                crate::grid::check_pose(mean)?;
+                let l = covariance_factor(&cov)?;
+                (0..n)
+                    .map(|j| draw_pose(mean, &l, &mut Rng::stream(seed, stream_step, j as u64)))
+                    .collect()
+            }
+            MclInit::Global => {
+                if self.field.n_free() == 0 {
+                    return Err(config_err(
+                        "map",
+                        format!(
+                            "no free cell (m̂ <= {}) to place particles on",
+                            self.field.free_threshold()
+                        ),
+                    ));
+                }
+                (0..n)
+                    .map(|j| {
+                        let mut rng = Rng::stream(seed, stream_step, j as u64);
+                        // n_free > 0 was checked above.
+                        self.field.sample_free(&mut rng).unwrap_or([0.0; 3])
+                    })
+                    .collect()
+            }
+        };
+        self.log_w = vec![0.0; n];
+        self.averages = None;
+        let w = vec![1.0 / n as f64; n];
+        self.estimate = clusters(&self.poses, &w, &self.cfg.kld)
+            .first()
+            .map(|c| c.mean)
+            .unwrap_or([0.0; 3]);
+        Ok(())
+    }
+
+    pub fn config(&self) -> &MclConfig {
+        &self.cfg
+    }
+
+    pub fn field(&self) -> &MeanField {
+        &self.field
+    }
+
+    pub fn poses(&self) -> &[Pose] {
+        &self.poses
+    }
+
+    /// Normalised weights of the current particles.
+    pub fn weights(&self) -> Vec<f64> {
+        normalize_log_weights(&self.log_w)
+    }
+
+    pub fn estimate(&self) -> Pose {
+        self.estimate
+    }
+
+    pub fn n_processed(&self) -> u64 {
+        self.step
+    }
+
+    /// (w_slow, w_fast) of the recovery, once a scan has been weighed.
+    pub fn averages(&self) -> Option<(f64, f64)> {
+        self.averages
+    }
+
+    /// The last processed scan's summary.
+    pub fn last_step(&self) -> Option<MclStep> {
+        self.last
+    }
+
+    /// The clusters of the current set with its current weights, heaviest first.
+    pub fn clusters(&self) -> Vec<Cluster> {
+        clusters(&self.poses, &self.weights(), &self.cfg.kld)
+    }
+
+    /// Feeds one scan; processes it when the update trigger fires.
+    pub fn process(&mut self, scan: &ScanInput) -> Result<MclStep> {
+        scan.validate()?;
+        let spread = self.spread();
+        let trigger = if spread > self.cfg.spread_limit {
+            self.cfg.spread_trigger
+        } else {
+            self.cfg.trigger
+        };
+        let (u, n_steps, fires) = self.tracker.observe(scan.odom, &trigger);
+        let first = !self.started;
+        self.started = true;
+        if !fires {
+            let carried = compose(self.estimate, between(self.estimate_odom, scan.odom));
+            let n = self.poses.len();
+            return Ok(MclStep {
+                processed: false,
+                estimate: carried,
+                n_particles: n,
+                n_after: n,
+                neff: f64::NAN,
+                resampled: false,
+                n_injected: 0,
+                inject_probability: 0.0,
+                fit: f64::NAN,
+                n_beams: 0,
+                tempering: f64::NAN,
+                sigma_hit: f64::NAN,
+                set_spread: f64::NAN,
+                cluster: self.last.map(|s| s.cluster).unwrap_or(Cluster {
+                    weight: 1.0,
+                    count: n,
+                    mean: carried,
+                    cov_xy: [0.0; 3],
+                    std_theta: 0.0,
+                }),
+                n_clusters: self.last.map(|s| s.n_clusters).unwrap_or(1),
+            });
+        }
+        self.step += 1;
+        let step = self.step;
+        let cfg = &self.cfg;
+        if self.beams.0 != scan.angles.len() {
+            self.beams = (
+                scan.angles.len(),
+                select_beams(scan.angles.len(), cfg.beam_stride, cfg.max_beams),
+            );
+        }
+        let beams = &self.beams.1;
+        let field = &*self.field;
+        // The hit term of this scan, widened while the particles are spread.
+        let base = cfg.likelihood.model.sigma_hit;
+        let sigma_hit = (cfg.anneal * spread).min(cfg.sigma_max).max(base);
+        let likelihood = LikelihoodSettings {
+            model: SensorModel {
+                sigma_hit,
+                ..cfg.likelihood.model
+            },
+            ..cfg.likelihood
+        };
+        // Move (not at the first scan: nothing moved yet) and weigh, particle by particle.
+        let moved: Vec<Result<(Pose, ScanFit)>> = self
+            .poses
+            .par_iter()
+            .enumerate()
+            .map(|(j, &p)| {
+                let pose = if first {
+                    p
+                } else {
+                    let mut rng = Rng::stream(cfg.seed, 3 * step, j as u64);
+                    cfg.motion.sample(p, u, n_steps, &mut rng)
+                };
+                let sensor = compose(pose, scan.laser_offset);
+                let fit = scan_log_likelihood(
+                    field,
+                    &likelihood,
+                    sensor,
+                    scan.angles,
+                    scan.ranges,
+                    beams,
+                )?;
+                Ok((pose, fit))
+            })
+            .collect();
+        let moved = moved.into_iter().collect::<Result<Vec<_>>>()?;
+        let n = moved.len();
+        let n_beams = moved.first().map(|m| m.1.n_beams).unwrap_or(0);
+        let ll: Vec<f64> = moved.iter().map(|m| m.1.log_likelihood).collect();
+        // Only a spread set is tempered further: a gathered one keeps τ, so that the random
+        // particles of recovery, which add nothing to N_eff, do not flatten its weights.
+        let min_neff = if spread > cfg.spread_limit {
+            cfg.min_neff
+        } else {
+            0.0
+        };
+        let tempering = adaptive_tempering(&self.log_w, &ll, cfg.tempering, min_neff);
+        for (j, m) in moved.iter().enumerate() {
+            self.poses[j] = m.0;
+            self.log_w[j] += m.1.log_likelihood / tempering;
+        }
+        let w = normalize_log_weights(&self.log_w);
+        // The share of the scan the map explains, over the posterior.
+        let fit = if n_beams > 0 {
+            w.iter()
+                .zip(&moved)
+                .map(|(w, m)| w * m.1.explained)
+                .sum::<f64>()
+                / n_beams as f64
+        } else {
+            f64::NAN
+        };
+        let inject_probability = self.update_averages(fit);
+        let neff = effective_sample_size(&w);
+        let found = clusters(&self.poses, &w, &self.cfg.kld);
+        let cluster = found[0];
+        let weighed_spread = set_spread(&self.poses, &w);
+        self.estimate = cluster.mean;
+        self.estimate_odom = scan.odom;
+        self.tracker.processed(scan.odom);
+        let resample = neff < self.cfg.resample_threshold * n as f64 || inject_probability > 0.0;
+        let n_injected = if resample {
+            self.resample(&w, inject_probability)
+        } else {
+            // Keep the log-weights bounded (they are only relative).
+            let mx = self.log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            if mx.is_finite() {
+                self.log_w.iter_mut().for_each(|l| *l -= mx);
+            }
+            0
+        };
+        let out = MclStep {
+            processed: true,
+            estimate: self.estimate,
+            n_particles: n,
+            n_after: self.poses.len(),
+            neff,
+            resampled: resample,
+            n_injected,
+            inject_probability,
+            fit,
+            n_beams,
+            tempering,
+            sigma_hit,
+            set_spread: weighed_spread,
+            cluster,
+            n_clusters: found.len(),
+        };
+        self.last = Some(out);
+        Ok(out)
+    }
+
+    /// The spread of the set at the last scan: of its heaviest cluster when that holds at least
+    /// half the weight, else of the whole set (before the first scan: of the initial set).
+    fn spread(&self) -> f64 {
+        match self.last {
+            Some(s) if s.cluster.weight >= 0.5 => s.cluster.spread_xy() + s.cluster.std_theta,
+            Some(s) => s.set_spread,
+            None => {
+                let n = self.poses.len();
+                let w = vec![1.0 / n as f64; n];
+                match clusters(&self.poses, &w, &self.cfg.kld).first() {
+                    Some(c) if c.weight >= 0.5 => c.spread_xy() + c.std_theta,
+                    _ => set_spread(&self.poses, &w),
+                }
+            }
+        }
+    }
+
+    /// Updates w_slow and w_fast with the scan's fit; returns the probability of a random particle.
+    fn update_averages(&mut self, fit: f64) -> f64 {
+        if !self.cfg.recovery() || !fit.is_finite() {
+            return 0.0;
+        }
+        let (a_slow, a_fast) = (self.cfg.alpha_slow, self.cfg.alpha_fast);
+        let (slow, fast) = match self.averages {
+            None => (fit, fit),
+            Some((s, f)) => (s + a_slow * (fit - s), f + a_fast * (fit - f)),
+        };
+        self.averages = Some((slow, fast));
+        if slow > 0.0 {
+            (1.0 - fast / slow).max(0.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// KLD sampling from the weights `w` with random particles at `inject` probability; returns
+    /// how many were injected.
+    fn resample(&mut self, w: &[f64], inject: f64) -> usize {
+        let kld = self.cfg.kld;
+        let mut cumulative = Vec::with_capacity(w.len());
+        let mut s = 0.0;
+        for &x in w {
+            s += x;
+            cumulative.push(s);
+        }
+        let total = s;
+        let draw_step = 3 * self.step + 1;
+        let mut out = Vec::with_capacity(kld.n_min.max(self.poses.len()));
+        let mut bins = BinCounter::default();
+        let (mut injected, mut drawn) = (0, 0);
+        while out.len() < kld.n_max {
+            let mut rng = Rng::stream(self.cfg.seed, draw_step, out.len() as u64);
+            let random = inject > 0.0 && rng.uniform() < inject;
+            match random.then(|| self.field.sample_free(&mut rng)).flatten() {
+                Some(p) => {
+                    injected += 1;
+                    out.push(p);
+                }
+                None => {
+                    let u = rng.uniform() * total;
+                    let i = cumulative.partition_point(|&c| c <= u).min(w.len() - 1);
+                    let pose = self.poses[i];
+                    drawn += 1;
+                    let k = bins.add(&kld, &pose);
+                    out.push(pose);
+                    if drawn >= kld.limit(k) {
+                        break;
+                    }
+                }
+            }
+        }
+        self.log_w = vec![0.0; out.len()];
+        self.poses = out;
+        injected
+    }
+}
+
+/// The tempering of a scan: `base`, or, when the weights `prior + ll / base` would have an
+/// effective sample size below `min_neff` times that of `prior`, the smallest τ > base (to
+/// 0.1 %, by bisection on log τ; N_eff grows with τ towards the prior's) at which they have it.
+fn adaptive_tempering(prior: &[f64], ll: &[f64], base: f64, min_neff: f64) -> f64 {
+    let n = ll.len();
+    if min_neff <= 0.0 || n == 0 {
+        return base;
+    }
+    let target = min_neff * effective_sample_size(&normalize_log_weights(prior));
+    let neff = |tau: f64| {
+        let lw: Vec<f64> = prior.iter().zip(ll).map(|(p, l)| p + l / tau).collect();
+        effective_sample_size(&normalize_log_weights(&lw))
+    };
+    if neff(base) >= target {
+        return base;
+    }
+    let mut hi = base * 2.0;
+    while neff(hi) < target {
+        if hi > base * 1e12 {
+            return hi;
+        }
+        hi *= 2.0;
+    }
+    let mut lo = hi / 2.0;
+    while hi / lo > 1.001 {
+        let mid = (lo * hi).sqrt();
+        if neff(mid) >= target {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
+/// The weighted set's RMS distance from its mean position plus 1 m times its circular heading
+/// spread sqrt(−2 ln R) (rad).
+fn set_spread(poses: &[Pose], w: &[f64]) -> f64 {
+    let (mut x, mut y, mut c, mut s) = (0.0, 0.0, 0.0, 0.0);
+    for (p, &wi) in poses.iter().zip(w) {
+        x += wi * p[0];
+        y += wi * p[1];
+        c += wi * p[2].cos();
+        s += wi * p[2].sin();
+    }
+    let var: f64 = poses
+        .iter()
+        .zip(w)
+        .map(|(p, &wi)| wi * ((p[0] - x).powi(2) + (p[1] - y).powi(2)))
+        .sum();
+    let r = c.hypot(s).clamp(1e-300, 1.0);
+    var.max(0.0).sqrt() + (-2.0 * r.ln()).max(0.0).sqrt()
+}

@@ -1,0 +1,26 @@
+//! Monte Carlo localization on a fixed confidence-rich map: AMCL's algorithm (KLD-adaptive
+//! particle count, recovery by random particles from the free space, clusters for the estimate)
+//! with the CRM's closed-form predictive scan likelihood as the measurement model.
+//!
+//! - [`field`]: the per-map structure, the expected occupancy of every cell in a flat array;
+//! - [`likelihood`]: the scan likelihood read from it, with a stated error bound;
+//! - [`kld`]: Fox's sample-count bound and the pose histogram;
+//! - [`cluster`]: the clusters of a weighted set;
+//! - [`filter`]: the localizer.
+
+pub mod cluster;
+pub mod field;
+pub mod filter;
+pub mod kld;
+pub mod likelihood;
+
+#[cfg(test)]
+mod tests;
+
+pub use cluster::{clusters, Cluster};
+pub use field::MeanField;
+pub use filter::{Mcl, MclConfig, MclInit, MclStep};
+pub use kld::{kld_sample_count, KldSettings};
+pub use likelihood::{
+    beam_log_eta, scan_log_likelihood, select_beams, BeamEta, LikelihoodSettings, ScanFit,
+};
