@@ -41,8 +41,15 @@ def save_trajectories_on_map(
     """Several named trajectories (n, 2 or 3) over a map's expected occupancy."""
     vals = np.ma.masked_array(mean.values, mask=unknown) if unknown is not None else mean.values
     cm = matplotlib.colormaps["gray_r"].with_extremes(bad="#d8d8d8")
-    ny, nx = mean.shape
-    fig, ax = plt.subplots(figsize=(8, max(4.0, 8 * ny / max(nx, 1))), constrained_layout=True)
+    # The figure takes the shape of what is drawn, the map and every trajectory (odometry may run
+    # far off the map), so that the equal-aspect axes fill it instead of floating in white space.
+    x0, x1, y0, y1 = (float(v) for v in mean.extent)
+    for t in trajectories.values():
+        if len(t):
+            x0, x1 = min(x0, float(np.min(t[:, 0]))), max(x1, float(np.max(t[:, 0])))
+            y0, y1 = min(y0, float(np.min(t[:, 1]))), max(y1, float(np.max(t[:, 1])))
+    aspect = (y1 - y0) / max(x1 - x0, 1e-9)
+    fig, ax = plt.subplots(figsize=(8, float(np.clip(8 * aspect, 4.0, 16.0))), constrained_layout=True)
     ax.imshow(vals, origin="lower", extent=mean.extent, cmap=cm, vmin=0, vmax=1, interpolation="nearest")
     # Colours from the project's palette; the ground truth is drawn dashed on top of the estimates.
     for name, t in trajectories.items():
