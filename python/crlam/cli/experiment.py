@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from crlam.cli.conventions import (
     ListAction,
@@ -71,6 +72,15 @@ def cmd_experiment(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     executor = executor_from_args(args)
+    # What every sweep takes alike: where its runs go, how it reports, what it does with an existing folder.
+    sweep_options: dict[str, Any] = {
+        "workers": args.workers,
+        "progress": not args.quiet,
+        "executor": executor,
+        "resume": args.resume,
+        "force": args.force,
+        "verbose": args.verbose,
+    }
     if args.experiment == "iig":
         from crlam.experiments.iig import run_iig_experiment
 
@@ -83,14 +93,9 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             mode=args.mode,
             ogmi=args.ogmi,
             particles=args.ucrmi_particles,
-            workers=args.workers,
             max_wall_seconds=args.max_seconds,
             start=(args.start[0], args.start[1]),
-            progress=not args.quiet,
-            executor=executor,
-            resume=args.resume,
-            force=args.force,
-            verbose=args.verbose,
+            **sweep_options,
         )
         print(f"{len(res.rows)} runs finished, {len(res.errors)} failed; report: {res.files['report']}")
         return 0 if not res.errors else 1
@@ -107,12 +112,7 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             budget=args.budget,
             slam=not args.known_poses,
             particles=args.slam_particles,
-            workers=args.workers,
-            progress=not args.quiet,
-            executor=executor,
-            resume=args.resume,
-            force=args.force,
-            verbose=args.verbose,
+            **sweep_options,
         )
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
@@ -131,15 +131,10 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             scans=args.scans,
             particles=base.particles,
             methods=args.methods,
-            workers=args.workers,
             threads=args.threads,
             base=base,
-            progress=not args.quiet,
             report_only=args.report_only,
-            executor=executor,
-            resume=args.resume,
-            force=args.force,
-            verbose=args.verbose,
+            **sweep_options,
         )
     else:
         from crlam.experiments.real_logs import run_real_logs
@@ -155,15 +150,10 @@ def cmd_experiment(args: argparse.Namespace) -> int:
             seeds=args.runs,
             ranges=args.ranges,
             base=base,
-            workers=args.workers,
             threads=args.threads,
             max_scans=args.max_scans,
-            progress=not args.quiet,
             report_only=args.report_only,
-            executor=executor,
-            resume=args.resume,
-            force=args.force,
-            verbose=args.verbose,
+            **sweep_options,
         )
     print((out / "table.md").read_text())
     return 0
