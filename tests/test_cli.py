@@ -107,6 +107,16 @@ def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.Capture
     )
     full = json.loads((tmp_path / "b.json").read_text())
     assert full["machine"]["cores"] >= 1 and full["threads"] == 1
+    # Whole `crlam slam` runs of the default preset and GMapping's setting on a log that has
+    # readings beyond the default's 8 m map range, so its far-reading path is part of the figure.
+    default, ogm = full["details"]["slam_default"], full["details"]["slam_ogm_gmapping"]
+    assert default["returned_readings_beyond_8m"] > 0.1
+    assert default["n_scans"] == ogm["n_scans"] == 200 and 0 < default["n_processed"] < 200
+    assert default["settings"] == {"preset": "robust"} and ogm["settings"]["ogm_map"] == "gmapping"
+    assert figures["slam_default_peak_rss_mb_sick"] == pytest.approx(default["peak_rss_mb"], abs=0.1)
+    assert figures["slam_default_over_ogm_gmapping_sick"] == pytest.approx(
+        figures["slam_default_scans_per_s_sick"] / figures["slam_ogm_gmapping_scans_per_s_sick"], rel=0.02
+    )
 
 
 @pytest.mark.slow

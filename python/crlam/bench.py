@@ -1,7 +1,9 @@
 """``crlam bench``: the project's micro-benchmarks, measured in one run, as a JSON object.
 
-Each figure is timed inside the Rust core on one thread (no Python in the timed loop). Ratios
-between figures of the same run are machine-independent enough to compare across machines.
+Each micro-benchmark is timed inside the Rust core on one thread (no Python in the timed loop);
+the ``slam_*_sick`` figures time whole ``crlam slam`` runs of the default filter and of GMapping's
+setting on a simulated real-log-like workload (:mod:`crlam.bench_slam`). Ratios between figures of
+the same run are machine-independent enough to compare across machines.
 """
 
 from __future__ import annotations
@@ -126,13 +128,17 @@ def run_benchmarks(
     from tqdm import tqdm
 
     specs = [b for b in BENCHMARKS if names is None or b.name in names]
-    unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES}
+    from crlam.bench_slam import SLAM_BENCHES, slam_pipeline_figures
+
+    unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES, *SLAM_BENCHES}
     if unknown:
         raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS]}")
     figures: dict[str, Any] = {}
     details: dict[str, Any] = {}
     extra = [n for n in (SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES) if names is None or n in names]
-    bar = tqdm(total=len(specs) * max(1, repeats) + len(extra), desc="bench", unit="run", disable=not progress, leave=False)
+    pipeline = names is None or any(n in names for n in SLAM_BENCHES)
+    total = len(specs) * max(1, repeats) + len(extra) + int(pipeline)
+    bar = tqdm(total=total, desc="bench", unit="run", disable=not progress, leave=False)
 
     def done(name: str, steps: int = 1) -> None:
         bar.update(steps)
@@ -176,6 +182,15 @@ def run_benchmarks(
                 figures[name] = round(run["seconds"], 3)
                 details[name] = run
             done(name)
+    if pipeline:
+        # Whole `crlam slam` runs of the default preset and GMapping's setting on a simulated
+        # SICK log with readings beyond 8 m (crlam.bench_slam); each in its own process.
+        slam_figures, slam_details = slam_pipeline_figures(quick=quick, repeats=1 if quick else max(1, repeats))
+        figures.update(slam_figures)
+        details.update(slam_details)
+        for name in SLAM_BENCHES:
+            done(name, 0)
+        bar.update(1)
     bar.close()
     if "crm_beam_updates_per_s" in figures and "raycast_cells_per_s" in figures:
         cells = details["crm_beam_updates_per_s"]["cells_per_ray"]

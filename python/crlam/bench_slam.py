@@ -1,0 +1,139 @@
+"""``crlam bench``'s whole-pipeline SLAM figures: the default filter on a real-log-like workload.
+
+The micro-benchmarks of :mod:`crlam.bench` time the core's loops on synthetic scans within 8 m.
+A real log differs: a SICK-style laser (180 beams over 180 deg) sees up to 80 m, so the default
+preset matches and weighs readings beyond its 8 m map range (``match_range = "full"``), the
+update triggers skip most scans, and the run reads and parses the log. These figures run
+``crlam slam``'s own pipeline (:func:`crlam.experiments.slam_run.run_slam_log`) on a simulated
+log of that kind:
+
+Workload
+    The museum world (90 m x 90 m, world seed 0), the ``sick`` sensor preset (180 beams over
+    180 deg, 80 m, 1 cm noise), 10 scans per second, seed 0; 2,000 scans (200 with ``quick``).
+    The log is simulated once per process and written as a CARMEN file.
+Runs
+    The default preset (``robust``, 30 particles) and, as the same run's baseline, RBPF-OGM in
+    GMapping's setting (hit-mean cells, odometry drawn at every scan, 0.05 m, 80 m, 1 m / 0.5 rad
+    triggers: the setting BENCHMARKS.md compares on Intel). Each runs in a fresh ``spawn``
+    process, so that its peak resident memory is its own, on one thread.
+
+Figures: log scans per second of wall time (the whole run: reading, filtering, writing the
+trajectory), its peak resident memory (MB), and the ratio of the two filters' speeds.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+__all__ = ["SLAM_BENCHES", "slam_pipeline_figures"]
+
+SLAM_BENCHES = (
+    "slam_default_scans_per_s_sick",
+    "slam_default_peak_rss_mb_sick",
+    "slam_ogm_gmapping_scans_per_s_sick",
+    "slam_default_over_ogm_gmapping_sick",
+)
+"""The figures :func:`slam_pipeline_figures` returns (``crlam bench --only`` takes any of them)."""
+
+N_SCANS = 2000
+QUICK_SCANS = 200
+
+#: RBPF-OGM in GMapping's setting, as BENCHMARKS.md runs it on Intel (SlamConfig fields over the
+#: ``paper`` preset).
+OGM_GMAPPING = {
+    "method": "ogm",
+    "ogm_map": "gmapping",
+    "motion": "gmapping",
+    "ogm_motion_draws": "per_scan",
+    "particles": 30,
+    "resolution": 0.05,
+    "max_range": 80.0,
+    "linear_update": 1.0,
+    "angular_update": 0.5,
+}
+
+
+def _simulate(folder: Path, n_scans: int) -> tuple[Path, float]:
+    """The workload's CARMEN log, and the share of its returned readings beyond 8 m."""
+    import numpy as np
+
+    from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
+
+    log = simulate(SimulationConfig(world="museum", n_scans=n_scans, seed=0, world_seed=0, sensor="sick"))
+    returned = log.ranges[log.ranges < log.sensor.max_range]
+    far = float(np.mean(returned > 8.0)) if returned.size else 0.0
+    return Path(write_simulation(log, folder)["carmen"]), far
+
+
+def _run_in_child(log: str, out: str, preset: str, overrides: dict[str, Any]) -> dict[str, Any]:
+    """One whole ``crlam slam`` run (in a spawned process): its metrics and CPU seconds."""
+    os.environ["RAYON_NUM_THREADS"] = "1"
+    from dataclasses import replace
+
+    from crlam.experiments.slam_run import run_slam_log
+    from crlam.slam import SlamConfig
+
+    config = replace(SlamConfig.from_preset(preset), **overrides)
+    cpu0 = time.process_time()
+    result = run_slam_log(log, out, config, progress=False, figures=False)
+    m = result.metrics
+    return {
+        "cpu_seconds": time.process_time() - cpu0,
+        "wall_time_s": float(m["wall_time_s"]),
+        "peak_rss_mb": float(m["peak_rss_mb"]),
+        "n_scans": int(m["n_scans"]),
+        "n_processed": int(m["n_processed"]),
+    }
+
+
+def _timed_run(log: Path, out: Path, preset: str, overrides: dict[str, Any]) -> dict[str, Any]:
+    ctx = multiprocessing.get_context("spawn")  # a forked child of a rayon process can hang
+    with ctx.Pool(1) as pool:
+        return pool.apply(_run_in_child, (str(log), str(out), preset, overrides))
+
+
+def slam_pipeline_figures(*, quick: bool = False, repeats: int = 1) -> tuple[dict[str, float], dict[str, Any]]:
+    """The figures of :data:`SLAM_BENCHES` and their details (best of ``repeats`` runs each).
+
+    Returns
+    -------
+    figures : dict
+        ``slam_default_scans_per_s_sick`` and ``slam_ogm_gmapping_scans_per_s_sick`` (log scans
+        per second of wall time), ``slam_default_peak_rss_mb_sick`` (MB) and
+        ``slam_default_over_ogm_gmapping_sick`` (the ratio of the two speeds, this run).
+    details : dict
+        Per filter: scans, processed scans, wall and CPU seconds, scans per CPU second, peak RSS,
+        the settings.
+    """
+    n = QUICK_SCANS if quick else N_SCANS
+    runs = {"slam_default": ("robust", {}), "slam_ogm_gmapping": ("paper", OGM_GMAPPING)}
+    details: dict[str, Any] = {}
+    with tempfile.TemporaryDirectory(prefix="crlam-bench-") as tmp:
+        log, far = _simulate(Path(tmp) / "sim", n)
+        for name, (preset, overrides) in runs.items():
+            best: dict[str, Any] | None = None
+            for k in range(max(1, repeats)):
+                r = _timed_run(log, Path(tmp) / f"{name}_{k}", preset, overrides)
+                if best is None or r["wall_time_s"] < best["wall_time_s"]:
+                    best = r
+            assert best is not None
+            best["scans_per_s"] = best["n_scans"] / best["wall_time_s"]
+            best["scans_per_cpu_s"] = best["n_scans"] / best["cpu_seconds"] if best["cpu_seconds"] > 0 else float("nan")
+            best["settings"] = {"preset": preset, **overrides}
+            best["workload"] = f"museum world, sick sensor (180 beams, 180 deg, 80 m), {n} scans, seed 0"
+            best["returned_readings_beyond_8m"] = round(far, 3)
+            best["repeats"] = repeats
+            details[name] = best
+    d, o = details["slam_default"], details["slam_ogm_gmapping"]
+    figures = {
+        "slam_default_scans_per_s_sick": round(d["scans_per_s"], 1),
+        "slam_default_peak_rss_mb_sick": round(d["peak_rss_mb"], 1),
+        "slam_ogm_gmapping_scans_per_s_sick": round(o["scans_per_s"], 1),
+        "slam_default_over_ogm_gmapping_sick": round(d["scans_per_s"] / o["scans_per_s"], 2),
+    }
+    return figures, details
