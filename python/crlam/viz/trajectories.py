@@ -135,7 +135,7 @@ def save_error_spread_figure(
         color = colour(name)
         for j, e in enumerate(runs):
             t = e.stamps - e.stamps[0]
-            label = f"{name} ({len(runs)} runs)" if j == 0 else None
+            label = f"{name} ({len(runs)} run{'s' if len(runs) != 1 else ''})" if j == 0 else None
             axes[0].plot(t, np.hypot(e.errors[:, 0], e.errors[:, 1]), color=color, linewidth=0.6, alpha=0.8, label=label)
             axes[1].plot(t, np.degrees(np.abs(e.errors[:, 2])), color=color, linewidth=0.6, alpha=0.8)
     return _save_error_axes(fig, axes, path, title, dpi)
