@@ -34,8 +34,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     p: argparse.ArgumentParser = sub.add_parser(
         "bench",
         help="run the micro-benchmarks and print named figures as JSON",
-        description="Runs the core's micro-benchmarks (one thread, timed in Rust) and prints a JSON object of "
-        "named figures, all measured in this run. The vector kernels run at the best instruction-set level the "
+        description="Runs the core's micro-benchmarks (one thread, timed in Rust) and whole `crlam slam` runs of "
+        "the default filter and of GMapping's setting on a simulated SICK log (slam_*_sick), and prints a JSON "
+        "object of named figures, all measured in this run. The vector kernels run at the best instruction-set level the "
         "CPU supports unless the environment variable CRLAM_SIMD=scalar|avx2|avx512 lowers it (the level is "
         'reported as "simd" in the --out/--verbose result).',
     )
