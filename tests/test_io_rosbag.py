@@ -601,3 +601,16 @@ def test_eval_fills_a_trajectory_from_a_bag_and_diagnose_reads_one(tmp_path: Pat
     assert fill["n_scans"] == 10 and fill["n_processed"] == 4
     out = tmp_path / "diag"
     assert main(["diagnose", "likelihood-bias", str(bag), "--log-poses", "--out", str(out), "--warmup", "2"]) == 0
+
+
+@pytest.mark.parametrize("kind", ["sqlite3", "mcap", "ros1"])
+def test_scan_count_is_read_from_the_index_for_a_progress_total(tmp_path: Path, kind: str) -> None:
+    from crlam.io.logs import count_scans
+
+    bag = write_bag(tmp_path / "bag", BagSpec(scan_topics=("/scan", "/scan2"), n_scans=7), kind)
+    # Two scan topics: the one the run would read is named; each holds n_scans messages.
+    assert count_scans(bag, bag_options={"scan_topic": "/scan2"}) == 7
+    assert count_scans(bag, max_scans=3, bag_options={"scan_topic": "/scan"}) == 3
+    assert RosbagReader(bag, scan_topic="/scan").scan_count() == len(scans_of(bag, scan_topic="/scan")[0])
+    # A topic the bag lacks: no total (the run itself then names the bag's topics).
+    assert count_scans(bag, bag_options={"scan_topic": "/nope"}) is None

@@ -222,7 +222,7 @@ def map_log(
     A bag's scans carry the odometry pose (composed with the laser mount) in both pose fields, so
     ``poses`` makes no difference there; ``bag_options`` go to :func:`crlam.io.logs.open_log`."""
     reader = open_log(log_path, on_error=on_error, **(bag_options or {}))
-    total = count_scans(log_path, max_scans) if progress else None
+    total = count_scans(log_path, max_scans, bag_options=bag_options) if progress else None
     run = map_scans(
         known_pose_scans(reader, poses), config, max_scans=max_scans, progress=progress, desc=Path(log_path).name, total=total
     )

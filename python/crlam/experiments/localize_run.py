@@ -208,7 +208,7 @@ def run_localize_log(
     near: list[int] = []
     total: list[int] = []
     bar = tqdm(
-        total=count_scans(log_path, max_scans) if progress else None,
+        total=count_scans(log_path, max_scans, bag_options=bag_options) if progress else None,
         desc=f"localize {Path(log_path).name}",
         unit="scan",
         disable=not progress,

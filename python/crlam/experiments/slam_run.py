@@ -212,7 +212,9 @@ def run_slam_log(
 
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
-        run_wall = _run_filter(records, config, log_path, max_scans, progress, recorder, t0, prior, verbose)
+        run_wall = _run_filter(
+            records, config, log_path, max_scans, progress, recorder, t0, prior, verbose, bag_options=bag_options
+        )
     except BaseException:
         if recorder is not None:
             recorder.close()
@@ -252,12 +254,14 @@ def _run_filter(
     t0: float,
     prior: SlamPrior | None = None,
     verbose: bool = False,
+    *,
+    bag_options: dict[str, Any] | None = None,
 ) -> tuple[SlamRun, float]:
     """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s).
     ``verbose`` prints a line per processed scan (estimate, N_eff, resampling)."""
     run: SlamRun | None = None
     bar = tqdm(
-        total=count_scans(log_path, max_scans) if progress else None,
+        total=count_scans(log_path, max_scans, bag_options=bag_options) if progress else None,
         desc=f"{config.method} x{config.particles} {Path(log_path).name}",
         unit="scan",
         disable=not progress,

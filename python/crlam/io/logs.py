@@ -14,7 +14,7 @@ from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import Any, Literal
 
-from crlam.errors import ConfigError
+from crlam.errors import ConfigError, CrlamError
 from crlam.io.carmen import CarmenReader, open_binary
 from crlam.io.carmen_types import LaserScan, LogRecord
 from crlam.io.rosbag import RosbagReader, is_bag
@@ -106,16 +106,27 @@ def read_scans_any(path: str | os.PathLike[str], **options: Any) -> Iterator[Las
 _CARMEN_SCAN_LINES = (b"FLASER ", b"RLASER ", b"ROBOTLASER1 ", b"ROBOTLASER2 ")
 
 
-def count_scans(path: str | os.PathLike[str], max_scans: int | None = None) -> int | None:
-    """The number of laser scans in ``path``, for a progress bar's total (and its ETA): a CARMEN
-    log's scan lines, counted in one pass over the (decompressed) bytes without parsing them, at
-    most ``max_scans``; None for a ROS bag or anything that cannot be read (the reader reports
-    that). Malformed lines that a run skips are counted, so it is an upper bound."""
+def count_scans(
+    path: str | os.PathLike[str], max_scans: int | None = None, *, bag_options: dict[str, Any] | None = None
+) -> int | None:
+    """The number of laser scans in ``path``, for a progress bar's total (and its ETA), at most
+    ``max_scans``: a CARMEN log's scan lines, counted in one pass over the (decompressed) bytes
+    without parsing them; a ROS bag's messages on the scan topic that ``bag_options`` (as for
+    :func:`open_log`) pick, from the bag's index. None for anything that cannot be read (the
+    reader reports that). Malformed lines and messages that a run skips are counted, so it is an
+    upper bound."""
     p = Path(path)
     if max_scans is not None and max_scans <= 0:
         return 0
+    if is_bag(p):
+        try:
+            reader = open_log(p, **(bag_options or {}))
+            n = reader.scan_count() if isinstance(reader, RosbagReader) else None
+        except CrlamError:  # a total is optional: the run itself reports the bag's problem
+            return None
+        return n if n is None or max_scans is None else min(n, max_scans)
     try:
-        if is_bag(p) or not p.is_file():
+        if not p.is_file():
             return None
         n = 0
         with open_binary(p) as fh:

@@ -369,6 +369,19 @@ class RosbagReader:
             raise self._error(f"several IMU topics ({', '.join(topics)}): choose one with --imu-topic", conns)
         return [c for c in conns if c.topic in topics]
 
+    def scan_count(self) -> int:
+        """The scan messages the bag's index lists on the scan topic this reader would pick (read
+        from the index, no message is decoded): a progress bar's total, an upper bound of the
+        scans a run yields. A damaged bag raises :class:`~crlam.errors.DataFormatError`."""
+        try:
+            with self._open() as reader:
+                return sum(int(c.msgcount) for c in self._pick_scan(reader.connections))
+        except CrlamError:
+            raise
+        except _library_errors() as exc:
+            reason = " ".join(str(exc).split())[:300]
+            raise DataFormatError(f"damaged or unreadable ROS bag ({type(exc).__name__}: {reason})", path=str(self.path)) from exc
+
     def has_odometry(self) -> bool:
         """Whether the bag has odometry to read: a ``nav_msgs/msg/Odometry`` topic, or
         ``odom_frame -> base`` transforms in the first ``/tf`` messages (a given ``odom_topic``
