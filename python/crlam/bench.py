@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from crlam import __version__, _native
+from crlam.bench_slam import SLAM_BENCHES, slam_pipeline_figures
 
 __all__ = ["BENCHMARKS", "BenchSpec", "machine_info", "run_benchmarks", "simd_info"]
 
@@ -128,8 +129,6 @@ def run_benchmarks(
     from tqdm import tqdm
 
     specs = [b for b in BENCHMARKS if names is None or b.name in names]
-    from crlam.bench_slam import SLAM_BENCHES, slam_pipeline_figures
-
     unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES, *SLAM_BENCHES}
     if unknown:
         raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS]}")
