@@ -19,7 +19,7 @@ from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan, read_scans
 from crlam.io.tum import read_tum
-from crlam.localize import LocalizeConfig, Localizer
+from crlam.localize import LocalizeConfig, Localizer, converged_at
 from crlam.localize_map import LocalizationMap, Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between, compose
@@ -172,6 +172,24 @@ def test_config_is_checked() -> None:
         LocalizeConfig(min_neff=1.0)
     with pytest.raises(ConfigError, match="motion"):
         LocalizeConfig(motion="teleport")
+    with pytest.raises(ConfigError, match="min_cluster"):
+        LocalizeConfig(min_cluster=-1)
+    with pytest.raises(ConfigError, match="keep_ratio"):
+        LocalizeConfig(keep_ratio=0.0)
+    with pytest.raises(ConfigError, match="convergence_odds"):
+        LocalizeConfig(convergence_odds=0.5)
+
+
+def test_convergence_needs_the_odds_over_the_second_cluster() -> None:
+    c = LocalizeConfig(convergence_odds=100.0)
+    assert converged_at(c, 0.995, 0.004, 0.1, 0.05)
+    # As heavy and compact, but a look-alike place holds 1/50 of its weight: not yet.
+    assert not converged_at(c, 0.97, 0.97 / 50, 0.1, 0.05)
+    assert not converged_at(c, 0.995, 0.0, 0.6, 0.05)  # not compact
+    assert not converged_at(c, 0.995, 0.0, 0.1, 0.3)
+    assert not converged_at(c, 0.85, 0.0, 0.1, 0.05)  # not heavy enough
+    # Odds 1: the heaviest cluster's weight and spread alone (the rule before the odds).
+    assert converged_at(LocalizeConfig(convergence_odds=1.0), 0.9, 0.1, 0.5, 0.2)
 
 
 def test_nav2_prior_states_its_classes(sim: Sim) -> None:

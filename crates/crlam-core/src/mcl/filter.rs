@@ -507,10 +507,15 @@ impl Mcl {
     }
 
     /// The spread of the set at the last scan: of its heaviest cluster when that holds at least
-    /// half the weight, else of the whole set (before the first scan: of the initial set).
+    /// half the weight and no other cluster competes with it (see `min_cluster`), else of the
+    /// whole set (before the first scan: of the initial set). Several competing places make a
+    /// spread set: its scans are weighed as such (the spread trigger, `min_neff`, the wide hit
+    /// term) until one place remains.
     fn spread(&self) -> f64 {
         match self.last {
-            Some(s) if s.cluster.weight >= 0.5 => s.cluster.spread_xy() + s.cluster.std_theta,
+            Some(s) if s.cluster.weight >= 0.5 && !self.competing(&s) => {
+                s.cluster.spread_xy() + s.cluster.std_theta
+            }
             Some(s) => s.set_spread,
             None => {
                 let n = self.poses.len();
@@ -521,6 +526,12 @@ impl Mcl {
                 }
             }
         }
+    }
+
+    /// Whether, at the step `s`, a second cluster competed with the heaviest (`min_cluster` on,
+    /// and the second's weight at least `keep_ratio` times the heaviest's).
+    fn competing(&self, s: &MclStep) -> bool {
+        self.cfg.min_cluster > 0 && s.second_weight >= self.cfg.keep_ratio * s.cluster.weight
     }
 
     /// Updates w_slow and w_fast with the scan's fit; returns the probability of a random particle.
