@@ -104,6 +104,10 @@ class LocalizeConfig:
         particles share its weight, so the resampling passes every cluster's weight on unchanged.
         Then a look-alike room keeps its particles until the scans rule it out, and the
         second-heaviest cluster's weight is the evidence against it (``convergence_odds``).
+        While another cluster competes so, the set counts as spread (``spread_update``,
+        ``min_neff``, the wide hit term): scans of nearly the same view would otherwise decide
+        between the places by their chance differences. While recovery injects random particles
+        the resampling is AMCL's (a place they find competes once it holds on without them).
         ``min_cluster`` 0 turns this off (AMCL's resampling).
     free_threshold : float
         Cells with m̂ at most this are free: global starts and recovery place particles there.
@@ -156,7 +160,7 @@ class LocalizeConfig:
     spread_update: tuple[float, float] = (0.25, 0.5)
     spread_limit: float = 0.5
     resample_threshold: float = 0.5
-    min_cluster: int = 0
+    min_cluster: int = 30
     keep_ratio: float = 1e-3
     free_threshold: float = 0.25
     tail_tolerance: float = 1e-6
@@ -164,7 +168,7 @@ class LocalizeConfig:
     convergence_xy: float = 0.5
     convergence_theta: float = 0.2
     convergence_weight: float = 0.9
-    convergence_odds: float = 1.0
+    convergence_odds: float = 1000.0
     convergence_hold: int = 10
     seed: int = 0
 

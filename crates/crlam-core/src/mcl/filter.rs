@@ -99,7 +99,9 @@ pub struct MclConfig {
     /// unchanged. A hypothesis the scans have not yet ruled out is then neither lost to the
     /// random draw nor decided by it, and the second-heaviest cluster's weight stays a measure
     /// of the evidence against it (the convergence rule's odds). With one such cluster the
-    /// resampling is AMCL's (equal weights). 0 turns this off.
+    /// resampling is AMCL's (equal weights), and so it is while recovery injects random
+    /// particles (they come and go; a place they find competes once it holds on without them).
+    /// 0 turns this off.
     pub min_cluster: usize,
     /// See `min_cluster`: the weight, relative to the heaviest cluster's, down to which a
     /// cluster counts as a competing hypothesis (in (0, 1]).
@@ -529,9 +531,12 @@ impl Mcl {
     }
 
     /// Whether, at the step `s`, a second cluster competed with the heaviest (`min_cluster` on,
-    /// and the second's weight at least `keep_ratio` times the heaviest's).
+    /// recovery not injecting, and the second's weight at least `keep_ratio` times the
+    /// heaviest's).
     fn competing(&self, s: &MclStep) -> bool {
-        self.cfg.min_cluster > 0 && s.second_weight >= self.cfg.keep_ratio * s.cluster.weight
+        self.cfg.min_cluster > 0
+            && s.inject_probability == 0.0
+            && s.second_weight >= self.cfg.keep_ratio * s.cluster.weight
     }
 
     /// Updates w_slow and w_fast with the scan's fit; returns the probability of a random particle.
@@ -599,7 +604,13 @@ impl Mcl {
                 }
             }
         }
-        let n_kept = self.keep_clusters(w, found, labels, &mut out, &mut origin);
+        // While recovery injects, the set is AMCL's: its random particles come and go, and a
+        // place they find competes once it holds on without them.
+        let n_kept = if injected == 0 {
+            self.keep_clusters(w, found, labels, &mut out, &mut origin)
+        } else {
+            0
+        };
         self.log_w = if n_kept > 1 {
             cluster_log_weights(&origin, found, labels, injected)
         } else {
