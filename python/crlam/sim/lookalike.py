@@ -32,7 +32,9 @@ def lookalike_world(n_rooms: int = 4, resolution: float = 0.05) -> World:
     occ = np.zeros((ny, nx), dtype=bool)
 
     def box(x0: float, y0: float, x1: float, y1: float) -> None:
-        occ[int(round(y0 / resolution)) : int(round(y1 / resolution)), int(round(x0 / resolution)) : int(round(x1 / resolution))] = True
+        occ[
+            int(round(y0 / resolution)) : int(round(y1 / resolution)), int(round(x0 / resolution)) : int(round(x1 / resolution))
+        ] = True
 
     box(0, 0, width, wall)
     box(0, height - wall, width, height)

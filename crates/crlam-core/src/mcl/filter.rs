@@ -860,7 +860,10 @@ mod keep_tests {
         // the draw, which almost surely loses it.
         assert!(nb >= 30 && na >= 50, "{na} {nb}");
         let total = wa + wb;
-        assert!((wb / total - 0.0015 / (0.998 + 0.0015)).abs() < 1e-9, "{wb} {wa}");
+        assert!(
+            (wb / total - 0.0015 / (0.998 + 0.0015)).abs() < 1e-9,
+            "{wb} {wa}"
+        );
     }
 
     #[test]
