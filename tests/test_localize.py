@@ -19,10 +19,11 @@ from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan, read_scans
 from crlam.io.tum import read_tum
-from crlam.localize import LocalizeConfig, Localizer
+from crlam.localize import LocalizeConfig, Localizer, converged_at
 from crlam.localize_map import LocalizationMap, Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between, compose
+from crlam.sim.lookalike import lookalike_world
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 from crlam.sim.world import World
 
@@ -172,6 +173,24 @@ def test_config_is_checked() -> None:
         LocalizeConfig(min_neff=1.0)
     with pytest.raises(ConfigError, match="motion"):
         LocalizeConfig(motion="teleport")
+    with pytest.raises(ConfigError, match="min_cluster"):
+        LocalizeConfig(min_cluster=-1)
+    with pytest.raises(ConfigError, match="keep_ratio"):
+        LocalizeConfig(keep_ratio=0.0)
+    with pytest.raises(ConfigError, match="convergence_odds"):
+        LocalizeConfig(convergence_odds=0.5)
+
+
+def test_convergence_needs_the_odds_over_the_second_cluster() -> None:
+    c = LocalizeConfig(convergence_odds=100.0)
+    assert converged_at(c, 0.995, 0.004, 0.1, 0.05)
+    # As heavy and compact, but a look-alike place holds 1/50 of its weight: not yet.
+    assert not converged_at(c, 0.97, 0.97 / 50, 0.1, 0.05)
+    assert not converged_at(c, 0.995, 0.0, 0.6, 0.05)  # not compact
+    assert not converged_at(c, 0.995, 0.0, 0.1, 0.3)
+    assert not converged_at(c, 0.85, 0.0, 0.1, 0.05)  # not heavy enough
+    # Odds 1: the heaviest cluster's weight and spread alone (the rule before the odds).
+    assert converged_at(LocalizeConfig(convergence_odds=1.0), 0.9, 0.1, 0.5, 0.2)
 
 
 def test_nav2_prior_states_its_classes(sim: Sim) -> None:
@@ -280,3 +299,38 @@ def test_turtlebot_bag_tracks_on_its_floor_map(data_dir: Path, tmp_path: Path) -
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert m["endpoints_within_0.1m"]["after_convergence"] > 0.8
     assert math.isfinite(m["distance_m"]) and m["distance_m"] > 7.0
+
+
+@pytest.fixture(scope="module")
+def lookalike(tmp_path_factory: pytest.TempPathFactory) -> Sim:
+    """300 scans on a floor of three look-alike rooms each side of a corridor
+    (:func:`crlam.sim.lookalike.lookalike_world`)."""
+    d = tmp_path_factory.mktemp("lookalike")
+    lookalike_world(3).to_nav2_yaml(d / "floor.yaml")
+    write_simulation(simulate(SimulationConfig(world=str(d / "floor.yaml"), n_scans=300, seed=1, sensor="sick")), d)
+    return Sim(d, list(read_scans(d / "log.clf")), read_tum(d / "groundtruth.tum").poses)
+
+
+def _converged_error(loc: Localizer, truth: NDArray[np.float64]) -> float:
+    assert loc.convergence is not None
+    k = loc.convergence.scan_index
+    dxy, _ = _errors(loc.steps[k].estimate[None, :], truth[k][None, :])
+    return float(dxy[0])
+
+
+def test_lookalike_rooms_are_kept_until_the_scans_tell_them_apart(lookalike: Sim) -> None:
+    """AMCL's resampling and convergence rule settle two rooms (8 m) from the truth; with the
+    competing clusters kept (the defaults) the filter waits until the scans tell the places
+    apart, and converges at the truth."""
+    m = load_localization_map(lookalike.folder / "floor.yaml")
+    fast = FAST | {"seed": 2}
+    old = Localizer(m, LocalizeConfig(**fast | {"min_cluster": 0, "convergence_odds": 1.0}))
+    _run(old, lookalike.scans)
+    assert old.convergence is not None and _converged_error(old, lookalike.truth) > 3.0
+    new = Localizer(m, LocalizeConfig(**fast))
+    _run(new, lookalike.scans)
+    assert new.convergence is not None and _converged_error(new, lookalike.truth) < 0.3
+    assert new.convergence.distance_m > old.convergence.distance_m
+    # Competing places were kept (and weighed as a spread set) before it converged.
+    before = [s for s in new.steps[: new.convergence.scan_index] if s.processed]
+    assert max(s.n_kept for s in before) >= 2 and max(s.second_weight for s in before) > 1e-3

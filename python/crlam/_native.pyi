@@ -294,6 +294,8 @@ class MclFilter:
         spread_update: tuple[float, float] = ...,  # (0.0, 0.0): pyo3 cannot render a tuple default
         spread_limit: float = 0.5,
         resample_threshold: float = 0.5,
+        min_cluster: int = 0,
+        keep_ratio: float = 1e-3,
         tail_tolerance: float = 1e-06,
         skip_no_returns: bool = False,
         seed: int = 0,

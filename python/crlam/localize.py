@@ -26,7 +26,7 @@ from crlam.errors import ConfigError
 from crlam.localize_map import LocalizationMap
 from crlam.pose import between
 
-__all__ = ["Convergence", "LocalizeConfig", "LocalizeStep", "Localizer"]
+__all__ = ["Convergence", "LocalizeConfig", "LocalizeStep", "Localizer", "converged_at"]
 
 
 @dataclass(frozen=True)
@@ -97,6 +97,18 @@ class LocalizeConfig:
         Spread (m) above which the set counts as spread.
     resample_threshold : float
         Resample when N_eff < threshold · n (and whenever recovery injects).
+    min_cluster, keep_ratio : int, float
+        Competing hypotheses survive resampling: when more than one cluster holds at least
+        ``keep_ratio`` times the heaviest cluster's weight, each of them keeps at least
+        ``min_cluster`` particles (drawn from within it, up to ``max_particles`` in all) and its
+        particles share its weight, so the resampling passes every cluster's weight on unchanged.
+        Then a look-alike room keeps its particles until the scans rule it out, and the
+        second-heaviest cluster's weight is the evidence against it (``convergence_odds``).
+        While another cluster competes so, the set counts as spread (``spread_update``,
+        ``min_neff``, the wide hit term): scans of nearly the same view would otherwise decide
+        between the places by their chance differences. While recovery injects random particles
+        the resampling is AMCL's (a place they find competes once it holds on without them).
+        ``min_cluster`` 0 turns this off (AMCL's resampling).
     free_threshold : float
         Cells with m̂ at most this are free: global starts and recovery place particles there.
     tail_tolerance : float
@@ -108,7 +120,12 @@ class LocalizeConfig:
     convergence_xy, convergence_theta, convergence_weight : float
         The estimate is converged at a processed scan when the heaviest cluster holds at least
         ``convergence_weight`` of the weight and its particles' position and heading spreads are
-        at most ``convergence_xy`` (m) and ``convergence_theta`` (rad).
+        at most ``convergence_xy`` (m) and ``convergence_theta`` (rad), and it is at least
+        ``convergence_odds`` times as heavy as the second-heaviest cluster.
+    convergence_odds : float
+        The posterior odds of the heaviest cluster against the next one that convergence needs
+        (1: no such condition). With ``min_cluster`` the cluster weights carry the scans'
+        (tempered) likelihood ratio of the two places since the start.
     convergence_hold : int
         The run converges at the first processed scan from which the criterion holds for this
         many processed scans in a row.
@@ -143,12 +160,15 @@ class LocalizeConfig:
     spread_update: tuple[float, float] = (0.25, 0.5)
     spread_limit: float = 0.5
     resample_threshold: float = 0.5
+    min_cluster: int = 30
+    keep_ratio: float = 1e-3
     free_threshold: float = 0.25
     tail_tolerance: float = 1e-6
     skip_no_returns: bool = False
     convergence_xy: float = 0.5
     convergence_theta: float = 0.2
     convergence_weight: float = 0.9
+    convergence_odds: float = 1000.0
     convergence_hold: int = 10
     seed: int = 0
 
@@ -162,8 +182,14 @@ class LocalizeConfig:
                 raise bad(name, "must be an integer >= 1")
         if self.min_particles > self.max_particles:
             raise bad("min_particles", f"must not exceed max_particles ({self.max_particles})")
-        if not (isinstance(self.max_beams, int) and self.max_beams >= 0):
-            raise bad("max_beams", "must be an integer >= 0 (0: all)")
+        for name in ("max_beams", "min_cluster"):
+            v = getattr(self, name)
+            if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
+                raise bad(name, "must be an integer >= 0 (0: off)")
+        if not (math.isfinite(self.keep_ratio) and 0.0 < self.keep_ratio <= 1.0):
+            raise bad("keep_ratio", "must be in (0, 1]")
+        if not (math.isfinite(self.convergence_odds) and self.convergence_odds >= 1.0):
+            raise bad("convergence_odds", "must be finite and >= 1")
         if not (isinstance(self.seed, int) and self.seed >= 0):
             raise bad("seed", "must be an integer >= 0")
         for name in ("kld_err", "tempering", "convergence_xy", "convergence_theta"):
@@ -249,7 +275,12 @@ class LocalizeStep:
         The σ of the hit term the scan was weighed with (the annealing of ``sigma_max``).
     cluster_weight, spread_xy, spread_theta : float
         The heaviest cluster's weight, position spread (m, RMS) and heading spread (rad).
+    second_weight : float
+        The second-heaviest cluster's weight (0 with one cluster).
     n_clusters : int
+    n_kept : int
+        Clusters that kept ``min_cluster`` particles through the scan's resampling (0: none
+        competing, or no resampling).
     converged : bool
         The convergence criterion (:class:`LocalizeConfig`) holds at this scan.
     """
@@ -269,7 +300,9 @@ class LocalizeStep:
     cluster_weight: float
     spread_xy: float
     spread_theta: float
+    second_weight: float
     n_clusters: int
+    n_kept: int
     converged: bool
 
 
@@ -290,6 +323,19 @@ class Convergence:
     scan_index: int
     time_s: float
     distance_m: float
+
+
+def converged_at(config: LocalizeConfig, weight: float, second_weight: float, spread_xy: float, spread_theta: float) -> bool:
+    """The convergence criterion at one processed scan (:class:`LocalizeConfig`): the heaviest
+    cluster (``weight``, position and heading spreads in m and rad) holds the weight, is compact,
+    and outweighs the second-heaviest (``second_weight``) by the odds."""
+    c = config
+    return (
+        weight >= c.convergence_weight
+        and spread_xy <= c.convergence_xy
+        and spread_theta <= c.convergence_theta
+        and weight >= c.convergence_odds * second_weight
+    )
 
 
 @dataclass
@@ -357,6 +403,8 @@ class Localizer:
                 spread_update=(float(c.spread_update[0]), float(c.spread_update[1])),
                 spread_limit=c.spread_limit,
                 resample_threshold=c.resample_threshold,
+                min_cluster=c.min_cluster,
+                keep_ratio=c.keep_ratio,
                 tail_tolerance=c.tail_tolerance,
                 skip_no_returns=c.skip_no_returns,
                 seed=c.seed,
@@ -383,11 +431,8 @@ class Localizer:
             self._travelled += float(math.hypot(inc[0], inc[1]))
         cl = d["cluster"]
         c = self.config
-        converged = bool(
-            d["processed"]
-            and cl["weight"] >= c.convergence_weight
-            and cl["spread_xy"] <= c.convergence_xy
-            and cl["std_theta"] <= c.convergence_theta
+        converged = bool(d["processed"]) and converged_at(
+            c, float(cl["weight"]), float(d["second_weight"]), float(cl["spread_xy"]), float(cl["std_theta"])
         )
         s = LocalizeStep(
             scan_index=len(self.steps),
@@ -405,7 +450,9 @@ class Localizer:
             cluster_weight=float(cl["weight"]),
             spread_xy=float(cl["spread_xy"]),
             spread_theta=float(cl["std_theta"]),
+            second_weight=float(d["second_weight"]),
             n_clusters=int(d["n_clusters"]),
+            n_kept=int(d["n_kept"]),
             converged=converged,
         )
         self.steps.append(s)

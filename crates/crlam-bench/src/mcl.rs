@@ -58,6 +58,8 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         beam_stride: 1,
         max_beams: 0,
         resample_threshold: 1.0,
+        min_cluster: 0,
+        keep_ratio: 1e-3,
         seed: 0,
     };
     let cov = [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.003]];

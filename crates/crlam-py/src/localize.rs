@@ -61,6 +61,8 @@ fn step_dict<'py>(py: Python<'py>, s: &MclStep) -> PyResult<Bound<'py, PyDict>> 
     d.set_item("sigma_hit", s.sigma_hit)?;
     d.set_item("cluster", cluster_dict(py, &s.cluster)?)?;
     d.set_item("n_clusters", s.n_clusters)?;
+    d.set_item("second_weight", s.second_weight)?;
+    d.set_item("n_kept", s.n_kept)?;
     Ok(d)
 }
 
@@ -87,7 +89,7 @@ impl MclFilter {
     #[pyo3(signature = (crm, rect, model, *, initial_pose=None, initial_cov=None, free_threshold=0.25, margin=0,
         n_min=100, n_max=5000, kld_err=0.01, kld_z=2.326_347_874_040_840_8, bin_xy=0.5, bin_theta=0.174_532_925_199_432_95,
         alpha_slow=0.001, alpha_fast=0.1, tempering=1.0, min_neff=0.0, sigma_max=0.0, anneal=0.5, beam_stride=1, max_beams=0, motion="gmapping",
-        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, tail_tolerance=1e-6, skip_no_returns=false, seed=0))]
+        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, min_cluster=0, keep_ratio=1e-3, tail_tolerance=1e-6, skip_no_returns=false, seed=0))]
     fn new(
         py: Python<'_>,
         crm: &CrmMap,
@@ -118,6 +120,8 @@ impl MclFilter {
         spread_update: (f64, f64),
         spread_limit: f64,
         resample_threshold: f64,
+        min_cluster: usize,
+        keep_ratio: f64,
         tail_tolerance: f64,
         skip_no_returns: bool,
         seed: u64,
@@ -168,6 +172,8 @@ impl MclFilter {
                 beam_stride,
                 max_beams,
                 resample_threshold,
+                min_cluster,
+                keep_ratio,
                 seed,
             };
             // Validate before building the field (which may be large).
@@ -186,7 +192,8 @@ impl MclFilter {
     /// Feeds one scan (odometry pose, beam bearings, ranges, laser offset in the robot frame);
     /// returns a dict: processed, estimate, n_particles, n_after, neff, resampled, n_injected,
     /// inject_probability, fit, n_beams, cluster (weight, count, mean, cov_xy, std_theta,
-    /// spread_xy) and n_clusters.
+    /// spread_xy), n_clusters, second_weight (the second-heaviest cluster's weight) and n_kept
+    /// (clusters kept by the `min_cluster` floor at this scan's resampling).
     fn process<'py>(
         &mut self,
         py: Python<'py>,

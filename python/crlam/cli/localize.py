@@ -38,6 +38,9 @@ def localize_config_of(args: argparse.Namespace) -> Any:
         "linear_update",
         "angular_update",
         "resample_threshold",
+        "min_cluster",
+        "keep_ratio",
+        "convergence_odds",
         "free_threshold",
         "tail_tolerance",
         "seed",
@@ -240,6 +243,24 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     )
     f.add_argument(
         "--resample-threshold", type=nonnegative_float, default=None, help="resample when N_eff < this x n (default 0.5)"
+    )
+    f.add_argument(
+        "--min-cluster",
+        type=nonnegative_int,
+        default=None,
+        help="particles every competing cluster keeps through resampling, with its weight (0: off; see crlam.localize)",
+    )
+    f.add_argument(
+        "--keep-ratio",
+        type=positive_float,
+        default=None,
+        help="a cluster competes while its weight is at least this x the heaviest's (default 1e-3)",
+    )
+    f.add_argument(
+        "--convergence-odds",
+        type=positive_float,
+        default=None,
+        help="convergence needs the heaviest cluster this many times as heavy as the next one",
     )
     f.add_argument(
         "--free-threshold", type=nonnegative_float, default=None, help="free cells: expected occupancy <= this (default 0.25)"

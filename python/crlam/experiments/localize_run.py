@@ -343,4 +343,5 @@ def _rule(c: LocalizeConfig) -> str:
         f"from the first processed scan of {c.convergence_hold} in a row where the heaviest cluster holds >= "
         f"{c.convergence_weight:g} of the weight with position spread <= {c.convergence_xy:g} m and heading spread <= "
         f"{math.degrees(c.convergence_theta):.1f} deg"
+        + (f", >= {c.convergence_odds:g} times the second-heaviest cluster's weight" if c.convergence_odds > 1 else "")
     )

@@ -41,6 +41,16 @@ fn find(parent: &mut [usize], mut i: usize) -> usize {
 
 /// The clusters of `poses` with normalised weights `w`, heaviest first.
 pub fn clusters(poses: &[Pose], w: &[f64], kld: &KldSettings) -> Vec<Cluster> {
+    clusters_with_labels(poses, w, kld).0
+}
+
+/// The clusters of `poses` with normalised weights `w`, heaviest first, and the index (into
+/// that list) of the cluster of every particle.
+pub fn clusters_with_labels(
+    poses: &[Pose],
+    w: &[f64],
+    kld: &KldSettings,
+) -> (Vec<Cluster>, Vec<usize>) {
     let mut index: HashMap<(i64, i64, i64), usize> = HashMap::new();
     let mut bin_of = Vec::with_capacity(poses.len());
     // Heading bins count from −π and wrap: bin n_t − 1 (the last, possibly narrower) touches 0.
@@ -115,22 +125,29 @@ pub fn clusters(poses: &[Pose], w: &[f64], kld: &KldSettings) -> Vec<Cluster> {
             c.cov_xy[2] += wi * dy * dy;
         }
     }
-    let mut v: Vec<Cluster> = out
-        .into_values()
-        .map(|mut c| {
+    let mut v: Vec<(usize, Cluster)> = out
+        .into_iter()
+        .map(|(r, mut c)| {
             let ws = c.weight.max(f64::MIN_POSITIVE);
             c.cov_xy = c.cov_xy.map(|s| s / ws);
-            c
+            (r, c)
         })
         .collect();
-    // Heaviest first; ties (equal weights) by position so the order never depends on hashing.
-    v.sort_by(|a, b| {
+    // Heaviest first; ties (equal weights) by position, then by root, so the order never
+    // depends on hashing.
+    v.sort_by(|(ra, a), (rb, b)| {
         b.weight
             .total_cmp(&a.weight)
             .then(a.mean[0].total_cmp(&b.mean[0]))
             .then(a.mean[1].total_cmp(&b.mean[1]))
+            .then(ra.cmp(rb))
     });
-    v
+    let rank: HashMap<usize, usize> = v.iter().enumerate().map(|(k, (r, _))| (*r, k)).collect();
+    let labels = root_of
+        .iter()
+        .map(|r| rank.get(r).copied().unwrap_or(0))
+        .collect();
+    (v.into_iter().map(|(_, c)| c).collect(), labels)
 }
 
 #[cfg(test)]
@@ -160,6 +177,16 @@ mod tests {
             / 10.0;
         assert!((c[0].cov_xy[0] - var).abs() < 1e-12 && c[0].cov_xy[2].abs() < 1e-12);
         assert!(c[0].std_theta < 1e-6);
+    }
+
+    #[test]
+    fn labels_name_each_particles_cluster() {
+        let kld = KldSettings::default();
+        let poses = [[0.0, 0.0, 0.0], [9.0, 9.0, 0.0], [0.1, 0.0, 0.0]];
+        let (c, labels) = clusters_with_labels(&poses, &[0.2, 0.5, 0.3], &kld);
+        assert_eq!(labels, vec![0, 1, 0]);
+        assert!((c[0].weight - 0.5).abs() < 1e-12 && c[0].count == 2);
+        assert!((c[1].weight - 0.5).abs() < 1e-12 && c[1].count == 1);
     }
 
     #[test]

@@ -37,7 +37,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use crate::error::{config_err, Result};
-use crate::mcl::cluster::{clusters, Cluster};
+use crate::mcl::cluster::{clusters, clusters_with_labels, Cluster};
 use crate::mcl::field::MeanField;
 use crate::mcl::kld::{BinCounter, KldSettings};
 use crate::mcl::likelihood::{scan_log_likelihood, select_beams, LikelihoodSettings, ScanFit};
@@ -91,6 +91,21 @@ pub struct MclConfig {
     pub max_beams: usize,
     /// Resample when N_eff < threshold · n (1: at every processed scan) or when recovery injects.
     pub resample_threshold: f64,
+    /// Smallest particle count of a competing hypothesis: when, at a resampling, more than one
+    /// cluster holds at least `keep_ratio` times the heaviest cluster's weight, each of those
+    /// keeps at least `min_cluster` particles (extra draws from within it, as long as the set is
+    /// below `n_max`) and the particles of every cluster share its weight (each gets the
+    /// cluster's weight over its count), so the clusters' weights pass through the resampling
+    /// unchanged. A hypothesis the scans have not yet ruled out is then neither lost to the
+    /// random draw nor decided by it, and the second-heaviest cluster's weight stays a measure
+    /// of the evidence against it (the convergence rule's odds). With one such cluster the
+    /// resampling is AMCL's (equal weights), and so it is while recovery injects random
+    /// particles (they come and go; a place they find competes once it holds on without them).
+    /// 0 turns this off.
+    pub min_cluster: usize,
+    /// See `min_cluster`: the weight, relative to the heaviest cluster's, down to which a
+    /// cluster counts as a competing hypothesis (in (0, 1]).
+    pub keep_ratio: f64,
     pub seed: u64,
 }
 
@@ -148,6 +163,12 @@ impl MclConfig {
         if !unit(self.resample_threshold) {
             return Err(config_err("resample_threshold", "must be in [0, 1]"));
         }
+        if !(self.keep_ratio.is_finite() && self.keep_ratio > 0.0 && self.keep_ratio <= 1.0) {
+            return Err(config_err(
+                "keep_ratio",
+                format!("must be in (0, 1], got {}", self.keep_ratio),
+            ));
+        }
         Ok(())
     }
 
@@ -200,6 +221,11 @@ pub struct MclStep {
     /// The heaviest cluster of the weighted set, and how many clusters there were.
     pub cluster: Cluster,
     pub n_clusters: usize,
+    /// The weight of the second-heaviest cluster (0 with one cluster).
+    pub second_weight: f64,
+    /// Clusters that kept at least `min_cluster` particles through this scan's resampling
+    /// (0 when it did not resample or when only one cluster was competing).
+    pub n_kept: usize,
 }
 
 /// The localizer: particles over a fixed map.
@@ -363,6 +389,8 @@ impl Mcl {
                     std_theta: 0.0,
                 }),
                 n_clusters: self.last.map(|s| s.n_clusters).unwrap_or(1),
+                second_weight: self.last.map(|s| s.second_weight).unwrap_or(0.0),
+                n_kept: 0,
             });
         }
         self.step += 1;
@@ -439,22 +467,23 @@ impl Mcl {
         };
         let inject_probability = self.update_averages(fit);
         let neff = effective_sample_size(&w);
-        let found = clusters(&self.poses, &w, &self.cfg.kld);
+        let (found, labels) = clusters_with_labels(&self.poses, &w, &self.cfg.kld);
         let cluster = found[0];
+        let second_weight = found.get(1).map(|c| c.weight).unwrap_or(0.0);
         let weighed_spread = set_spread(&self.poses, &w);
         self.estimate = cluster.mean;
         self.estimate_odom = scan.odom;
         self.tracker.processed(scan.odom);
         let resample = neff < self.cfg.resample_threshold * n as f64 || inject_probability > 0.0;
-        let n_injected = if resample {
-            self.resample(&w, inject_probability)
+        let (n_injected, n_kept) = if resample {
+            self.resample(&w, inject_probability, &found, &labels)
         } else {
             // Keep the log-weights bounded (they are only relative).
             let mx = self.log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             if mx.is_finite() {
                 self.log_w.iter_mut().for_each(|l| *l -= mx);
             }
-            0
+            (0, 0)
         };
         let out = MclStep {
             processed: true,
@@ -472,16 +501,23 @@ impl Mcl {
             set_spread: weighed_spread,
             cluster,
             n_clusters: found.len(),
+            second_weight,
+            n_kept,
         };
         self.last = Some(out);
         Ok(out)
     }
 
     /// The spread of the set at the last scan: of its heaviest cluster when that holds at least
-    /// half the weight, else of the whole set (before the first scan: of the initial set).
+    /// half the weight and no other cluster competes with it (see `min_cluster`), else of the
+    /// whole set (before the first scan: of the initial set). Several competing places make a
+    /// spread set: its scans are weighed as such (the spread trigger, `min_neff`, the wide hit
+    /// term) until one place remains.
     fn spread(&self) -> f64 {
         match self.last {
-            Some(s) if s.cluster.weight >= 0.5 => s.cluster.spread_xy() + s.cluster.std_theta,
+            Some(s) if s.cluster.weight >= 0.5 && !self.competing(&s) => {
+                s.cluster.spread_xy() + s.cluster.std_theta
+            }
             Some(s) => s.set_spread,
             None => {
                 let n = self.poses.len();
@@ -492,6 +528,15 @@ impl Mcl {
                 }
             }
         }
+    }
+
+    /// Whether, at the step `s`, a second cluster competed with the heaviest (`min_cluster` on,
+    /// recovery not injecting, and the second's weight at least `keep_ratio` times the
+    /// heaviest's).
+    fn competing(&self, s: &MclStep) -> bool {
+        self.cfg.min_cluster > 0
+            && s.inject_probability == 0.0
+            && s.second_weight >= self.cfg.keep_ratio * s.cluster.weight
     }
 
     /// Updates w_slow and w_fast with the scan's fit; returns the probability of a random particle.
@@ -512,9 +557,16 @@ impl Mcl {
         }
     }
 
-    /// KLD sampling from the weights `w` with random particles at `inject` probability; returns
-    /// how many were injected.
-    fn resample(&mut self, w: &[f64], inject: f64) -> usize {
+    /// KLD sampling from the weights `w` with random particles at `inject` probability, then the
+    /// floor of `min_cluster` particles for every competing cluster of `found` (`labels`: each
+    /// particle's cluster); returns how many were injected and how many clusters were kept.
+    fn resample(
+        &mut self,
+        w: &[f64],
+        inject: f64,
+        found: &[Cluster],
+        labels: &[usize],
+    ) -> (usize, usize) {
         let kld = self.cfg.kld;
         let mut cumulative = Vec::with_capacity(w.len());
         let mut s = 0.0;
@@ -525,6 +577,8 @@ impl Mcl {
         let total = s;
         let draw_step = 3 * self.step + 1;
         let mut out = Vec::with_capacity(kld.n_min.max(self.poses.len()));
+        // The particle each draw copied (None: a random one).
+        let mut origin: Vec<Option<usize>> = Vec::with_capacity(out.capacity());
         let mut bins = BinCounter::default();
         let (mut injected, mut drawn) = (0, 0);
         while out.len() < kld.n_max {
@@ -534,6 +588,7 @@ impl Mcl {
                 Some(p) => {
                     injected += 1;
                     out.push(p);
+                    origin.push(None);
                 }
                 None => {
                     let u = rng.uniform() * total;
@@ -542,16 +597,119 @@ impl Mcl {
                     drawn += 1;
                     let k = bins.add(&kld, &pose);
                     out.push(pose);
+                    origin.push(Some(i));
                     if drawn >= kld.limit(k) {
                         break;
                     }
                 }
             }
         }
-        self.log_w = vec![0.0; out.len()];
+        // While recovery injects, the set is AMCL's: its random particles come and go, and a
+        // place they find competes once it holds on without them.
+        let n_kept = if injected == 0 {
+            self.keep_clusters(w, found, labels, &mut out, &mut origin)
+        } else {
+            0
+        };
+        self.log_w = if n_kept > 1 {
+            cluster_log_weights(&origin, found, labels, injected)
+        } else {
+            vec![0.0; out.len()]
+        };
         self.poses = out;
-        injected
+        (injected, if n_kept > 1 { n_kept } else { 0 })
     }
+
+    /// Tops up every competing cluster (weight at least `keep_ratio` times the heaviest's) to
+    /// `min_cluster` particles with draws from within it by weight, while the set is below
+    /// `n_max`; heaviest clusters first. Returns the number of competing clusters (0 when
+    /// `min_cluster` is 0; nothing is drawn when there is one).
+    fn keep_clusters(
+        &self,
+        w: &[f64],
+        found: &[Cluster],
+        labels: &[usize],
+        out: &mut Vec<Pose>,
+        origin: &mut Vec<Option<usize>>,
+    ) -> usize {
+        let cfg = &self.cfg;
+        let best = found.first().map(|c| c.weight).unwrap_or(0.0);
+        let n_comp = found
+            .iter()
+            .take_while(|c| c.weight > 0.0 && c.weight >= cfg.keep_ratio * best)
+            .count();
+        if cfg.min_cluster == 0 {
+            return 0;
+        }
+        if n_comp < 2 {
+            return n_comp;
+        }
+        let mut count = vec![0usize; n_comp];
+        for &i in origin.iter().flatten() {
+            if let Some(c) = count.get_mut(labels[i]) {
+                *c += 1;
+            }
+        }
+        let mut members: Vec<Vec<usize>> = vec![Vec::new(); n_comp];
+        for (j, &l) in labels.iter().enumerate() {
+            if let Some(m) = members.get_mut(l) {
+                m.push(j);
+            }
+        }
+        // Streams of their own: the KLD loop uses indices below n_max.
+        let draw_step = 3 * self.step + 1;
+        let mut extra = cfg.kld.n_max as u64;
+        for (c, m) in members.iter().enumerate() {
+            let total: f64 = m.iter().map(|&j| w[j]).sum();
+            while count[c] < cfg.min_cluster && out.len() < cfg.kld.n_max && total > 0.0 {
+                let mut rng = Rng::stream(cfg.seed, draw_step, extra);
+                extra += 1;
+                let mut u = rng.uniform() * total;
+                let mut pick = m[m.len() - 1];
+                for &j in m {
+                    if u < w[j] {
+                        pick = j;
+                        break;
+                    }
+                    u -= w[j];
+                }
+                out.push(self.poses[pick]);
+                origin.push(Some(pick));
+                count[c] += 1;
+            }
+        }
+        n_comp
+    }
+}
+
+/// Log-weights after a resampling that keeps every cluster's weight: each of the `injected`
+/// random particles weighs 1/n as in AMCL's resampling (n: the new set's size), and the
+/// particles copied from cluster c share its weight W_c, scaled to the rest of the mass:
+/// (1 − injected / n) · W_c / (particles copied from c).
+fn cluster_log_weights(
+    origin: &[Option<usize>],
+    found: &[Cluster],
+    labels: &[usize],
+    injected: usize,
+) -> Vec<f64> {
+    let mut count = vec![0usize; found.len()];
+    for &i in origin.iter().flatten() {
+        count[labels[i]] += 1;
+    }
+    let n = origin.len().max(1) as f64;
+    let drawn_share = 1.0 - injected as f64 / n;
+    origin
+        .iter()
+        .map(|o| match o {
+            None => -n.ln(),
+            Some(i) => {
+                let c = labels[*i];
+                (drawn_share * found[c].weight / count[c].max(1) as f64)
+                    .max(f64::MIN_POSITIVE)
+                    .ln()
+            }
+        })
+        .collect()
 }
 
 /// The tempering of a scan: `base`, or, when the weights `prior + ll / base` would have an
@@ -606,4 +764,118 @@ fn set_spread(poses: &[Pose], w: &[f64]) -> f64 {
         .sum();
     let r = c.hypot(s).clamp(1e-300, 1.0);
     var.max(0.0).sqrt() + (-2.0 * r.ln()).max(0.0).sqrt()
+}
+
+#[cfg(test)]
+mod keep_tests {
+    use super::*;
+    use crate::grid::{CellRect, GridGeometry};
+    use crate::mcl::kld::KldSettings;
+    use crate::rbpf::UpdateTrigger;
+    use crate::sensor::SensorModelKind;
+
+    fn filter(min_cluster: usize) -> Mcl {
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let rect = CellRect {
+            ix0: 0,
+            iy0: 0,
+            nx: 100,
+            ny: 100,
+        };
+        let field = MeanField::from_means(g, rect, vec![0.05; 10_000], 0.5, 0.2, 10).unwrap();
+        let cfg = MclConfig {
+            likelihood: LikelihoodSettings {
+                model: SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.1),
+                tail_tolerance: 1e-6,
+                skip_no_returns: false,
+            },
+            motion: MotionModel::gmapping(),
+            trigger: UpdateTrigger::every_scan(),
+            spread_trigger: UpdateTrigger::every_scan(),
+            spread_limit: 0.5,
+            kld: KldSettings {
+                n_min: 50,
+                n_max: 2000,
+                ..KldSettings::default()
+            },
+            alpha_slow: 0.0,
+            alpha_fast: 0.0,
+            tempering: 1.0,
+            min_neff: 0.0,
+            sigma_max: 0.0,
+            anneal: 0.0,
+            beam_stride: 1,
+            max_beams: 0,
+            resample_threshold: 0.5,
+            min_cluster,
+            keep_ratio: 1e-3,
+            seed: 3,
+        };
+        let init = MclInit::Pose {
+            mean: [5.0, 5.0, 0.0],
+            cov: [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01]],
+        };
+        Mcl::new(cfg, Arc::new(field), init).unwrap()
+    }
+
+    /// 990 particles at A hold 0.998 of the weight, 10 at B 0.0015 and 10 at C 1e-6.
+    fn three_places(f: &mut Mcl) -> Vec<f64> {
+        let mut poses = Vec::new();
+        let mut w = Vec::new();
+        for i in 0..1010 {
+            let (place, weight) = match i {
+                0..=989 => ([2.0, 2.0, 0.0], 0.998 / 990.0),
+                990..=999 => ([8.0, 8.0, 1.0], 0.0015 / 10.0),
+                _ => ([2.0, 8.0, -2.0], 1e-6 / 10.0),
+            };
+            poses.push([place[0] + 0.001 * (i % 7) as f64, place[1], place[2]]);
+            w.push(weight);
+        }
+        let s: f64 = w.iter().sum();
+        let w: Vec<f64> = w.iter().map(|v| v / s).collect();
+        f.poses = poses;
+        f.log_w = w.iter().map(|v| v.ln()).collect();
+        w
+    }
+
+    fn weight_near(f: &Mcl, x: f64, y: f64) -> (f64, usize) {
+        let w = f.weights();
+        let near: Vec<usize> = (0..f.poses.len())
+            .filter(|&j| (f.poses[j][0] - x).hypot(f.poses[j][1] - y) < 0.5)
+            .collect();
+        (near.iter().map(|&j| w[j]).sum(), near.len())
+    }
+
+    #[test]
+    fn competing_clusters_keep_their_particles_and_weights() {
+        let mut f = filter(30);
+        let w = three_places(&mut f);
+        let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
+        assert_eq!(found.len(), 3);
+        let (injected, kept) = f.resample(&w, 0.0, &found, &labels);
+        assert_eq!((injected, kept), (0, 2));
+        let (wa, na) = weight_near(&f, 2.0, 2.0);
+        let (wb, nb) = weight_near(&f, 8.0, 8.0);
+        // B keeps at least min_cluster particles and its weight; C (below keep_ratio) is left to
+        // the draw, which almost surely loses it.
+        assert!(nb >= 30 && na >= 50, "{na} {nb}");
+        let total = wa + wb;
+        assert!(
+            (wb / total - 0.0015 / (0.998 + 0.0015)).abs() < 1e-9,
+            "{wb} {wa}"
+        );
+    }
+
+    #[test]
+    fn without_the_floor_the_draw_decides() {
+        let mut f = filter(0);
+        let w = three_places(&mut f);
+        let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
+        let (_, kept) = f.resample(&w, 0.0, &found, &labels);
+        assert_eq!(kept, 0);
+        // AMCL's resampling: equal weights, B holds about its share of the draws (0-3 of them).
+        let (_, nb) = weight_near(&f, 8.0, 8.0);
+        assert!(nb < 5, "{nb}");
+        assert!(f.log_w.iter().all(|&l| l == 0.0));
+    }
 }

@@ -171,6 +171,8 @@ fn config(n_min: usize, n_max: usize) -> MclConfig {
         beam_stride: 1,
         max_beams: 0,
         resample_threshold: 0.5,
+        min_cluster: 0,
+        keep_ratio: 1e-3,
         seed: 7,
     }
 }

@@ -1,0 +1,181 @@
+"""Global localization on the simulated floor of look-alike rooms (:mod:`crlam.sim.lookalike`):
+the runs the localizer's ``min_cluster`` and ``convergence_odds`` were chosen on.
+
+Simulates a SICK LMS200 log on the floor (seeded), then for every ``min_cluster`` setting runs
+global localizations from random scans of it for ``--travel`` metres each (never stopped at
+convergence) and records every processed scan's heaviest and second-heaviest cluster with the
+estimate's error against the ground truth. The convergence rule (:func:`crlam.localize.converged_at`,
+held for ``convergence_hold`` processed scans) is then applied afterwards for every odds value, so
+one run per ``min_cluster`` judges them all. Writes ``steps.csv`` (one row per processed scan) and
+``choice.csv`` (per setting: trials converged to the truth, to a wrong place, not at all, and the
+distance travelled until convergence).
+
+Usage, from the repository root::
+
+    python results/localization/lookalike.py runs/lookalike results/localization
+
+The rule for the choice: convergence is declared only once no other place is kept, so the odds
+are 1 / ``keep_ratio`` (the table shows the other odds beside it); ``min_cluster`` on (30, the one
+value tried) or off by the fewest trials converged to a wrong place, then the most converged to
+the truth within 10 m.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from crlam.io.carmen import read_scans
+from crlam.io.tum import read_tum
+from crlam.localize import LocalizeConfig, Localizer, converged_at
+from crlam.localize_map import load_localization_map
+from crlam.pose import between
+from crlam.sim.lookalike import lookalike_world
+from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
+
+MIN_CLUSTER = (0, 30)
+ODDS = (1.0, 10.0, 100.0, 1000.0)
+CORRECT_XY, CORRECT_THETA = 0.5, 0.2  # as crlam.experiments.localize_trials
+
+
+def _simulate(folder: Path, n_scans: int, seed: int) -> None:
+    if (folder / "log.clf").is_file():
+        return
+    folder.mkdir(parents=True, exist_ok=True)
+    lookalike_world(4).to_nav2_yaml(folder / "floor.yaml")
+    write_simulation(
+        simulate(SimulationConfig(world=str(folder / "floor.yaml"), n_scans=n_scans, seed=seed, sensor="sick")), folder
+    )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("runs", type=Path)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--trials", type=int, default=8)
+    ap.add_argument("--travel", type=float, default=12.0)
+    ap.add_argument("--scans", type=int, default=2400)
+    args = ap.parse_args()
+    sim = args.runs / "sim"
+    _simulate(sim, args.scans, seed=5)
+    scans = list(read_scans(sim / "log.clf"))
+    truth = read_tum(sim / "groundtruth.tum").poses
+    m = load_localization_map(sim / "floor.yaml")
+    steps_xy = [math.hypot(*between(a.odom, b.odom)[:2]) for a, b in zip(scans[:-1], scans[1:])]
+    travelled = np.concatenate([[0.0], np.cumsum(steps_xy)])
+    ok = np.nonzero(travelled[-1] - travelled >= args.travel)[0]
+    starts = np.sort(np.random.default_rng(0).choice(ok, size=args.trials, replace=False))
+    args.runs.mkdir(parents=True, exist_ok=True)
+    rows = []
+    path = args.runs / "steps.csv"
+    done = set()
+    if path.is_file():
+        with open(path) as fh:
+            rows = list(csv.DictReader(fh))
+        done = {(int(r["min_cluster"]), int(r["trial"])) for r in rows}
+    cols = [
+        "min_cluster",
+        "trial",
+        "start",
+        "scan",
+        "distance_m",
+        "weight",
+        "second",
+        "spread_xy",
+        "spread_theta",
+        "err_xy",
+        "err_theta",
+        "n_particles",
+    ]
+    with open(path, "a", newline="") as fh:
+        w = csv.DictWriter(fh, cols)
+        if not rows:
+            w.writeheader()
+        for mc in MIN_CLUSTER:
+            cfg = LocalizeConfig(min_cluster=mc, keep_ratio=1e-3)
+            for t, s0 in enumerate(starts):
+                if (mc, t) in done:
+                    continue
+                t0 = time.process_time()
+                loc = Localizer(m, replace(cfg, seed=t), laser_max_range=scans[s0].max_range)
+                k = int(s0)
+                while k < len(scans) and travelled[k] - travelled[s0] <= args.travel:
+                    sc = scans[k]
+                    r = np.where(sc.ranges >= sc.max_range, np.inf, sc.ranges)
+                    st = loc.step(sc.odom, sc.angles, r, sc.laser_offset, sc.timestamp)
+                    if st.processed:
+                        d = between(truth[k], st.estimate)
+                        row = {
+                            "min_cluster": mc,
+                            "trial": t,
+                            "start": int(s0),
+                            "scan": k,
+                            "distance_m": f"{travelled[k] - travelled[s0]:.3f}",
+                            "weight": f"{st.cluster_weight:.6g}",
+                            "second": f"{st.second_weight:.6g}",
+                            "spread_xy": f"{st.spread_xy:.4f}",
+                            "spread_theta": f"{st.spread_theta:.4f}",
+                            "err_xy": f"{math.hypot(d[0], d[1]):.4f}",
+                            "err_theta": f"{abs(d[2]):.4f}",
+                            "n_particles": st.n_particles,
+                        }
+                        w.writerow(row)
+                        rows.append({c: str(v) for c, v in row.items()})
+                    k += 1
+                fh.flush()
+                print(f"min_cluster {mc} trial {t} start {s0}: {time.process_time() - t0:.0f} s CPU", flush=True)
+    _choose(rows, args.out / "lookalike_choice.csv")
+
+
+def _judge(trial: list[dict[str, str]], cfg: LocalizeConfig) -> tuple[str, float]:
+    """(correct / wrong / none, distance at convergence) of one trial's processed scans."""
+    held = 0
+    for i, r in enumerate(trial):
+        ok = converged_at(cfg, float(r["weight"]), float(r["second"]), float(r["spread_xy"]), float(r["spread_theta"]))
+        held = held + 1 if ok else 0
+        if held >= cfg.convergence_hold:
+            first = trial[i - held + 1]
+            right = all(float(x["err_xy"]) <= CORRECT_XY and float(x["err_theta"]) <= CORRECT_THETA for x in (first, r))
+            return ("correct" if right else "wrong"), float(first["distance_m"])
+    return "none", math.nan
+
+
+def _choose(rows: list[dict[str, str]], out: Path) -> None:
+    by: dict[tuple[int, int], list[dict[str, str]]] = {}
+    for r in rows:
+        by.setdefault((int(r["min_cluster"]), int(r["trial"])), []).append(r)
+    table = []
+    for mc in sorted({k[0] for k in by}):
+        for odds in ODDS:
+            cfg = LocalizeConfig(min_cluster=mc, convergence_odds=odds)
+            res = [_judge(v, cfg) for k, v in sorted(by.items()) if k[0] == mc]
+            dist = [d for v, d in res if v == "correct"]
+            table.append(
+                {
+                    "min_cluster": mc,
+                    "convergence_odds": odds,
+                    "trials": len(res),
+                    "correct": sum(v == "correct" for v, _ in res),
+                    "correct_within_10m": sum(v == "correct" and d <= 10.0 for v, d in res),
+                    "wrong": sum(v == "wrong" for v, _ in res),
+                    "not_converged": sum(v == "none" for v, _ in res),
+                    "median_distance_m": f"{np.median(dist):.2f}" if dist else "",
+                }
+            )
+    out.parent.mkdir(parents=True, exist_ok=True)
+    with open(out, "w", newline="") as fh:
+        w = csv.DictWriter(fh, list(table[0]))
+        w.writeheader()
+        w.writerows(table)
+    for t in table:
+        print(t)
+
+
+if __name__ == "__main__":
+    main()
