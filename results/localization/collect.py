@@ -26,7 +26,7 @@ from crlam.eval.trajectory import relations_error
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum
 
-SEEDS = (0, 1, 2)
+SEEDS = (0, 1, 2, 3, 4, 5)
 
 
 def _json(p: Path) -> dict[str, Any]:
