@@ -36,7 +36,8 @@ class LocalizeConfig:
     Attributes
     ----------
     min_particles, max_particles : int
-        KLD sampling's bounds (AMCL: 100, 5000). A global start draws ``max_particles``.
+        KLD sampling's bounds (AMCL: 100, 5000). A global start draws ``spread_particles``
+        (``max_particles`` when that is 0).
     kld_err : float
         ε, the bound on the KL divergence between the sample and the posterior (AMCL: 0.01).
     kld_z : float

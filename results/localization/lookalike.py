@@ -147,7 +147,8 @@ def main() -> None:
                     k += 1
                 fh.flush()
                 print(
-                    f"min_cluster {mc} min_bin {mb} spread_particles {sp} trial {t} start {s0}: {time.process_time() - t0:.0f} s CPU",
+                    f"min_cluster {mc} min_bin {mb} spread_particles {sp} trial {t} start {s0}: "
+                    f"{time.process_time() - t0:.0f} s CPU",
                     flush=True,
                 )
     _choose(rows, args.out / "lookalike_choice.csv")
