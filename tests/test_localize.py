@@ -81,7 +81,9 @@ def mapped(sim: Sim) -> Path:
     return sim.folder / "belief.npz"
 
 
-FAST = {"max_beams": 45, "max_particles": 2000, "min_particles": 100, "seed": 1}
+# spread_particles 0: a global start draws max_particles (the fast tests' count; the larger
+# spread set has a test of its own).
+FAST = {"max_beams": 45, "max_particles": 2000, "min_particles": 100, "spread_particles": 0, "seed": 1}
 
 
 def _run(loc: Localizer, scans: list[LaserScan], odoms: list[NDArray[np.float64]] | None = None) -> None:
@@ -157,6 +159,21 @@ def test_particle_count_stays_within_the_kld_bounds(sim: Sim) -> None:
     assert min(s.n_after for s in processed) < 600
 
 
+def test_a_spread_set_may_hold_spread_particles(sim: Sim) -> None:
+    """A global start draws spread_particles; KLD keeps at most that many while the set is
+    spread, and at most max_particles once it has gathered."""
+    m = load_localization_map(sim.folder / "floor.yaml")
+    cfg = LocalizeConfig(**FAST | {"max_particles": 1000, "spread_particles": 4000})
+    loc = Localizer(m, cfg)
+    _run(loc, sim.scans[:N])
+    processed = [s for s in loc.steps if s.processed]
+    assert processed[0].n_particles == 4000
+    assert max(s.n_after for s in processed) <= 4000 + max(s.n_injected for s in processed)
+    # Gathered by the end: max_particles bounds the set again.
+    assert loc.convergence is not None
+    assert all(s.n_after <= 1000 + s.n_injected for s in processed[-10:]), [s.n_after for s in processed[-10:]]
+
+
 def test_no_free_cell_means_no_global_start(tmp_path: Path) -> None:
     crm = ConfidenceRichMap(MappingConfig(resolution=0.1))
     m = LocalizationMap(crm=crm, rect=(0, 0, 10, 10), source="prior", kind="belief")
@@ -177,6 +194,10 @@ def test_config_is_checked() -> None:
         LocalizeConfig(min_cluster=-1)
     with pytest.raises(ConfigError, match="keep_ratio"):
         LocalizeConfig(keep_ratio=0.0)
+    with pytest.raises(ConfigError, match="min_bin"):
+        LocalizeConfig(min_bin=-1)
+    with pytest.raises(ConfigError, match="spread_particles"):
+        LocalizeConfig(spread_particles=-5)
     with pytest.raises(ConfigError, match="convergence_odds"):
         LocalizeConfig(convergence_odds=0.5)
 

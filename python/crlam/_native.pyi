@@ -296,6 +296,8 @@ class MclFilter:
         resample_threshold: float = 0.5,
         min_cluster: int = 0,
         keep_ratio: float = 1e-3,
+        min_bin: int = 0,
+        spread_max: int = 0,
         tail_tolerance: float = 1e-06,
         skip_no_returns: bool = False,
         seed: int = 0,

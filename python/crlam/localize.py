@@ -36,7 +36,8 @@ class LocalizeConfig:
     Attributes
     ----------
     min_particles, max_particles : int
-        KLD sampling's bounds (AMCL: 100, 5000). A global start draws ``max_particles``.
+        KLD sampling's bounds (AMCL: 100, 5000). A global start draws ``spread_particles``
+        (``max_particles`` when that is 0).
     kld_err : float
         ε, the bound on the KL divergence between the sample and the posterior (AMCL: 0.01).
     kld_z : float
@@ -109,6 +110,19 @@ class LocalizeConfig:
         between the places by their chance differences. While recovery injects random particles
         the resampling is AMCL's (a place they find competes once it holds on without them).
         ``min_cluster`` 0 turns this off (AMCL's resampling).
+    min_bin : int
+        While the set is spread (``spread_limit``), every pose bin (``kld_bin``) holding at least
+        ``keep_ratio`` times the heaviest bin's weight keeps at least ``min_bin`` particles
+        through resampling (drawn first, from within it; then KLD sampling up to
+        ``max_particles``), and its particles share its weight. While spread, a cluster is a
+        whole room or corridor (its bins touch), so ``min_cluster`` cannot keep a place inside
+        it; this floor keeps the few particles near every place not yet ruled out. 0: off.
+    spread_particles : int
+        Largest particle count while the set is spread and recovery does not inject: a global
+        start draws this many, and KLD sampling may keep up to this many until the set gathers
+        (then ``max_particles``). A set spread over a building asks KLD for far more than 5,000;
+        with too few, the true place has no particle near enough to its pose to win. 0: at most
+        ``max_particles`` throughout.
     free_threshold : float
         Cells with m̂ at most this are free: global starts and recovery place particles there.
     tail_tolerance : float
@@ -162,6 +176,8 @@ class LocalizeConfig:
     resample_threshold: float = 0.5
     min_cluster: int = 30
     keep_ratio: float = 1e-3
+    min_bin: int = 0
+    spread_particles: int = 20000
     free_threshold: float = 0.25
     tail_tolerance: float = 1e-6
     skip_no_returns: bool = False
@@ -182,7 +198,7 @@ class LocalizeConfig:
                 raise bad(name, "must be an integer >= 1")
         if self.min_particles > self.max_particles:
             raise bad("min_particles", f"must not exceed max_particles ({self.max_particles})")
-        for name in ("max_beams", "min_cluster"):
+        for name in ("max_beams", "min_cluster", "min_bin", "spread_particles"):
             v = getattr(self, name)
             if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
                 raise bad(name, "must be an integer >= 0 (0: off)")
@@ -405,6 +421,8 @@ class Localizer:
                 resample_threshold=c.resample_threshold,
                 min_cluster=c.min_cluster,
                 keep_ratio=c.keep_ratio,
+                min_bin=c.min_bin,
+                spread_max=c.spread_particles,
                 tail_tolerance=c.tail_tolerance,
                 skip_no_returns=c.skip_no_returns,
                 seed=c.seed,

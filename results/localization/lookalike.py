@@ -1,7 +1,8 @@
 """Global localization on the simulated floor of look-alike rooms (:mod:`crlam.sim.lookalike`):
-the runs the localizer's ``min_cluster`` and ``convergence_odds`` were chosen on.
+the runs the localizer's ``min_cluster``, ``convergence_odds``, ``min_bin`` and
+``spread_particles`` were chosen on.
 
-Simulates a SICK LMS200 log on the floor (seeded), then for every ``min_cluster`` setting runs
+Simulates a SICK LMS200 log on the floor (seeded), then for every setting (``SETTINGS``) runs
 global localizations from random scans of it for ``--travel`` metres each (never stopped at
 convergence) and records every processed scan's heaviest and second-heaviest cluster with the
 estimate's error against the ground truth. The convergence rule (:func:`crlam.localize.converged_at`,
@@ -17,7 +18,8 @@ Usage, from the repository root::
 The rule for the choice: convergence is declared only once no other place is kept, so the odds
 are 1 / ``keep_ratio`` (the table shows the other odds beside it); ``min_cluster`` on (30, the one
 value tried) or off by the fewest trials converged to a wrong place, then the most converged to
-the truth within 10 m.
+the truth within 10 m; ``min_bin`` (1 or off) and ``spread_particles`` (20,000 or 5,000, one
+value tried) by the same rule, then the cheaper setting on a tie.
 """
 
 from __future__ import annotations
@@ -39,7 +41,9 @@ from crlam.pose import between
 from crlam.sim.lookalike import lookalike_world
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 
-MIN_CLUSTER = (0, 30)
+# (min_cluster, min_bin, spread_particles): AMCL's resampling, the cluster floor, the cluster
+# floor with the bin floor of a spread set, and with more particles while spread.
+SETTINGS = ((0, 0, 0), (30, 0, 0), (30, 1, 0), (30, 0, 20000))
 ODDS = (1.0, 10.0, 100.0, 1000.0)
 CORRECT_XY, CORRECT_THETA = 0.5, 0.2  # as crlam.experiments.localize_trials
 
@@ -78,9 +82,14 @@ def main() -> None:
     if path.is_file():
         with open(path) as fh:
             rows = list(csv.DictReader(fh))
-        done = {(int(r["min_cluster"]), int(r["trial"])) for r in rows}
+        for r in rows:
+            r.setdefault("min_bin", "0")  # rows written before these columns existed
+            r.setdefault("spread_particles", "0")
+        done = {(int(r["min_cluster"]), int(r["min_bin"]), int(r["spread_particles"]), int(r["trial"])) for r in rows}
     cols = [
         "min_cluster",
+        "min_bin",
+        "spread_particles",
         "trial",
         "start",
         "scan",
@@ -93,14 +102,20 @@ def main() -> None:
         "err_theta",
         "n_particles",
     ]
+    if rows and "spread_particles" not in open(path).readline():
+        # A file from before min_bin: rewrite it with the column (its rows are min_bin 0).
+        with open(path, "w", newline="") as fh:
+            w = csv.DictWriter(fh, cols)
+            w.writeheader()
+            w.writerows(rows)
     with open(path, "a", newline="") as fh:
         w = csv.DictWriter(fh, cols)
         if not rows:
             w.writeheader()
-        for mc in MIN_CLUSTER:
-            cfg = LocalizeConfig(min_cluster=mc, keep_ratio=1e-3)
+        for mc, mb, sp in SETTINGS:
+            cfg = LocalizeConfig(min_cluster=mc, keep_ratio=1e-3, min_bin=mb, spread_particles=sp)
             for t, s0 in enumerate(starts):
-                if (mc, t) in done:
+                if (mc, mb, sp, t) in done:
                     continue
                 t0 = time.process_time()
                 loc = Localizer(m, replace(cfg, seed=t), laser_max_range=scans[s0].max_range)
@@ -113,6 +128,8 @@ def main() -> None:
                         d = between(truth[k], st.estimate)
                         row = {
                             "min_cluster": mc,
+                            "min_bin": mb,
+                            "spread_particles": sp,
                             "trial": t,
                             "start": int(s0),
                             "scan": k,
@@ -129,7 +146,11 @@ def main() -> None:
                         rows.append({c: str(v) for c, v in row.items()})
                     k += 1
                 fh.flush()
-                print(f"min_cluster {mc} trial {t} start {s0}: {time.process_time() - t0:.0f} s CPU", flush=True)
+                print(
+                    f"min_cluster {mc} min_bin {mb} spread_particles {sp} trial {t} start {s0}: "
+                    f"{time.process_time() - t0:.0f} s CPU",
+                    flush=True,
+                )
     _choose(rows, args.out / "lookalike_choice.csv")
 
 
@@ -147,18 +168,21 @@ def _judge(trial: list[dict[str, str]], cfg: LocalizeConfig) -> tuple[str, float
 
 
 def _choose(rows: list[dict[str, str]], out: Path) -> None:
-    by: dict[tuple[int, int], list[dict[str, str]]] = {}
+    by: dict[tuple[int, int, int, int], list[dict[str, str]]] = {}
     for r in rows:
-        by.setdefault((int(r["min_cluster"]), int(r["trial"])), []).append(r)
+        key = (int(r["min_cluster"]), int(r["min_bin"]), int(r["spread_particles"]), int(r["trial"]))
+        by.setdefault(key, []).append(r)
     table = []
-    for mc in sorted({k[0] for k in by}):
+    for mc, mb, sp in sorted({k[:3] for k in by}):
         for odds in ODDS:
-            cfg = LocalizeConfig(min_cluster=mc, convergence_odds=odds)
-            res = [_judge(v, cfg) for k, v in sorted(by.items()) if k[0] == mc]
+            cfg = LocalizeConfig(min_cluster=mc, min_bin=mb, spread_particles=sp, convergence_odds=odds)
+            res = [_judge(v, cfg) for k, v in sorted(by.items()) if k[:3] == (mc, mb, sp)]
             dist = [d for v, d in res if v == "correct"]
             table.append(
                 {
                     "min_cluster": mc,
+                    "min_bin": mb,
+                    "spread_particles": sp,
                     "convergence_odds": odds,
                     "trials": len(res),
                     "correct": sum(v == "correct" for v, _ in res),

@@ -59,6 +59,8 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         max_beams: 0,
         resample_threshold: 1.0,
         min_cluster: 0,
+        min_bin: 0,
+        spread_max: 0,
         keep_ratio: 1e-3,
         seed: 0,
     };

@@ -40,6 +40,8 @@ def localize_config_of(args: argparse.Namespace) -> Any:
         "resample_threshold",
         "min_cluster",
         "keep_ratio",
+        "min_bin",
+        "spread_particles",
         "convergence_odds",
         "free_threshold",
         "tail_tolerance",
@@ -249,6 +251,18 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         type=nonnegative_int,
         default=None,
         help="particles every competing cluster keeps through resampling, with its weight (0: off; see crlam.localize)",
+    )
+    f.add_argument(
+        "--min-bin",
+        type=nonnegative_int,
+        default=None,
+        help="particles every plausible pose bin keeps through resampling while the set is spread (0: off)",
+    )
+    f.add_argument(
+        "--spread-particles",
+        type=nonnegative_int,
+        default=None,
+        help="most particles while the set is spread (a global start draws this many; 0: --max-particles)",
     )
     f.add_argument(
         "--keep-ratio",

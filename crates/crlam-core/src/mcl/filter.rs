@@ -32,6 +32,7 @@
 //! and the initial particles from `Rng::stream(seed, 0, j)`; weights are computed per particle
 //! and combined in index order, so the results do not depend on the number of threads.
 
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use rayon::prelude::*;
@@ -106,6 +107,21 @@ pub struct MclConfig {
     /// See `min_cluster`: the weight, relative to the heaviest cluster's, down to which a
     /// cluster counts as a competing hypothesis (in (0, 1]).
     pub keep_ratio: f64,
+    /// Smallest particle count of a pose bin (the KLD histogram's boxes) while the set is spread
+    /// (above `spread_limit`): at a resampling without random particles, every bin holding at
+    /// least `keep_ratio` times the heaviest bin's weight first gets `min_bin` draws from within
+    /// it (heaviest bins first, up to `n_max`), then KLD sampling draws the rest, and the
+    /// particles of every bin share its weight, so the bins' weights pass through the
+    /// resampling unchanged. While the set is spread a cluster is a whole corridor or room (its
+    /// bins touch), and the `min_cluster` floor cannot keep a place inside it; this floor keeps
+    /// the few particles near each place the scans have not yet ruled out. 0 turns this off.
+    pub min_bin: usize,
+    /// Largest particle count while the set is spread (above `spread_limit`) and recovery does
+    /// not inject: a global start draws this many, and KLD sampling may keep up to this many
+    /// until the set gathers (then `kld.n_max` again). A set spread over a building asks KLD for
+    /// far more than AMCL's 5,000 (one per occupied bin and more); with too few, a place has no
+    /// particle near enough to its true pose to win. 0: `kld.n_max` throughout.
+    pub spread_max: usize,
     pub seed: u64,
 }
 
@@ -162,6 +178,12 @@ impl MclConfig {
         }
         if !unit(self.resample_threshold) {
             return Err(config_err("resample_threshold", "must be in [0, 1]"));
+        }
+        if self.spread_max > 10_000_000 {
+            return Err(config_err(
+                "spread_max",
+                format!("must be at most 10,000,000, got {}", self.spread_max),
+            ));
         }
         if !(self.keep_ratio.is_finite() && self.keep_ratio > 0.0 && self.keep_ratio <= 1.0) {
             return Err(config_err(
@@ -271,7 +293,10 @@ impl Mcl {
     /// Places the particles anew (uniform weights); the recovery averages restart. The odometry
     /// tracking goes on: the next scan is processed with the odometry since the last one.
     pub fn reset(&mut self, init: MclInit) -> Result<()> {
-        let n = self.cfg.kld.n_max;
+        let n = match init {
+            MclInit::Global => self.cfg.kld.n_max.max(self.cfg.spread_max),
+            MclInit::Pose { .. } => self.cfg.kld.n_max,
+        };
         let seed = self.cfg.seed;
         // A reset after some scans draws from streams of its own step.
         let stream_step = if self.step == 0 { 0 } else { 3 * self.step + 2 };
@@ -476,7 +501,20 @@ impl Mcl {
         self.tracker.processed(scan.odom);
         let resample = neff < self.cfg.resample_threshold * n as f64 || inject_probability > 0.0;
         let (n_injected, n_kept) = if resample {
-            self.resample(&w, inject_probability, &found, &labels)
+            let spread_set = spread > self.cfg.spread_limit && inject_probability == 0.0;
+            let kld = KldSettings {
+                n_max: if spread_set {
+                    self.cfg.kld.n_max.max(self.cfg.spread_max)
+                } else {
+                    self.cfg.kld.n_max
+                },
+                ..self.cfg.kld
+            };
+            if spread_set && self.cfg.min_bin > 0 {
+                (0, self.resample_bins(&w, &kld))
+            } else {
+                self.resample(&w, inject_probability, &found, &labels, &kld)
+            }
         } else {
             // Keep the log-weights bounded (they are only relative).
             let mx = self.log_w.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -566,8 +604,9 @@ impl Mcl {
         inject: f64,
         found: &[Cluster],
         labels: &[usize],
+        kld: &KldSettings,
     ) -> (usize, usize) {
-        let kld = self.cfg.kld;
+        let kld = *kld;
         let mut cumulative = Vec::with_capacity(w.len());
         let mut s = 0.0;
         for &x in w {
@@ -607,7 +646,7 @@ impl Mcl {
         // While recovery injects, the set is AMCL's: its random particles come and go, and a
         // place they find competes once it holds on without them.
         let n_kept = if injected == 0 {
-            self.keep_clusters(w, found, labels, &mut out, &mut origin)
+            self.keep_clusters(w, found, labels, &mut out, &mut origin, kld.n_max)
         } else {
             0
         };
@@ -618,6 +657,97 @@ impl Mcl {
         };
         self.poses = out;
         (injected, if n_kept > 1 { n_kept } else { 0 })
+    }
+
+    /// The resampling of a spread set with the `min_bin` floor (see [`MclConfig::min_bin`]):
+    /// the floor's draws first, then KLD sampling up to its bound or `n_max`; every particle
+    /// weighs its bin's weight over the bin's new count. Returns the number of floored bins.
+    fn resample_bins(&mut self, w: &[f64], kld: &KldSettings) -> usize {
+        let cfg = &self.cfg;
+        let kld = *kld;
+        let mut index: HashMap<(i64, i64, i64), usize> = HashMap::new();
+        let mut members: Vec<Vec<usize>> = Vec::new();
+        let mut bin_w: Vec<f64> = Vec::new();
+        let mut label = Vec::with_capacity(w.len());
+        for (j, p) in self.poses.iter().enumerate() {
+            let n = index.len();
+            let b = *index.entry(kld.bin_of(p)).or_insert(n);
+            if b == members.len() {
+                members.push(Vec::new());
+                bin_w.push(0.0);
+            }
+            members[b].push(j);
+            bin_w[b] += w[j];
+            label.push(b);
+        }
+        let best = bin_w.iter().copied().fold(0.0, f64::max);
+        // Bins by weight, heaviest first (ties by first member: never by hashing).
+        let mut order: Vec<usize> = (0..bin_w.len())
+            .filter(|&b| bin_w[b] > 0.0 && bin_w[b] >= cfg.keep_ratio * best)
+            .collect();
+        order.sort_by(|&a, &b| {
+            bin_w[b]
+                .total_cmp(&bin_w[a])
+                .then(members[a][0].cmp(&members[b][0]))
+        });
+        let draw_step = 3 * self.step + 1;
+        let mut out: Vec<Pose> = Vec::with_capacity(kld.n_max);
+        let mut origin: Vec<usize> = Vec::with_capacity(kld.n_max);
+        let mut counter = BinCounter::default();
+        let mut stream = kld.n_max as u64;
+        let mut floored = 0;
+        for &b in &order {
+            if out.len() + cfg.min_bin > kld.n_max {
+                break;
+            }
+            floored += 1;
+            for _ in 0..cfg.min_bin {
+                let mut rng = Rng::stream(cfg.seed, draw_step, stream);
+                stream += 1;
+                let mut u = rng.uniform() * bin_w[b];
+                let m = &members[b];
+                let mut pick = m[m.len() - 1];
+                for &j in m {
+                    if u < w[j] {
+                        pick = j;
+                        break;
+                    }
+                    u -= w[j];
+                }
+                counter.add(&kld, &self.poses[pick]);
+                out.push(self.poses[pick]);
+                origin.push(pick);
+            }
+        }
+        let mut cumulative = Vec::with_capacity(w.len());
+        let mut s = 0.0;
+        for &x in w {
+            s += x;
+            cumulative.push(s);
+        }
+        let mut k = 0u64;
+        while out.len() < kld.n_max && out.len() < kld.limit(counter.len()) {
+            let mut rng = Rng::stream(cfg.seed, draw_step, k);
+            k += 1;
+            let u = rng.uniform() * s;
+            let i = cumulative.partition_point(|&c| c <= u).min(w.len() - 1);
+            counter.add(&kld, &self.poses[i]);
+            out.push(self.poses[i]);
+            origin.push(i);
+        }
+        let mut count = vec![0usize; bin_w.len()];
+        for &i in &origin {
+            count[label[i]] += 1;
+        }
+        self.log_w = origin
+            .iter()
+            .map(|&i| {
+                let b = label[i];
+                (bin_w[b] / count[b] as f64).max(f64::MIN_POSITIVE).ln()
+            })
+            .collect();
+        self.poses = out;
+        floored
     }
 
     /// Tops up every competing cluster (weight at least `keep_ratio` times the heaviest's) to
@@ -631,6 +761,7 @@ impl Mcl {
         labels: &[usize],
         out: &mut Vec<Pose>,
         origin: &mut Vec<Option<usize>>,
+        n_max: usize,
     ) -> usize {
         let cfg = &self.cfg;
         let best = found.first().map(|c| c.weight).unwrap_or(0.0);
@@ -658,10 +789,10 @@ impl Mcl {
         }
         // Streams of their own: the KLD loop uses indices below n_max.
         let draw_step = 3 * self.step + 1;
-        let mut extra = cfg.kld.n_max as u64;
+        let mut extra = n_max as u64;
         for (c, m) in members.iter().enumerate() {
             let total: f64 = m.iter().map(|&j| w[j]).sum();
-            while count[c] < cfg.min_cluster && out.len() < cfg.kld.n_max && total > 0.0 {
+            while count[c] < cfg.min_cluster && out.len() < n_max && total > 0.0 {
                 let mut rng = Rng::stream(cfg.seed, draw_step, extra);
                 extra += 1;
                 let mut u = rng.uniform() * total;
@@ -809,6 +940,8 @@ mod keep_tests {
             resample_threshold: 0.5,
             min_cluster,
             keep_ratio: 1e-3,
+            min_bin: 0,
+            spread_max: 0,
             seed: 3,
         };
         let init = MclInit::Pose {
@@ -852,7 +985,8 @@ mod keep_tests {
         let w = three_places(&mut f);
         let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
         assert_eq!(found.len(), 3);
-        let (injected, kept) = f.resample(&w, 0.0, &found, &labels);
+        let kld = f.cfg.kld;
+        let (injected, kept) = f.resample(&w, 0.0, &found, &labels, &kld);
         assert_eq!((injected, kept), (0, 2));
         let (wa, na) = weight_near(&f, 2.0, 2.0);
         let (wb, nb) = weight_near(&f, 8.0, 8.0);
@@ -871,11 +1005,29 @@ mod keep_tests {
         let mut f = filter(0);
         let w = three_places(&mut f);
         let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
-        let (_, kept) = f.resample(&w, 0.0, &found, &labels);
+        let kld = f.cfg.kld;
+        let (_, kept) = f.resample(&w, 0.0, &found, &labels, &kld);
         assert_eq!(kept, 0);
         // AMCL's resampling: equal weights, B holds about its share of the draws (0-3 of them).
         let (_, nb) = weight_near(&f, 8.0, 8.0);
         assert!(nb < 5, "{nb}");
         assert!(f.log_w.iter().all(|&l| l == 0.0));
+    }
+
+    #[test]
+    fn the_bin_floor_keeps_every_plausible_bin_and_its_weight() {
+        let mut f = filter(0);
+        f.cfg.min_bin = 5;
+        let w = three_places(&mut f);
+        // A, B and C are one pose bin each; C is below keep_ratio times A.
+        let kld = f.cfg.kld;
+        let floored = f.resample_bins(&w, &kld);
+        assert_eq!(floored, 2);
+        let (wa, na) = weight_near(&f, 2.0, 2.0);
+        let (wb, nb) = weight_near(&f, 8.0, 8.0);
+        assert!(nb >= 5 && na >= 5, "{na} {nb}");
+        // The bins' weights pass through unchanged (C, if drawn at all, keeps its own).
+        assert!((wb / wa - 0.0015 / 0.998).abs() < 1e-12, "{wa} {wb}");
+        assert!(f.poses.len() <= f.cfg.kld.n_max);
     }
 }

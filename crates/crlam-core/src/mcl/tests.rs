@@ -172,6 +172,8 @@ fn config(n_min: usize, n_max: usize) -> MclConfig {
         max_beams: 0,
         resample_threshold: 0.5,
         min_cluster: 0,
+        min_bin: 0,
+        spread_max: 0,
         keep_ratio: 1e-3,
         seed: 7,
     }
@@ -214,6 +216,41 @@ fn global_localization_converges_from_a_uniform_start() {
     for s in &steps {
         assert!((200..=4000).contains(&s.n_after));
     }
+}
+
+#[test]
+fn a_spread_set_may_hold_spread_max_particles() {
+    let (occ, field) = world();
+    let log = simulate(&occ, path(150), 1);
+    let cfg = MclConfig {
+        spread_max: 6000,
+        ..config(200, 2000)
+    };
+    let mut f = Mcl::new(cfg, field.clone(), MclInit::Global).unwrap();
+    assert_eq!(f.poses().len(), 6000);
+    let steps = run(&mut f, &log, 0, 80);
+    assert!(steps.iter().all(|s| s.n_after <= 6000));
+    // Gathered: n_max bounds the set again.
+    let last = steps.last().unwrap();
+    assert!(
+        last.cluster.weight > 0.95 && last.n_after <= 2000,
+        "{last:?}"
+    );
+    // A known start is not spread: it draws n_max.
+    let init = MclInit::Pose {
+        mean: log.truth[0],
+        cov: [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.01]],
+    };
+    let g = Mcl::new(
+        MclConfig {
+            spread_max: 6000,
+            ..config(200, 2000)
+        },
+        field,
+        init,
+    )
+    .unwrap();
+    assert_eq!(g.poses().len(), 2000);
 }
 
 #[test]
