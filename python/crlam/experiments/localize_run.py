@@ -25,13 +25,13 @@ from typing import Any, Literal
 
 import numpy as np
 from numpy.typing import NDArray
-from tqdm import tqdm
 
 from crlam import __version__
 from crlam.errors import DataFormatError
+from crlam.experiments.progress import scan_progress_bar
 from crlam.experiments.slam_run import _jsonable, _scan_inputs, peak_rss_mb, write_toml
 from crlam.io.carmen import LaserScan
-from crlam.io.logs import count_scans, input_description, open_log
+from crlam.io.logs import input_description, open_log
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
 from crlam.localize import LocalizeConfig, Localizer, LocalizeStep
@@ -207,12 +207,8 @@ def run_localize_log(
     endpoints: EndpointCounter | None = None
     near: list[int] = []
     total: list[int] = []
-    bar = tqdm(
-        total=count_scans(log_path, max_scans, bag_options=bag_options) if progress else None,
-        desc=f"localize {Path(log_path).name}",
-        unit="scan",
-        disable=not progress,
-        mininterval=1.0,
+    bar = scan_progress_bar(
+        log_path, desc=f"localize {Path(log_path).name}", progress=progress, max_scans=max_scans, bag_options=bag_options
     )
     for rec in reader:
         if not isinstance(rec, LaserScan):

@@ -40,9 +40,10 @@ from tqdm import tqdm
 from crlam import __version__
 from crlam.errors import ConfigError, DataFormatError
 from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
+from crlam.experiments.progress import scan_progress_bar
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
-from crlam.io.logs import count_scans, input_description, open_log
+from crlam.io.logs import input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
@@ -260,12 +261,12 @@ def _run_filter(
     """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s).
     ``verbose`` prints a line per processed scan (estimate, N_eff, resampling)."""
     run: SlamRun | None = None
-    bar = tqdm(
-        total=count_scans(log_path, max_scans, bag_options=bag_options) if progress else None,
+    bar = scan_progress_bar(
+        log_path,
         desc=f"{config.method} x{config.particles} {Path(log_path).name}",
-        unit="scan",
-        disable=not progress,
-        mininterval=1.0,
+        progress=progress,
+        max_scans=max_scans,
+        bag_options=bag_options,
     )
     for rec in reader:
         if not isinstance(rec, LaserScan):
