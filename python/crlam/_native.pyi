@@ -297,6 +297,8 @@ class MclFilter:
         min_cluster: int = 0,
         keep_ratio: float = 1e-3,
         min_bin: int = 0,
+        place_xy: float = 0.0,
+        place_theta: float = ...,  # 90 deg
         spread_max: int = 0,
         tail_tolerance: float = 1e-06,
         skip_no_returns: bool = False,

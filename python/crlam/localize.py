@@ -117,6 +117,17 @@ class LocalizeConfig:
         ``max_particles``), and its particles share its weight. While spread, a cluster is a
         whole room or corridor (its bins touch), so ``min_cluster`` cannot keep a place inside
         it; this floor keeps the few particles near every place not yet ruled out. 0: off.
+    place_xy, place_theta : float
+        Places while the set is spread (``spread_limit``; with ``min_cluster`` on and ``min_bin``
+        0): the ``min_cluster`` floor is kept per place, a fixed cell of ``place_xy`` x
+        ``place_xy`` m and ``place_theta`` rad of the pose space, instead of per cluster. Every
+        place holding at least ``keep_ratio`` times the heaviest place's weight first gets
+        ``min_cluster`` draws from within it by weight (heaviest first, up to the particle
+        bound), then KLD sampling draws the rest, and the particles of each place share its
+        weight. While spread, a cluster is a whole room or corridor, so a floor per cluster
+        cannot keep a place inside it; a place of bounded size keeps the best particles near
+        every pose not yet ruled out. Once one cluster is left, the floor is per cluster again.
+        ``place_xy`` 0: off.
     spread_particles : int
         Largest particle count while the set is spread and recovery does not inject: a global
         start draws this many, and KLD sampling may keep up to this many until the set gathers
@@ -177,6 +188,8 @@ class LocalizeConfig:
     min_cluster: int = 30
     keep_ratio: float = 1e-3
     min_bin: int = 0
+    place_xy: float = 0.0
+    place_theta: float = math.pi / 2
     spread_particles: int = 20000
     free_threshold: float = 0.25
     tail_tolerance: float = 1e-6
@@ -202,6 +215,10 @@ class LocalizeConfig:
             v = getattr(self, name)
             if not (isinstance(v, int) and not isinstance(v, bool) and v >= 0):
                 raise bad(name, "must be an integer >= 0 (0: off)")
+        if not (math.isfinite(self.place_xy) and self.place_xy >= 0.0):
+            raise bad("place_xy", "must be finite and >= 0 (0: off)")
+        if not (math.isfinite(self.place_theta) and self.place_theta > 0.0):
+            raise bad("place_theta", "must be finite and > 0")
         if not (math.isfinite(self.keep_ratio) and 0.0 < self.keep_ratio <= 1.0):
             raise bad("keep_ratio", "must be in (0, 1]")
         if not (math.isfinite(self.convergence_odds) and self.convergence_odds >= 1.0):
@@ -422,6 +439,8 @@ class Localizer:
                 min_cluster=c.min_cluster,
                 keep_ratio=c.keep_ratio,
                 min_bin=c.min_bin,
+                place_xy=float(c.place_xy),
+                place_theta=float(c.place_theta),
                 spread_max=c.spread_particles,
                 tail_tolerance=c.tail_tolerance,
                 skip_no_returns=c.skip_no_returns,

@@ -38,21 +38,28 @@ from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer, converged_at
 from crlam.localize_map import load_localization_map
 from crlam.pose import between
-from crlam.sim.lookalike import lookalike_world
+from crlam.sim.lookalike import INTEL_SCALE, lookalike_world
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 
-# (min_cluster, min_bin, spread_particles): AMCL's resampling, the cluster floor, the cluster
-# floor with the bin floor of a spread set, and with more particles while spread.
-SETTINGS = ((0, 0, 0), (30, 0, 0), (30, 1, 0), (30, 0, 20000))
+# (min_cluster, min_bin, spread_particles, place_xy m): AMCL's resampling, the cluster floor, the
+# cluster floor with the bin floor of a spread set, with more particles while spread, and with the
+# floor kept per place of place_xy m (and place_theta) while spread.
+SETTINGS = {
+    "small": ((0, 0, 0, 0.0), (30, 0, 0, 0.0), (30, 1, 0, 0.0), (30, 0, 20000, 0.0), (30, 0, 20000, 2.0), (30, 0, 20000, 4.0)),
+    "intel-scale": ((30, 0, 20000, 0.0), (30, 0, 20000, 2.0), (30, 0, 20000, 4.0)),
+}
+FLOORS = {"small": {}, "intel-scale": INTEL_SCALE}
+SCANS = {"small": 2400, "intel-scale": 4000}
+CHOICE = {"small": "lookalike_choice.csv", "intel-scale": "lookalike_intel_scale_choice.csv"}
 ODDS = (1.0, 10.0, 100.0, 1000.0)
 CORRECT_XY, CORRECT_THETA = 0.5, 0.2  # as crlam.experiments.localize_trials
 
 
-def _simulate(folder: Path, n_scans: int, seed: int) -> None:
+def _simulate(folder: Path, floor: str, n_scans: int, seed: int) -> None:
     if (folder / "log.clf").is_file():
         return
     folder.mkdir(parents=True, exist_ok=True)
-    lookalike_world(4).to_nav2_yaml(folder / "floor.yaml")
+    lookalike_world(**FLOORS[floor]).to_nav2_yaml(folder / "floor.yaml")
     write_simulation(
         simulate(SimulationConfig(world=str(folder / "floor.yaml"), n_scans=n_scans, seed=seed, sensor="sick")), folder
     )
@@ -64,10 +71,15 @@ def main() -> None:
     ap.add_argument("out", type=Path)
     ap.add_argument("--trials", type=int, default=8)
     ap.add_argument("--travel", type=float, default=12.0)
-    ap.add_argument("--scans", type=int, default=2400)
+    ap.add_argument("--floor", choices=sorted(FLOORS), default="small")
+    ap.add_argument("--scans", type=int, help="scans to simulate (default: 2,400 on the small floor, 4,000 on the large)")
+    ap.add_argument(
+        "--only", action="append", metavar="MC,MB,SP,PX", help="run only this setting of SETTINGS (repeatable)"
+    )
     args = ap.parse_args()
+    only = {tuple(float(v) for v in o.split(",")) for o in args.only or []}
     sim = args.runs / "sim"
-    _simulate(sim, args.scans, seed=5)
+    _simulate(sim, args.floor, args.scans or SCANS[args.floor], seed=5)
     scans = list(read_scans(sim / "log.clf"))
     truth = read_tum(sim / "groundtruth.tum").poses
     m = load_localization_map(sim / "floor.yaml")
@@ -85,11 +97,13 @@ def main() -> None:
         for r in rows:
             r.setdefault("min_bin", "0")  # rows written before these columns existed
             r.setdefault("spread_particles", "0")
-        done = {(int(r["min_cluster"]), int(r["min_bin"]), int(r["spread_particles"]), int(r["trial"])) for r in rows}
+            r.setdefault("place_xy", "0")
+        done = {_key(r) + (int(r["trial"]),) for r in rows}
     cols = [
         "min_cluster",
         "min_bin",
         "spread_particles",
+        "place_xy",
         "trial",
         "start",
         "scan",
@@ -102,8 +116,8 @@ def main() -> None:
         "err_theta",
         "n_particles",
     ]
-    if rows and "spread_particles" not in open(path).readline():
-        # A file from before min_bin: rewrite it with the column (its rows are min_bin 0).
+    if rows and "place_xy" not in open(path).readline():
+        # A file from before min_bin or place_xy: rewrite it with the columns (its rows are 0).
         with open(path, "w", newline="") as fh:
             w = csv.DictWriter(fh, cols)
             w.writeheader()
@@ -112,10 +126,12 @@ def main() -> None:
         w = csv.DictWriter(fh, cols)
         if not rows:
             w.writeheader()
-        for mc, mb, sp in SETTINGS:
-            cfg = LocalizeConfig(min_cluster=mc, keep_ratio=1e-3, min_bin=mb, spread_particles=sp)
+        for mc, mb, sp, px in SETTINGS[args.floor]:
+            if only and (mc, mb, sp, px) not in only:
+                continue
+            cfg = _config(mc, mb, sp, px)
             for t, s0 in enumerate(starts):
-                if (mc, mb, sp, t) in done:
+                if (mc, mb, sp, px, t) in done:
                     continue
                 t0 = time.process_time()
                 loc = Localizer(m, replace(cfg, seed=t), laser_max_range=scans[s0].max_range)
@@ -130,6 +146,7 @@ def main() -> None:
                             "min_cluster": mc,
                             "min_bin": mb,
                             "spread_particles": sp,
+                            "place_xy": px,
                             "trial": t,
                             "start": int(s0),
                             "scan": k,
@@ -146,12 +163,29 @@ def main() -> None:
                         rows.append({c: str(v) for c, v in row.items()})
                     k += 1
                 fh.flush()
+                with open(args.runs / "cpu.csv", "a") as fc:
+                    fc.write(f"{mc},{mb},{sp},{px},{t},{time.process_time() - t0:.1f}\n")
                 print(
-                    f"min_cluster {mc} min_bin {mb} spread_particles {sp} trial {t} start {s0}: "
+                    f"min_cluster {mc} min_bin {mb} spread_particles {sp} place_xy {px} trial {t} start {s0}: "
                     f"{time.process_time() - t0:.0f} s CPU",
                     flush=True,
                 )
-    _choose(rows, args.out / "lookalike_choice.csv")
+    cpu: dict[tuple[int, int, int, float], list[float]] = {}
+    if (args.runs / "cpu.csv").is_file():
+        for line in open(args.runs / "cpu.csv"):
+            f = line.strip().split(",")
+            cpu.setdefault((int(f[0]), int(f[1]), int(f[2]), float(f[3])), []).append(float(f[5]))
+    _choose(rows, args.out / CHOICE[args.floor], cpu)
+
+
+def _config(mc: int, mb: int, sp: int, px: float, **more: float) -> LocalizeConfig:
+    """The setting's :class:`LocalizeConfig` (place_xy given only when on)."""
+    extra = {"place_xy": px} if px > 0 else {}
+    return LocalizeConfig(min_cluster=mc, keep_ratio=1e-3, min_bin=mb, spread_particles=sp, **extra, **more)  # type: ignore[arg-type]
+
+
+def _key(r: dict[str, str]) -> tuple[int, int, int, float]:
+    return int(r["min_cluster"]), int(r["min_bin"]), int(r["spread_particles"]), float(r["place_xy"])
 
 
 def _judge(trial: list[dict[str, str]], cfg: LocalizeConfig) -> tuple[str, float]:
@@ -167,22 +201,22 @@ def _judge(trial: list[dict[str, str]], cfg: LocalizeConfig) -> tuple[str, float
     return "none", math.nan
 
 
-def _choose(rows: list[dict[str, str]], out: Path) -> None:
-    by: dict[tuple[int, int, int, int], list[dict[str, str]]] = {}
+def _choose(rows: list[dict[str, str]], out: Path, cpu: dict[tuple[int, int, int, float], list[float]]) -> None:
+    by: dict[tuple[int, int, int, float, int], list[dict[str, str]]] = {}
     for r in rows:
-        key = (int(r["min_cluster"]), int(r["min_bin"]), int(r["spread_particles"]), int(r["trial"]))
-        by.setdefault(key, []).append(r)
+        by.setdefault(_key(r) + (int(r["trial"]),), []).append(r)
     table = []
-    for mc, mb, sp in sorted({k[:3] for k in by}):
+    for mc, mb, sp, px in sorted({k[:4] for k in by}):
         for odds in ODDS:
-            cfg = LocalizeConfig(min_cluster=mc, min_bin=mb, spread_particles=sp, convergence_odds=odds)
-            res = [_judge(v, cfg) for k, v in sorted(by.items()) if k[:3] == (mc, mb, sp)]
+            cfg = _config(mc, mb, sp, px, convergence_odds=odds)
+            res = [_judge(v, cfg) for k, v in sorted(by.items()) if k[:4] == (mc, mb, sp, px)]
             dist = [d for v, d in res if v == "correct"]
             table.append(
                 {
                     "min_cluster": mc,
                     "min_bin": mb,
                     "spread_particles": sp,
+                    "place_xy": px,
                     "convergence_odds": odds,
                     "trials": len(res),
                     "correct": sum(v == "correct" for v, _ in res),
@@ -190,6 +224,7 @@ def _choose(rows: list[dict[str, str]], out: Path) -> None:
                     "wrong": sum(v == "wrong" for v, _ in res),
                     "not_converged": sum(v == "none" for v, _ in res),
                     "median_distance_m": f"{np.median(dist):.2f}" if dist else "",
+                    "cpu_s_per_trial": f"{np.mean(cpu[(mc, mb, sp, px)]):.0f}" if cpu.get((mc, mb, sp, px)) else "",
                 }
             )
     out.parent.mkdir(parents=True, exist_ok=True)

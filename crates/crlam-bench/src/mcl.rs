@@ -60,6 +60,8 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         resample_threshold: 1.0,
         min_cluster: 0,
         min_bin: 0,
+        place_xy: 0.0,
+        place_theta: std::f64::consts::FRAC_PI_2,
         spread_max: 0,
         keep_ratio: 1e-3,
         seed: 0,

@@ -41,6 +41,7 @@ def localize_config_of(args: argparse.Namespace) -> Any:
         "min_cluster",
         "keep_ratio",
         "min_bin",
+        "place_xy",
         "spread_particles",
         "convergence_odds",
         "free_threshold",
@@ -257,6 +258,12 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         type=nonnegative_int,
         default=None,
         help="particles every plausible pose bin keeps through resampling while the set is spread (0: off)",
+    )
+    f.add_argument(
+        "--place-xy",
+        type=nonnegative_float,
+        default=None,
+        help="while the set is spread, keep --min-cluster per place of this size (m, 90 deg) instead of per cluster (0: off)",
     )
     f.add_argument(
         "--spread-particles",

@@ -13,19 +13,36 @@ import numpy as np
 
 from crlam.sim.world import World
 
-__all__ = ["lookalike_world"]
+__all__ = ["INTEL_SCALE", "lookalike_world"]
+
+INTEL_SCALE = {"n_rooms": 10, "room_w": 5.0, "room_d": 5.0, "corridor": 3.0}
+"""The arguments of :func:`lookalike_world` for a floor of Intel's scale: ten 5 m x 5 m rooms on
+each side of a 3 m corridor, 641 m² of free space (Intel's map: about 765 m²; the default floor:
+150 m²)."""
 
 
-def lookalike_world(n_rooms: int = 4, resolution: float = 0.05) -> World:
-    """The floor (module docstring): rooms 4 m wide and 3.5 m deep on both sides of a 2.4 m
-    corridor; the west end of the corridor is closed, the east end opens into a 2 m alcove to the
-    north, and the second room from the west on the south side holds a cabinet. The outer walls
-    and the walls between rooms are 0.15 m thick; each room's door (1 m) is 1 m from its west wall,
-    and its desk (1.2 m x 0.6 m) stands against the back wall 2.2 m from it.
+def lookalike_world(
+    n_rooms: int = 4,
+    resolution: float = 0.05,
+    room_w: float = 4.0,
+    room_d: float = 3.5,
+    corridor: float = 2.4,
+) -> World:
+    """The floor (module docstring): rooms ``room_w`` m wide and ``room_d`` m deep (default 4 m
+    and 3.5 m) on both sides of a ``corridor`` m corridor (2.4 m); the west end of the corridor
+    is closed, the east end opens into a 2 m alcove to the north, and the second room from the
+    west on the south side holds a cabinet. The outer walls and the walls between rooms are
+    0.15 m thick; each room's door (1 m) is 1 m from its west wall, and its desk (1.2 m x 0.6 m)
+    stands against the back wall 2.2 m from it.
     """
     if n_rooms < 2:
         raise ValueError(f"n_rooms must be >= 2, got {n_rooms}")
-    wall, room_w, room_d, corridor = 0.15, 4.0, 3.5, 2.4
+    if not (room_w >= 3.6 and room_d >= 2.5 and corridor >= 1.5):
+        raise ValueError(
+            f"rooms need room_w >= 3.6 m (door and desk), room_d >= 2.5 m and corridor >= 1.5 m; "
+            f"got {room_w}, {room_d}, {corridor}"
+        )
+    wall = 0.15
     width = n_rooms * room_w + 2.0 + 2 * wall  # the alcove's 2 m at the east end
     height = 2 * room_d + corridor + 2 * wall
     nx, ny = int(round(width / resolution)), int(round(height / resolution))
@@ -61,4 +78,5 @@ def lookalike_world(n_rooms: int = 4, resolution: float = 0.05) -> World:
     box(east, wall, width, south_y)
     # The cabinet in the second room from the west on the south side.
     box(wall + room_w + 0.3, wall + 1.5, wall + room_w + 0.9, wall + 2.3)
-    return World(occ, resolution, name=f"lookalike-{n_rooms}")
+    name = f"lookalike-{n_rooms}" if (room_w, room_d, corridor) == (4.0, 3.5, 2.4) else f"lookalike-{n_rooms}-{room_w:g}x{room_d:g}-{corridor:g}"
+    return World(occ, resolution, name=name)

@@ -43,7 +43,7 @@ use crate::mcl::field::MeanField;
 use crate::mcl::kld::{BinCounter, KldSettings};
 use crate::mcl::likelihood::{scan_log_likelihood, select_beams, LikelihoodSettings, ScanFit};
 use crate::motion::MotionModel;
-use crate::pose::{between, compose, covariance_factor, draw_pose, Pose};
+use crate::pose::{between, compose, covariance_factor, draw_pose, wrap, Pose};
 use crate::rbpf::{OdometryTracker, ScanInput, UpdateTrigger};
 use crate::resample::{effective_sample_size, normalize_log_weights};
 use crate::rng::Rng;
@@ -116,6 +116,20 @@ pub struct MclConfig {
     /// bins touch), and the `min_cluster` floor cannot keep a place inside it; this floor keeps
     /// the few particles near each place the scans have not yet ruled out. 0 turns this off.
     pub min_bin: usize,
+    /// Size (m) of a place while the set is spread: when it is above 0 (and `min_cluster` is on,
+    /// `min_bin` off), a resampling of a spread set without random particles keeps the
+    /// `min_cluster` floor per place instead of per cluster. A place is a cell of `place_xy` ×
+    /// `place_xy` metres and `place_theta` radians of the pose space (a fixed grid); every place
+    /// holding at least `keep_ratio` times the heaviest place's weight first gets `min_cluster`
+    /// draws from within it by weight (heaviest places first, up to `n_max`), then KLD sampling
+    /// draws the rest, and the particles of every place share its weight, so the places' weights
+    /// pass through the resampling unchanged. While the set is spread AMCL's clusters join whole
+    /// rooms and corridors (their bins touch), so a floor per cluster cannot keep a place inside
+    /// one; a place of bounded size keeps the best particles near each pose the scans have not
+    /// yet ruled out. Once one cluster remains, the floor is per cluster again. 0: off.
+    pub place_xy: f64,
+    /// Heading extent (rad) of a place (see `place_xy`); sectors count from −π.
+    pub place_theta: f64,
     /// Largest particle count while the set is spread (above `spread_limit`) and recovery does
     /// not inject: a global start draws this many, and KLD sampling may keep up to this many
     /// until the set gathers (then `kld.n_max` again). A set spread over a building asks KLD for
@@ -183,6 +197,18 @@ impl MclConfig {
             return Err(config_err(
                 "spread_max",
                 format!("must be at most 10,000,000, got {}", self.spread_max),
+            ));
+        }
+        if !(self.place_xy.is_finite() && self.place_xy >= 0.0) {
+            return Err(config_err(
+                "place_xy",
+                format!("must be finite and >= 0 (0: off), got {}", self.place_xy),
+            ));
+        }
+        if self.place_xy > 0.0 && !(self.place_theta.is_finite() && self.place_theta > 0.0) {
+            return Err(config_err(
+                "place_theta",
+                format!("must be finite and > 0, got {}", self.place_theta),
             ));
         }
         if !(self.keep_ratio.is_finite() && self.keep_ratio > 0.0 && self.keep_ratio <= 1.0) {
@@ -511,7 +537,14 @@ impl Mcl {
                 ..self.cfg.kld
             };
             if spread_set && self.cfg.min_bin > 0 {
-                (0, self.resample_bins(&w, &kld))
+                let keys: Vec<_> = self.poses.iter().map(|p| kld.bin_of(p)).collect();
+                (0, self.resample_floored(&w, &kld, &keys, self.cfg.min_bin))
+            } else if spread_set && self.cfg.min_cluster > 0 && self.cfg.place_xy > 0.0 {
+                let keys: Vec<_> = self.poses.iter().map(|p| self.place_of(p)).collect();
+                (
+                    0,
+                    self.resample_floored(&w, &kld, &keys, self.cfg.min_cluster),
+                )
             } else {
                 self.resample(&w, inject_probability, &found, &labels, &kld)
             }
@@ -659,19 +692,41 @@ impl Mcl {
         (injected, if n_kept > 1 { n_kept } else { 0 })
     }
 
-    /// The resampling of a spread set with the `min_bin` floor (see [`MclConfig::min_bin`]):
-    /// the floor's draws first, then KLD sampling up to its bound or `n_max`; every particle
-    /// weighs its bin's weight over the bin's new count. Returns the number of floored bins.
-    fn resample_bins(&mut self, w: &[f64], kld: &KldSettings) -> usize {
+    /// The place (see [`MclConfig::place_xy`]) of a pose: its cell of `place_xy` m and its
+    /// heading sector of `place_theta` rad counted from −π (the last sector, possibly narrower,
+    /// ends at π).
+    fn place_of(&self, p: &Pose) -> (i64, i64, i64) {
+        let (s, t) = (self.cfg.place_xy, self.cfg.place_theta);
+        let n_t = ((2.0 * std::f64::consts::PI / t).ceil() as i64).max(1);
+        (
+            (p[0] / s).floor() as i64,
+            (p[1] / s).floor() as i64,
+            (((wrap(p[2]) + std::f64::consts::PI) / t).floor() as i64).clamp(0, n_t - 1),
+        )
+    }
+
+    /// The resampling of a spread set with a floor per cell of the pose space (`keys[j]`:
+    /// particle j's cell; the `min_bin` floor per pose bin, or the `min_cluster` floor per
+    /// place): every cell holding at least `keep_ratio` times the heaviest cell's weight first
+    /// gets `floor` draws from within it by weight (heaviest cells first, while they fit in
+    /// `n_max`), then KLD sampling draws the rest up to its bound or `n_max`; every particle
+    /// weighs its cell's weight over the cell's new count. Returns the number of floored cells.
+    fn resample_floored(
+        &mut self,
+        w: &[f64],
+        kld: &KldSettings,
+        keys: &[(i64, i64, i64)],
+        floor: usize,
+    ) -> usize {
         let cfg = &self.cfg;
         let kld = *kld;
         let mut index: HashMap<(i64, i64, i64), usize> = HashMap::new();
         let mut members: Vec<Vec<usize>> = Vec::new();
         let mut bin_w: Vec<f64> = Vec::new();
         let mut label = Vec::with_capacity(w.len());
-        for (j, p) in self.poses.iter().enumerate() {
+        for (j, key) in keys.iter().enumerate() {
             let n = index.len();
-            let b = *index.entry(kld.bin_of(p)).or_insert(n);
+            let b = *index.entry(*key).or_insert(n);
             if b == members.len() {
                 members.push(Vec::new());
                 bin_w.push(0.0);
@@ -697,11 +752,11 @@ impl Mcl {
         let mut stream = kld.n_max as u64;
         let mut floored = 0;
         for &b in &order {
-            if out.len() + cfg.min_bin > kld.n_max {
+            if out.len() + floor > kld.n_max {
                 break;
             }
             floored += 1;
-            for _ in 0..cfg.min_bin {
+            for _ in 0..floor {
                 let mut rng = Rng::stream(cfg.seed, draw_step, stream);
                 stream += 1;
                 let mut u = rng.uniform() * bin_w[b];
@@ -941,6 +996,8 @@ mod keep_tests {
             min_cluster,
             keep_ratio: 1e-3,
             min_bin: 0,
+            place_xy: 0.0,
+            place_theta: std::f64::consts::FRAC_PI_2,
             spread_max: 0,
             seed: 3,
         };
@@ -1021,7 +1078,8 @@ mod keep_tests {
         let w = three_places(&mut f);
         // A, B and C are one pose bin each; C is below keep_ratio times A.
         let kld = f.cfg.kld;
-        let floored = f.resample_bins(&w, &kld);
+        let keys: Vec<_> = f.poses.iter().map(|p| kld.bin_of(p)).collect();
+        let floored = f.resample_floored(&w, &kld, &keys, 5);
         assert_eq!(floored, 2);
         let (wa, na) = weight_near(&f, 2.0, 2.0);
         let (wb, nb) = weight_near(&f, 8.0, 8.0);
@@ -1029,5 +1087,80 @@ mod keep_tests {
         // The bins' weights pass through unchanged (C, if drawn at all, keeps its own).
         assert!((wb / wa - 0.0015 / 0.998).abs() < 1e-12, "{wa} {wb}");
         assert!(f.poses.len() <= f.cfg.kld.n_max);
+    }
+
+    /// One room: 990 particles at A (2, 2) hold 0.998 of the weight, 10 at B (6, 2) 0.0015,
+    /// and a chain of particles 0.25 m apart between them (1e-9 each) joins their pose bins, so
+    /// AMCL's clusters make one cluster of the room, as they do while a set is spread.
+    fn one_room(f: &mut Mcl) -> Vec<f64> {
+        let mut poses = Vec::new();
+        let mut w = Vec::new();
+        for i in 0..1000 {
+            let (x, weight) = if i < 990 {
+                (2.0, 0.998 / 990.0)
+            } else {
+                (6.0, 0.0015 / 10.0)
+            };
+            poses.push([x + 0.001 * (i % 7) as f64, 2.0, 0.0]);
+            w.push(weight);
+        }
+        for k in 1..16 {
+            poses.push([2.0 + 0.25 * k as f64, 2.0, 0.0]);
+            w.push(1e-9);
+        }
+        let s: f64 = w.iter().sum();
+        let w: Vec<f64> = w.iter().map(|v| v / s).collect();
+        f.poses = poses;
+        f.log_w = w.iter().map(|v| v.ln()).collect();
+        w
+    }
+
+    #[test]
+    fn places_split_a_room_that_is_one_cluster() {
+        let mut f = filter(30);
+        f.cfg.place_xy = 2.0;
+        assert_eq!(f.place_of(&[2.0, 2.0, 0.0]), (1, 1, 2));
+        assert_eq!(f.place_of(&[-0.1, 3.9, -3.0]), (-1, 1, 0));
+        // Sectors count from −π: a heading just below π lies in the last of the four.
+        assert_eq!(f.place_of(&[0.0, 0.0, 3.1]), (0, 0, 3));
+        let w = one_room(&mut f);
+        let (found, _) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
+        assert_eq!(found.len(), 1, "the chain joins A and B");
+        let kld = f.cfg.kld;
+        let keys: Vec<_> = f.poses.iter().map(|p| f.place_of(p)).collect();
+        // A's and B's places are floored; the chain's middle place (1e-9 x 5) is not.
+        let floored = f.resample_floored(&w, &kld, &keys, 30);
+        assert_eq!(floored, 2);
+        let (wa, na) = weight_near(&f, 2.0, 2.0);
+        let (wb, nb) = weight_near(&f, 6.0, 2.0);
+        assert!(nb >= 30 && na >= 30, "{na} {nb}");
+        // The places' weights pass through unchanged.
+        assert!((wb / wa - 0.0015 / 0.998).abs() < 1e-6, "{wa} {wb}");
+        assert!(f.poses.len() <= kld.n_max);
+    }
+
+    #[test]
+    fn the_cluster_floor_cannot_keep_a_place_inside_one_cluster() {
+        let mut f = filter(30);
+        let w = one_room(&mut f);
+        let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
+        let kld = f.cfg.kld;
+        let (_, kept) = f.resample(&w, 0.0, &found, &labels, &kld);
+        // One cluster: AMCL's resampling, B keeps about its share of the draws (0-3 of them).
+        assert_eq!(kept, 0);
+        let (_, nb) = weight_near(&f, 6.0, 2.0);
+        assert!(nb < 10, "{nb}");
+    }
+
+    #[test]
+    fn place_settings_are_checked() {
+        let mut f = filter(30);
+        f.cfg.place_xy = f64::NAN;
+        assert!(f.cfg.validate().is_err());
+        f.cfg.place_xy = 2.0;
+        f.cfg.place_theta = 0.0;
+        assert!(f.cfg.validate().is_err());
+        f.cfg.place_theta = 1.0;
+        assert!(f.cfg.validate().is_ok());
     }
 }

@@ -173,6 +173,8 @@ fn config(n_min: usize, n_max: usize) -> MclConfig {
         resample_threshold: 0.5,
         min_cluster: 0,
         min_bin: 0,
+        place_xy: 0.0,
+        place_theta: std::f64::consts::FRAC_PI_2,
         spread_max: 0,
         keep_ratio: 1e-3,
         seed: 7,
