@@ -198,6 +198,10 @@ def test_config_is_checked() -> None:
         LocalizeConfig(min_bin=-1)
     with pytest.raises(ConfigError, match="spread_particles"):
         LocalizeConfig(spread_particles=-5)
+    with pytest.raises(ConfigError, match="place_xy"):
+        LocalizeConfig(place_xy=-1.0)
+    with pytest.raises(ConfigError, match="place_theta"):
+        LocalizeConfig(place_theta=0.0)
     with pytest.raises(ConfigError, match="convergence_odds"):
         LocalizeConfig(convergence_odds=0.5)
 

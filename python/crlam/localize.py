@@ -313,7 +313,8 @@ class LocalizeStep:
     n_clusters : int
     n_kept : int
         Clusters that kept ``min_cluster`` particles through the scan's resampling (0: none
-        competing, or no resampling).
+        competing, or no resampling); while a spread set is floored per place (``place_xy``) or
+        per bin (``min_bin``), the places or bins floored.
     converged : bool
         The convergence criterion (:class:`LocalizeConfig`) holds at this scan.
     """

@@ -272,7 +272,8 @@ pub struct MclStep {
     /// The weight of the second-heaviest cluster (0 with one cluster).
     pub second_weight: f64,
     /// Clusters that kept at least `min_cluster` particles through this scan's resampling
-    /// (0 when it did not resample or when only one cluster was competing).
+    /// (0 when it did not resample or when only one cluster was competing); while a spread set
+    /// is floored per place (`place_xy`) or per bin (`min_bin`), the places or bins floored.
     pub n_kept: usize,
 }
 

@@ -256,6 +256,31 @@ fn a_spread_set_may_hold_spread_max_particles() {
 }
 
 #[test]
+fn a_spread_set_keeps_places_and_still_converges() {
+    let (occ, field) = world();
+    let log = simulate(&occ, path(150), 1);
+    let cfg = MclConfig {
+        min_cluster: 30,
+        place_xy: 2.0,
+        spread_max: 6000,
+        ..config(200, 2000)
+    };
+    let mut f = Mcl::new(cfg, field, MclInit::Global).unwrap();
+    let steps = run(&mut f, &log, 0, 80);
+    // While spread, the resampling floors many places of 2 m x 90° (a few hundred on this
+    // 14 m x 9 m floor at the start), never beyond the spread bound.
+    assert!(steps[0].resampled && steps[0].n_kept > 20, "{:?}", steps[0]);
+    assert!(steps.iter().all(|s| s.n_after <= 6000));
+    let last = steps.last().unwrap();
+    let (dxy, dth) = error(last.estimate, log.truth[79]);
+    assert!(dxy < 0.15 && dth < 0.05, "final error {dxy} m, {dth} rad");
+    assert!(
+        last.cluster.weight > 0.95 && last.n_after <= 2000,
+        "{last:?}"
+    );
+}
+
+#[test]
 fn tracks_from_a_known_pose_with_its_covariance() {
     let (occ, field) = world();
     let log = simulate(&occ, path(120), 2);
