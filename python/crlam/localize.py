@@ -188,7 +188,7 @@ class LocalizeConfig:
     min_cluster: int = 30
     keep_ratio: float = 1e-3
     min_bin: int = 0
-    place_xy: float = 0.0
+    place_xy: float = 2.0
     place_theta: float = math.pi / 2
     spread_particles: int = 20000
     free_threshold: float = 0.25
