@@ -40,8 +40,9 @@ for s in 0 1 2 3 4 5; do
     (cd "$RUNS/aces-first-s$s" && sha256sum --quiet -c "../aces-first-s$s.sha256") && echo "aces-first-s$s untouched"
 done
 
-# The simulated floor of look-alike rooms the competing-place settings were chosen on.
+# The simulated floors of look-alike rooms the competing-place settings were chosen on.
 python "$HERE/lookalike.py" "$RUNS/lookalike" "$HERE"
+python "$HERE/lookalike.py" "$RUNS/lookalike-intel-scale" "$HERE" --floor intel-scale
 
 # Tables and figures of this folder.
 python "$HERE/collect.py" "$RUNS" "$HERE" --data "$DATA"

@@ -263,7 +263,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         "--place-xy",
         type=nonnegative_float,
         default=None,
-        help="while the set is spread, keep --min-cluster per place of this size (m, 90 deg) instead of per cluster (default 2; 0: off)",
+        help="while spread, keep --min-cluster per place of this size (m, 90 deg), not per cluster (default 2; 0: off)",
     )
     f.add_argument(
         "--spread-particles",

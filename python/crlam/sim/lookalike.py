@@ -78,5 +78,9 @@ def lookalike_world(
     box(east, wall, width, south_y)
     # The cabinet in the second room from the west on the south side.
     box(wall + room_w + 0.3, wall + 1.5, wall + room_w + 0.9, wall + 2.3)
-    name = f"lookalike-{n_rooms}" if (room_w, room_d, corridor) == (4.0, 3.5, 2.4) else f"lookalike-{n_rooms}-{room_w:g}x{room_d:g}-{corridor:g}"
+    name = (
+        f"lookalike-{n_rooms}"
+        if (room_w, room_d, corridor) == (4.0, 3.5, 2.4)
+        else f"lookalike-{n_rooms}-{room_w:g}x{room_d:g}-{corridor:g}"
+    )
     return World(occ, resolution, name=name)
