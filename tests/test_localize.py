@@ -23,7 +23,7 @@ from crlam.localize import LocalizeConfig, Localizer, converged_at
 from crlam.localize_map import LocalizationMap, Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between, compose
-from crlam.sim.lookalike import lookalike_world
+from crlam.sim.lookalike import INTEL_SCALE, lookalike_world
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 from crlam.sim.world import World
 
@@ -324,6 +324,17 @@ def test_turtlebot_bag_tracks_on_its_floor_map(data_dir: Path, tmp_path: Path) -
     m = json.loads((tmp_path / "metrics.json").read_text())
     assert m["endpoints_within_0.1m"]["after_convergence"] > 0.8
     assert math.isfinite(m["distance_m"]) and m["distance_m"] > 7.0
+
+
+def test_the_lookalike_floor_of_intels_scale() -> None:
+    """Ten 5 m x 5 m rooms each side of a 3 m corridor: 627 m² of free space (Intel's map about
+    765 m²), against 150 m² for the default floor; sizes too small for a door and desk are refused."""
+    res = 0.05
+    big, small = lookalike_world(**INTEL_SCALE), lookalike_world()
+    assert math.isclose((~big.occupied).sum() * res**2, 627, abs_tol=15), (~big.occupied).sum() * res**2
+    assert (~big.occupied).sum() > 4 * (~small.occupied).sum()
+    with pytest.raises(ValueError, match="room_w"):
+        lookalike_world(room_w=3.0)
 
 
 @pytest.fixture(scope="module")

@@ -17,7 +17,7 @@ __all__ = ["INTEL_SCALE", "lookalike_world"]
 
 INTEL_SCALE = {"n_rooms": 10, "room_w": 5.0, "room_d": 5.0, "corridor": 3.0}
 """The arguments of :func:`lookalike_world` for a floor of Intel's scale: ten 5 m x 5 m rooms on
-each side of a 3 m corridor, 641 m² of free space (Intel's map: about 765 m²; the default floor:
+each side of a 3 m corridor, 627 m² of free space (Intel's map: about 765 m²; the default floor:
 150 m²)."""
 
 
