@@ -64,3 +64,12 @@ def test_the_setting_round_trips_and_changes_the_matches(office: Path, tmp_path:
     truth = read_tum(office / "groundtruth.tum").poses
     for poses in runs.values():
         assert np.sqrt(np.mean(np.sum((poses[:, :2] - truth[: len(poses), :2]) ** 2, axis=1))) < 0.3
+
+
+def test_the_sweeps_take_the_flag(tmp_path: Path) -> None:
+    argv = ["experiment", "table1", "--out", str(tmp_path), "--runs", "1", "--scans", "20", "--particles", "2"]
+    argv += ["--methods", "clam", "--preset", "robust", "--hit-means", "--workers", "1", "--quiet"]
+    assert main(argv) == 0
+    config = tomllib.loads((tmp_path / "runs" / "clam_run00" / "config.toml").read_text())
+    assert config["slam"]["hit_means"] is True
+    assert "hit_means = True (paper: False)" in (tmp_path / "table.md").read_text()
