@@ -224,6 +224,7 @@ class ClamFilter:
         motion_outlier: float = 0.0,
         scan_match_weight: str = "crm",
         match_range: str | float = ...,  # "z_max"
+        hit_means: bool = ...,  # False
         seed: int = 0,
         prior_map: CrmMap | None = None,
         initial_cov: NDArray[np.float64] | None = None,

@@ -30,7 +30,7 @@ done_ "$RUNS/tb4-global" || crlam localize "$BAG" --map "$BAG/mac_1st_floor_fina
 # (d) ACES: the first half mapped, continued with the second half, against one run over the whole log.
 [ -f "$RUNS/aces-first.clf.gz" ] || python "$HERE/split_log.py" "$DATA/aces/aces.clf.bz2" \
     "$RUNS/aces-first.clf.gz" "$RUNS/aces-second.clf.gz"
-for s in 0 1 2 3 4 5; do
+for s in 0 1 2 3 4 5 6 7 8 9 10 11; do
     done_ "$RUNS/aces-whole-s$s" || crlam slam "$DATA/aces/aces.clf.bz2" --out "$RUNS/aces-whole-s$s" --seed $s \
         --relations "$DATA/aces/aces.relations" --quiet --force
     done_ "$RUNS/aces-first-s$s" || crlam slam "$RUNS/aces-first.clf.gz" --out "$RUNS/aces-first-s$s" --seed $s --quiet --force

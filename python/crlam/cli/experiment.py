@@ -39,6 +39,7 @@ _SWEEP_FLAGS = (
     "--tempering-beams",
     "--scan-match-weight",
     "--match-range",
+    "--hit-means",
     "--motion-noise",
     "--sigma-range",
     "--cause-kernel",

@@ -194,6 +194,14 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
     "--tempering-beams": ("filter", dict(type=positive_float, metavar="B", help=TEMPERING_BEAMS_HELP)),
     "--scan-match-weight": ("filter", dict(choices=("crm", "endpoint"), help=SCAN_MATCH_WEIGHT_HELP)),
     "--match-range": ("filter", dict(type=match_range, metavar="z_max|full|M", help=MATCH_RANGE_HELP)),
+    "--hit-means": (
+        "filter",
+        dict(
+            action=argparse.BooleanOptionalAction,
+            help="RBPF-CLAM scan_match: keep the mean of the hits of each cell and match to it instead of the cell's "
+            f"centre, as GMapping does (paper: off; {FROM_PRESET})",
+        ),
+    ),
     "--linear-update": (
         "filter",
         dict(

@@ -24,6 +24,7 @@ use crate::rbpf::common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ProposalPose, ScanInput,
 };
 use crate::rbpf::estimate::WeighedSet;
+use crate::rbpf::hit_means::HitMeans;
 use crate::rbpf::lineage::{PathTree, NO_NODE};
 use crate::rbpf::proposal::propose;
 use crate::rbpf::scanmatch::PreparedScan;
@@ -133,6 +134,14 @@ impl RbpfClam {
                 (p.map, Some(covariance_factor(&p.cov)?))
             }
         };
+        // A continued run starts without hit means: its matcher reads the saved map's cell
+        // centres until the new scans record where the walls are.
+        let hits = match &cfg.proposal {
+            ClamProposal::ScanMatch(s) if s.hit_means => {
+                Some(HitMeans::new(cfg.crm.geometry, cfg.crm.tile_size)?)
+            }
+            _ => None,
+        };
         let n = cfg.n_particles;
         let particles = (0..n)
             .map(|j| {
@@ -152,6 +161,7 @@ impl RbpfClam {
                     pose,
                     log_w: -(n as f64).ln(),
                     map: map.clone(),
+                    hits: hits.clone(),
                     path: NO_NODE,
                 }
             })
@@ -250,7 +260,13 @@ impl RbpfClam {
     /// (bytes of distinct map tiles over all particles, distinct tiles, tile references): what the
     /// particle maps really occupy thanks to copy-on-write sharing.
     pub fn map_memory(&self) -> (usize, usize, usize) {
-        crate::rbpf::common::distinct_tile_memory(self.particles.iter().map(|p| p.map.grid()))
+        crate::rbpf::common::distinct_tile_memory(
+            self.particles.iter().map(|p| p.map.grid()).chain(
+                self.particles
+                    .iter()
+                    .filter_map(|p| p.hits.as_ref().map(|h| h.grid())),
+            ),
+        )
     }
 
     /// Feeds one scan; processes it when the update trigger fires.
@@ -331,8 +347,17 @@ impl RbpfClam {
                     let proposed = match (&cfg.proposal, &prepared) {
                         (ClamProposal::ScanMatch(settings), Some(prepared)) => {
                             propose_by_scan_match(
-                                cfg, settings, prepared, p.pose, &mut p.map, u, n_steps, scan,
-                                &mut rng, sc,
+                                cfg,
+                                settings,
+                                prepared,
+                                p.pose,
+                                &mut p.map,
+                                p.hits.as_ref(),
+                                u,
+                                n_steps,
+                                scan,
+                                &mut rng,
+                                sc,
                             )?
                         }
                         _ => propose(cfg, p, u, n_steps, scan, &mut rng, sc)?,
@@ -508,6 +533,17 @@ fn update_map_at_pose(
         &opts,
         sc,
     )?;
+    if let Some(hits) = &mut p.hits {
+        let model = &cfg.mapping_model;
+        hits.record_scan(
+            sensor,
+            scan.angles,
+            scan.ranges,
+            model.z_min,
+            model.z_max,
+            cfg.map_stride,
+        )?;
+    }
     Ok(())
 }
 

@@ -336,6 +336,12 @@ pub struct ScanMatchSettings {
     pub weight: ScanMatchWeight,
     /// The readings the endpoint matcher uses.
     pub match_range: MatchRange,
+    /// Whether each particle keeps the mean of the hits of every cell ([`HitMeans`]) and the
+    /// matcher measures a beam's distance to that mean instead of the cell's centre (GMapping's
+    /// matcher).
+    ///
+    /// [`HitMeans`]: crate::rbpf::HitMeans
+    pub hit_means: bool,
 }
 
 impl Default for ScanMatchSettings {
@@ -346,6 +352,7 @@ impl Default for ScanMatchSettings {
             occupied_above: 0.5,
             weight: ScanMatchWeight::Crm,
             match_range: MatchRange::ZMax,
+            hit_means: false,
         }
     }
 }

@@ -36,6 +36,7 @@ pub use crate::rbpf::clam_config::{
 };
 use crate::rbpf::clam_particle::weigh_at_pose;
 use crate::rbpf::common::{ProposalPose, ScanInput};
+use crate::rbpf::hit_means::HitMeans;
 use crate::rbpf::motion_prior::MotionPrior;
 use crate::rbpf::proposal::Proposed;
 use crate::rbpf::scanmatch::{PreparedScan, ScanMatcher};
@@ -73,6 +74,7 @@ pub(crate) fn propose_by_scan_match(
     prepared: &PreparedScan,
     prev: Pose,
     map: &mut CrmMap,
+    hits: Option<&HitMeans>,
     u: Pose,
     n_steps: usize,
     scan: &ScanInput,
@@ -94,6 +96,7 @@ pub(crate) fn propose_by_scan_match(
     let outcome = {
         let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
             map,
+            hits,
             prepared,
             start,
             settings.matcher.kernel_size,

@@ -7,6 +7,7 @@ use crate::error::Result;
 use crate::pose::{compose, Pose};
 use crate::rbpf::clam_config::{scan_opts, ClamConfig};
 use crate::rbpf::common::ScanInput;
+use crate::rbpf::hit_means::HitMeans;
 use crate::rbpf::lineage::NodeId;
 
 /// One particle: pose, log-weight and its own map.
@@ -15,6 +16,9 @@ pub struct ClamParticle {
     pub pose: Pose,
     pub log_w: f64,
     pub map: CrmMap,
+    /// The means of the map's hits, kept when the scan-match proposal reads them
+    /// ([`crate::rbpf::ScanMatchSettings::hit_means`]).
+    pub hits: Option<HitMeans>,
     /// The particle's pose at the last processed scan in the filter's [`crate::rbpf::PathTree`].
     pub path: NodeId,
 }

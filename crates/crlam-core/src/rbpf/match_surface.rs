@@ -23,6 +23,7 @@ use crate::crm::CrmMap;
 use crate::grid::{CellRect, GridGeometry, TiledGrid};
 use crate::ogm::{hit_mean_of, LogOddsGrid};
 use crate::pose::Pose;
+use crate::rbpf::hit_means::HitMeans;
 
 /// Class bit of an occupied cell (log-odds > 0).
 pub(crate) const OCCUPIED: u8 = 1;
@@ -64,10 +65,12 @@ fn class_of(v: f32, free_test: FreeTest) -> u8 {
 enum Cells<'a> {
     /// Log-odds grids (first value of each cell; hit-mean grids keep more after it).
     LogOdds(&'a TiledGrid<f32>),
-    /// A confidence-rich map, classified by `m̂ − occupied_above`.
+    /// A confidence-rich map, classified by `m̂ − occupied_above`, with the means of its hits
+    /// when the particle keeps them.
     Crm {
         map: &'a CrmMap,
         occupied_above: f64,
+        hits: Option<&'a HitMeans>,
     },
 }
 
@@ -80,6 +83,7 @@ impl Cells<'_> {
             Cells::Crm {
                 map,
                 occupied_above,
+                ..
             } => {
                 let mean = match map.tile_means() {
                     Some(tm) => match map.mean_block(tm, ix, iy) {
@@ -198,8 +202,11 @@ impl<'a> MatchSurface<'a> {
     /// A confidence-rich map as the matcher reads it: cells with expected occupancy above
     /// `occupied_above` are occupied, those below it observed free (see the module
     /// documentation), with a patch over the cells `scan` reaches from `pose` when it is small.
+    /// With `hits`, the matcher measures distances to the means of the hits of occupied cells
+    /// (as on a log-odds grid with hit means) instead of their centres.
     pub fn around_crm(
         map: &'a CrmMap,
+        hits: Option<&'a HitMeans>,
         scan: &PreparedScan,
         pose: Pose,
         kernel_size: usize,
@@ -208,6 +215,7 @@ impl<'a> MatchSurface<'a> {
     ) -> Self {
         Self::around_crm_within(
             map,
+            hits,
             scan,
             pose,
             kernel_size,
@@ -219,8 +227,10 @@ impl<'a> MatchSurface<'a> {
 
     /// [`Self::around_crm`] with the patch built when it has at most `cells_per_beam` cells per
     /// beam of `scan`.
+    #[allow(clippy::too_many_arguments)]
     pub fn around_crm_within(
         map: &'a CrmMap,
+        hits: Option<&'a HitMeans>,
         scan: &PreparedScan,
         pose: Pose,
         kernel_size: usize,
@@ -231,6 +241,7 @@ impl<'a> MatchSurface<'a> {
         let cells = Cells::Crm {
             map,
             occupied_above,
+            hits,
         };
         let mut surface = Self::over(cells, free_test);
         let Some(rect) = patch_rect(map.geometry(), scan, pose, kernel_size, cells_per_beam) else {
@@ -260,12 +271,16 @@ impl<'a> MatchSurface<'a> {
         !self.classes.is_empty()
     }
 
-    /// Whether the grid keeps the mean of the hits of each cell ([`LogOddsParams::hit_means`]).
+    /// Whether the grid keeps the mean of the hits of each cell ([`LogOddsParams::hit_means`],
+    /// or a confidence-rich map read with its [`HitMeans`]).
     ///
     /// [`LogOddsParams::hit_means`]: crate::ogm::LogOddsParams::hit_means
     #[inline]
     pub fn has_hit_means(&self) -> bool {
-        matches!(self.cells, Cells::LogOdds(grid) if grid.stride() >= 4)
+        match self.cells {
+            Cells::LogOdds(grid) => grid.stride() >= 4,
+            Cells::Crm { hits, .. } => hits.is_some(),
+        }
     }
 
     /// For an occupied cell (ix, iy), the offset (m) of the mean of its hits from its centre
@@ -278,7 +293,8 @@ impl<'a> MatchSurface<'a> {
                 let v = grid.get(ix, iy);
                 (class_of(v[0], self.free_test) & OCCUPIED != 0).then(|| hit_mean_of(v))
             }
-            Cells::Crm { .. } => (self.class(ix, iy) & OCCUPIED != 0).then_some([0.0; 2]),
+            Cells::Crm { hits, .. } => (self.class(ix, iy) & OCCUPIED != 0)
+                .then(|| hits.map_or([0.0; 2], |h| h.offset(ix, iy))),
         }
     }
 
@@ -296,6 +312,7 @@ impl<'a> MatchSurface<'a> {
                 Cells::Crm {
                     map,
                     occupied_above,
+                    ..
                 } => class_of(
                     (map.mean_at(ix, iy) - occupied_above) as f32,
                     self.free_test,
@@ -423,12 +440,13 @@ mod tests {
         let pose = [1.0, -2.0, 0.3];
         for test in [FreeTest::Observed, FreeTest::NotOccupied] {
             for threshold in [0.5, 0.6] {
-                let patched =
-                    MatchSurface::around_crm_within(&map, &scan, pose, 1, test, threshold, 1000);
+                let patched = MatchSurface::around_crm_within(
+                    &map, None, &scan, pose, 1, test, threshold, 1000,
+                );
                 assert!(patched.has_patch() && !patched.has_hit_means());
                 // No budget, no patch: every read goes to the block means.
                 let tiles =
-                    MatchSurface::around_crm_within(&map, &scan, pose, 1, test, threshold, 0);
+                    MatchSurface::around_crm_within(&map, None, &scan, pose, 1, test, threshold, 0);
                 assert!(!tiles.has_patch());
                 let mut seen = [0usize; 4];
                 for iy in -40..30 {
@@ -455,5 +473,71 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_crm_with_hit_means_scores_sub_cell_shifts_and_one_without_does_not() {
+        use crate::crm::{CrmConfig, CrmScratch, ScanOptions};
+        use crate::rbpf::hit_means::HitMeans;
+        use crate::rbpf::scanmatch::{MatcherParams, ScanMatcher};
+        use crate::sensor::{SensorModel, SensorModelKind};
+        // A wall across x = 2.03 m seen head-on: its cells (0.1 m, centre 2.05) hold hits 2 cm
+        // before their centres.
+        let g = GridGeometry::new([0.0, 0.0], 0.1).unwrap();
+        let mut map = CrmMap::new(&CrmConfig::new(g)).unwrap();
+        let mut hits = HitMeans::new(g, 32).unwrap();
+        let angles: Vec<f64> = (0..61).map(|i| -0.6 + i as f64 * 0.02).collect();
+        let ranges: Vec<f64> = angles.iter().map(|a| 2.03 / a.cos()).collect();
+        let model = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.1);
+        let mut sc = CrmScratch::default();
+        for _ in 0..3 {
+            map.update_scan(
+                [0.0; 3],
+                &angles,
+                &ranges,
+                &model,
+                &ScanOptions::default(),
+                &mut sc,
+            )
+            .unwrap();
+            hits.record_scan([0.0; 3], &angles, &ranges, 0.0, 8.0, 1)
+                .unwrap();
+        }
+        let scan = PreparedScan::new(&angles, &ranges, [0.0; 3], 7.5, 1).unwrap();
+        let with = MatchSurface::around_crm(
+            &map,
+            Some(&hits),
+            &scan,
+            [0.0; 3],
+            1,
+            FreeTest::Observed,
+            0.5,
+        );
+        let without =
+            MatchSurface::around_crm(&map, None, &scan, [0.0; 3], 1, FreeTest::Observed, 0.5);
+        assert!(with.has_hit_means() && !without.has_hit_means());
+        let (ix, iy) = g.cell_of(2.03, 0.0);
+        let m = with
+            .occupied_hit_mean(ix, iy)
+            .expect("the wall's cell is occupied");
+        assert!((m[0] + 0.02).abs() < 1e-4, "{m:?}");
+        assert_eq!(without.occupied_hit_mean(ix, iy), Some([0.0, 0.0]));
+        // A free cell has no mean to offer.
+        assert_eq!(with.occupied_hit_mean(g.cell_of(1.0, 0.0).0, 0), None);
+        let matcher = ScanMatcher {
+            params: MatcherParams::default(),
+        };
+        let score =
+            |s: &MatchSurface, dx: f64| matcher.evaluate(s, &scan, [dx, 0.0, 0.0]).unwrap().score;
+        // The best shift along x: with the means the wall where it was seen (no shift), without
+        // them its endpoints on the cells' centres 2 cm farther.
+        let best = |s: &MatchSurface| {
+            (-40..=40)
+                .map(|i| i as f64 * 0.001)
+                .max_by(|a, b| score(s, *a).total_cmp(&score(s, *b)))
+                .unwrap()
+        };
+        assert!(best(&with).abs() < 1.5e-3, "{}", best(&with));
+        assert!((best(&without) - 0.02).abs() < 1.5e-3, "{}", best(&without));
     }
 }

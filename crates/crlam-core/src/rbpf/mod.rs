@@ -10,8 +10,8 @@
 //!
 //! 1. [`lineage`] (the path tree), [`estimate`], [`common`] (the filters' shared input, triggers
 //!    and estimate), `motion_prior`;
-//! 2. `scanmatch_params`, `prepared_scan` (a scan's matching beams), [`match_surface`] (the
-//!    cells the matcher reads), [`scanmatch`] (GMapping's matcher and improved proposal);
+//! 2. `scanmatch_params`, `prepared_scan` (a scan's matching beams), [`hit_means`] (where in
+//!    its cells a CRM saw its walls), [`match_surface`] (the cells the matcher reads), [`scanmatch`] (GMapping's matcher and improved proposal);
 //! 3. RBPF-OGM: `ogm_config`, then [`ogm`];
 //! 4. RBPF-CLAM: `clam_config` (settings), `clam_particle` (the particle and its weight at a
 //!    pose), `proposal` (the likelihood-mode proposal), [`clam_match`] (the scan-match
@@ -23,6 +23,7 @@ pub mod clam_match;
 mod clam_particle;
 pub mod common;
 pub mod estimate;
+pub mod hit_means;
 pub mod lineage;
 pub mod local_match;
 pub mod match_surface;
@@ -41,6 +42,7 @@ pub use common::{
     UpdateTrigger,
 };
 pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
+pub use hit_means::HitMeans;
 pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use local_match::{LocalMapMatcher, LocalMatch};
 pub use match_surface::MatchSurface;
