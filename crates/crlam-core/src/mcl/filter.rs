@@ -1037,14 +1037,21 @@ mod keep_tests {
         (near.iter().map(|&j| w[j]).sum(), near.len())
     }
 
+    /// Resamples `f` with weights `w` and no injection, floored per AMCL cluster; returns the
+    /// number of clusters, the particles injected and the clusters kept.
+    fn resample_by_cluster(f: &mut Mcl, w: &[f64]) -> (usize, usize, usize) {
+        let (found, labels) = clusters_with_labels(&f.poses, w, &f.cfg.kld);
+        let kld = f.cfg.kld;
+        let (injected, kept) = f.resample(w, 0.0, &found, &labels, &kld);
+        (found.len(), injected, kept)
+    }
+
     #[test]
     fn competing_clusters_keep_their_particles_and_weights() {
         let mut f = filter(30);
         let w = three_places(&mut f);
-        let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
-        assert_eq!(found.len(), 3);
-        let kld = f.cfg.kld;
-        let (injected, kept) = f.resample(&w, 0.0, &found, &labels, &kld);
+        let (n_clusters, injected, kept) = resample_by_cluster(&mut f, &w);
+        assert_eq!(n_clusters, 3);
         assert_eq!((injected, kept), (0, 2));
         let (wa, na) = weight_near(&f, 2.0, 2.0);
         let (wb, nb) = weight_near(&f, 8.0, 8.0);
@@ -1062,9 +1069,7 @@ mod keep_tests {
     fn without_the_floor_the_draw_decides() {
         let mut f = filter(0);
         let w = three_places(&mut f);
-        let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
-        let kld = f.cfg.kld;
-        let (_, kept) = f.resample(&w, 0.0, &found, &labels, &kld);
+        let (_, _, kept) = resample_by_cluster(&mut f, &w);
         assert_eq!(kept, 0);
         // AMCL's resampling: equal weights, B holds about its share of the draws (0-3 of them).
         let (_, nb) = weight_near(&f, 8.0, 8.0);
@@ -1144,9 +1149,7 @@ mod keep_tests {
     fn the_cluster_floor_cannot_keep_a_place_inside_one_cluster() {
         let mut f = filter(30);
         let w = one_room(&mut f);
-        let (found, labels) = clusters_with_labels(&f.poses, &w, &f.cfg.kld);
-        let kld = f.cfg.kld;
-        let (_, kept) = f.resample(&w, 0.0, &found, &labels, &kld);
+        let (_, _, kept) = resample_by_cluster(&mut f, &w);
         // One cluster: AMCL's resampling, B keeps about its share of the draws (0-3 of them).
         assert_eq!(kept, 0);
         let (_, nb) = weight_near(&f, 6.0, 2.0);
