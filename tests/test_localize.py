@@ -14,6 +14,11 @@ import numpy as np
 import pytest
 from numpy.typing import NDArray
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
 from crlam.cli import main
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import save_belief
@@ -174,6 +179,23 @@ def test_a_spread_set_may_hold_spread_particles(sim: Sim) -> None:
     assert all(s.n_after <= 1000 + s.n_injected for s in processed[-10:]), [s.n_after for s in processed[-10:]]
 
 
+def test_the_climb_puts_spread_particles_on_the_true_pose(sim: Sim) -> None:
+    """With spread_climb, the particles of a global start that fall in the true pose's basin
+    climb onto it at the first scan; without it, hardly any lies that near."""
+    m = load_localization_map(sim.folder / "floor.yaml")
+
+    def near_truth(climb: bool) -> int:
+        loc = Localizer(m, LocalizeConfig(**FAST | {"spread_climb": climb}))
+        _run(loc, sim.scans[:1])
+        assert loc.filter is not None
+        p = loc.filter.particle_poses()
+        d = between(np.broadcast_to(sim.truth[0], p.shape), p)
+        return int(np.sum((np.hypot(d[:, 0], d[:, 1]) < 0.1) & (np.abs(d[:, 2]) < 0.05)))
+
+    plain, climbed = near_truth(False), near_truth(True)
+    assert plain <= 3 and climbed >= 20, (plain, climbed)
+
+
 def test_no_free_cell_means_no_global_start(tmp_path: Path) -> None:
     crm = ConfidenceRichMap(MappingConfig(resolution=0.1))
     m = LocalizationMap(crm=crm, rect=(0, 0, 10, 10), source="prior", kind="belief")
@@ -204,6 +226,8 @@ def test_config_is_checked() -> None:
         LocalizeConfig(place_theta=0.0)
     with pytest.raises(ConfigError, match="convergence_odds"):
         LocalizeConfig(convergence_odds=0.5)
+    with pytest.raises(ConfigError, match="spread_climb"):
+        LocalizeConfig(spread_climb=1)  # type: ignore[arg-type]
 
 
 def test_convergence_needs_the_odds_over_the_second_cluster() -> None:
@@ -252,6 +276,7 @@ def test_cli_writes_the_run_folder(sim: Sim, tmp_path: Path) -> None:
     assert len(rows) == m["n_processed"] and all(int(r["n_particles"]) >= 100 for r in rows)
     assert read_tum(out / "trajectory.tum").poses.shape == (N, 3)
     assert "[localize]" in (out / "config.toml").read_text()
+    assert tomllib.loads((out / "config.toml").read_text())["localize"]["spread_climb"] is True
 
 
 def test_cli_global_trials(sim: Sim, tmp_path: Path) -> None:
@@ -288,6 +313,8 @@ def test_cli_run_folder_is_staged(sim: Sim, tmp_path: Path) -> None:
     assert main(args) == 2  # refused: it exists
     assert main(args + ["--force", "--seed", "3"]) == 0
     assert (out / "trajectory.tum").read_bytes() != first
+    assert main(args + ["--force", "--no-spread-climb"]) == 0
+    assert tomllib.loads((out / "config.toml").read_text())["localize"]["spread_climb"] is False
 
 
 def test_cli_refuses_contradictory_starts(sim: Sim, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -301,6 +301,7 @@ class MclFilter:
         place_xy: float = 0.0,
         place_theta: float = ...,  # 90 deg
         spread_max: int = 0,
+        spread_climb: bool = False,
         tail_tolerance: float = 1e-06,
         skip_no_returns: bool = False,
         seed: int = 0,

@@ -134,6 +134,15 @@ class LocalizeConfig:
         (then ``max_particles``). A set spread over a building asks KLD for far more than 5,000;
         with too few, the true place has no particle near enough to its pose to win. 0: at most
         ``max_particles`` throughout.
+    spread_climb : bool
+        The scan-matched proposal while the set is spread (``spread_limit``): after its motion
+        draw, each particle climbs to the nearby pose where the scan's beam endpoints fit the map
+        best (the likelihood field of the endpoints at the scan's hit σ, from half a KLD bin down
+        to the map's cell), and the CRM likelihood weighs it there. Moved by the odometry's noise
+        alone, the particle nearest the true pose stays the decimetres off it that a set spread
+        over a building leaves, and a look-alike place where some particle happens to sit closer
+        to its best fit outweighs the true one. GMapping's proposal, used only while spread; a
+        gathered set moves by the motion model alone, as in AMCL.
     free_threshold : float
         Cells with m̂ at most this are free: global starts and recovery place particles there.
     tail_tolerance : float
@@ -191,6 +200,7 @@ class LocalizeConfig:
     place_xy: float = 2.0
     place_theta: float = math.pi / 2
     spread_particles: int = 20000
+    spread_climb: bool = True
     free_threshold: float = 0.25
     tail_tolerance: float = 1e-6
     skip_no_returns: bool = False
@@ -219,6 +229,9 @@ class LocalizeConfig:
             raise bad("place_xy", "must be finite and >= 0 (0: off)")
         if not (math.isfinite(self.place_theta) and self.place_theta > 0.0):
             raise bad("place_theta", "must be finite and > 0")
+        for name in ("spread_climb", "skip_no_returns"):
+            if not isinstance(getattr(self, name), bool):
+                raise bad(name, "must be true or false")
         if not (math.isfinite(self.keep_ratio) and 0.0 < self.keep_ratio <= 1.0):
             raise bad("keep_ratio", "must be in (0, 1]")
         if not (math.isfinite(self.convergence_odds) and self.convergence_odds >= 1.0):
@@ -443,6 +456,7 @@ class Localizer:
                 place_xy=float(c.place_xy),
                 place_theta=float(c.place_theta),
                 spread_max=c.spread_particles,
+                spread_climb=bool(c.spread_climb),
                 tail_tolerance=c.tail_tolerance,
                 skip_no_returns=c.skip_no_returns,
                 seed=c.seed,

@@ -1,6 +1,6 @@
 """Global localization on the simulated floors of look-alike rooms (:mod:`crlam.sim.lookalike`):
-the runs the localizer's ``min_cluster``, ``convergence_odds``, ``min_bin``, ``spread_particles``
-and ``place_xy`` were chosen on.
+the runs the localizer's ``min_cluster``, ``convergence_odds``, ``min_bin``, ``spread_particles``,
+``place_xy`` and ``spread_climb`` were chosen on.
 
 Simulates a SICK LMS200 log on the floor (seeded), then for every setting (``SETTINGS``) runs
 global localizations from random scans of it for ``--travel`` metres each (never stopped at
@@ -24,8 +24,9 @@ are 1 / ``keep_ratio`` (the table shows the other odds beside it); ``min_cluster
 value tried) or off by the fewest trials converged to a wrong place, then the most converged to
 the truth within 10 m; ``min_bin`` (1 or off) and ``spread_particles`` (20,000 or 5,000, one
 value tried) by the same rule on the small floor, then the cheaper setting on a tie;
-``place_xy`` (2 m or off, one value tried) by the same rule over both floors (the trials of the
-two added up).
+``place_xy`` (2 m or off, one value tried) and then ``spread_climb`` (on or off, its steps set by
+the KLD bin and the map's cell, not tried) by the same rule over both floors (the trials of the two
+added up).
 """
 
 from __future__ import annotations
@@ -47,12 +48,21 @@ from crlam.pose import between
 from crlam.sim.lookalike import INTEL_SCALE, lookalike_world
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 
-# (min_cluster, min_bin, spread_particles, place_xy m): AMCL's resampling, the cluster floor, the
-# cluster floor with the bin floor of a spread set, with more particles while spread, and with the
-# floor kept per place of place_xy m (and place_theta) while spread.
-SETTINGS = {
-    "small": ((0, 0, 0, 0.0), (30, 0, 0, 0.0), (30, 1, 0, 0.0), (30, 0, 20000, 0.0), (30, 0, 20000, 2.0)),
-    "intel-scale": ((30, 0, 20000, 0.0), (30, 0, 20000, 2.0)),
+# (min_cluster, min_bin, spread_particles, place_xy m, spread_climb): AMCL's resampling, the
+# cluster floor, the cluster floor with the bin floor of a spread set, with more particles while
+# spread, with the floor kept per place of place_xy m (and place_theta) while spread, and with the
+# scan-matched proposal of a spread set.
+Setting = tuple[int, int, int, float, int]
+SETTINGS: dict[str, tuple[Setting, ...]] = {
+    "small": (
+        (0, 0, 0, 0.0, 0),
+        (30, 0, 0, 0.0, 0),
+        (30, 1, 0, 0.0, 0),
+        (30, 0, 20000, 0.0, 0),
+        (30, 0, 20000, 2.0, 0),
+        (30, 0, 20000, 2.0, 1),
+    ),
+    "intel-scale": ((30, 0, 20000, 0.0, 0), (30, 0, 20000, 2.0, 0), (30, 0, 20000, 2.0, 1)),
 }
 FLOORS = {"small": {}, "intel-scale": INTEL_SCALE}
 SCANS = {"small": 2400, "intel-scale": 4000}
@@ -79,7 +89,7 @@ def main() -> None:
     ap.add_argument("--travel", type=float, default=12.0)
     ap.add_argument("--floor", choices=sorted(FLOORS), default="small")
     ap.add_argument("--scans", type=int, help="scans to simulate (default: 2,400 on the small floor, 4,000 on intel-scale)")
-    ap.add_argument("--only", action="append", metavar="MC,MB,SP,PX", help="run only this setting of SETTINGS (repeatable)")
+    ap.add_argument("--only", action="append", metavar="MC,MB,SP,PX,CL", help="run only this setting of SETTINGS (repeatable)")
     args = ap.parse_args()
     only = {tuple(float(v) for v in o.split(",")) for o in args.only or []}
     sim = args.runs / "sim"
@@ -102,12 +112,14 @@ def main() -> None:
             r.setdefault("min_bin", "0")  # rows written before these columns existed
             r.setdefault("spread_particles", "0")
             r.setdefault("place_xy", "0")
+            r.setdefault("spread_climb", "0")
         done = {_key(r) + (int(r["trial"]),) for r in rows}
     cols = [
         "min_cluster",
         "min_bin",
         "spread_particles",
         "place_xy",
+        "spread_climb",
         "trial",
         "start",
         "scan",
@@ -120,8 +132,8 @@ def main() -> None:
         "err_theta",
         "n_particles",
     ]
-    if rows and "place_xy" not in open(path).readline():
-        # A file from before min_bin or place_xy: rewrite it with the columns (its rows are 0).
+    if rows and "spread_climb" not in open(path).readline():
+        # A file from before one of the columns: rewrite it with them (its rows are 0).
         with open(path, "w", newline="") as fh:
             w = csv.DictWriter(fh, cols)
             w.writeheader()
@@ -130,12 +142,13 @@ def main() -> None:
         w = csv.DictWriter(fh, cols)
         if not rows:
             w.writeheader()
-        for mc, mb, sp, px in SETTINGS[args.floor]:
-            if only and (mc, mb, sp, px) not in only:
+        for setting in SETTINGS[args.floor]:
+            if only and setting not in only:
                 continue
-            cfg = _config(mc, mb, sp, px)
+            mc, mb, sp, px, cl = setting
+            cfg = _config(setting)
             for t, s0 in enumerate(starts):
-                if (mc, mb, sp, px, t) in done:
+                if setting + (t,) in done:
                     continue
                 t0 = time.process_time()
                 loc = Localizer(m, replace(cfg, seed=t), laser_max_range=scans[s0].max_range)
@@ -151,6 +164,7 @@ def main() -> None:
                             "min_bin": mb,
                             "spread_particles": sp,
                             "place_xy": px,
+                            "spread_climb": cl,
                             "trial": t,
                             "start": int(s0),
                             "scan": k,
@@ -168,27 +182,45 @@ def main() -> None:
                     k += 1
                 fh.flush()
                 with open(args.runs / "cpu.csv", "a") as fc:
-                    fc.write(f"{mc},{mb},{sp},{px},{t},{time.process_time() - t0:.1f}\n")
+                    fc.write(f"{mc},{mb},{sp},{px},{cl},{t},{time.process_time() - t0:.1f}\n")
                 print(
-                    f"min_cluster {mc} min_bin {mb} spread_particles {sp} place_xy {px} trial {t} start {s0}: "
+                    f"min_cluster {mc} min_bin {mb} spread_particles {sp} place_xy {px} spread_climb {cl} "
+                    f"trial {t} start {s0}: "
                     f"{time.process_time() - t0:.0f} s CPU",
                     flush=True,
                 )
-    cpu: dict[tuple[int, int, int, float], list[float]] = {}
+    cpu: dict[Setting, list[float]] = {}
     if (args.runs / "cpu.csv").is_file():
         for line in open(args.runs / "cpu.csv"):
             f = line.strip().split(",")
-            cpu.setdefault((int(f[0]), int(f[1]), int(f[2]), float(f[3])), []).append(float(f[5]))
+            if len(f) == 6:  # a line from before the spread_climb column
+                f.insert(4, "0")
+            cpu.setdefault((int(f[0]), int(f[1]), int(f[2]), float(f[3]), int(f[4])), []).append(float(f[6]))
     _choose(rows, args.out / CHOICE[args.floor], cpu)
 
 
-def _config(mc: int, mb: int, sp: int, px: float, **more: float) -> LocalizeConfig:
+def _config(setting: Setting, **more: float) -> LocalizeConfig:
     """The setting's :class:`LocalizeConfig`."""
-    return LocalizeConfig(min_cluster=mc, keep_ratio=1e-3, min_bin=mb, spread_particles=sp, place_xy=px, **more)  # type: ignore[arg-type]
+    mc, mb, sp, px, cl = setting
+    return LocalizeConfig(
+        min_cluster=mc,
+        keep_ratio=1e-3,
+        min_bin=mb,
+        spread_particles=sp,
+        place_xy=px,
+        spread_climb=bool(cl),
+        **more,  # type: ignore[arg-type]
+    )
 
 
-def _key(r: dict[str, str]) -> tuple[int, int, int, float]:
-    return int(r["min_cluster"]), int(r["min_bin"]), int(r["spread_particles"]), float(r["place_xy"])
+def _key(r: dict[str, str]) -> Setting:
+    return (
+        int(r["min_cluster"]),
+        int(r["min_bin"]),
+        int(r["spread_particles"]),
+        float(r["place_xy"]),
+        int(r["spread_climb"]),
+    )
 
 
 def _judge(trial: list[dict[str, str]], cfg: LocalizeConfig) -> tuple[str, float]:
@@ -204,15 +236,16 @@ def _judge(trial: list[dict[str, str]], cfg: LocalizeConfig) -> tuple[str, float
     return "none", math.nan
 
 
-def _choose(rows: list[dict[str, str]], out: Path, cpu: dict[tuple[int, int, int, float], list[float]]) -> None:
-    by: dict[tuple[int, int, int, float, int], list[dict[str, str]]] = {}
+def _choose(rows: list[dict[str, str]], out: Path, cpu: dict[Setting, list[float]]) -> None:
+    by: dict[tuple[int, int, int, float, int, int], list[dict[str, str]]] = {}
     for r in rows:
         by.setdefault(_key(r) + (int(r["trial"]),), []).append(r)
     table = []
-    for mc, mb, sp, px in sorted({k[:4] for k in by}):
+    for setting in sorted({k[:5] for k in by}):
+        mc, mb, sp, px, cl = setting
         for odds in ODDS:
-            cfg = _config(mc, mb, sp, px, convergence_odds=odds)
-            res = [_judge(v, cfg) for k, v in sorted(by.items()) if k[:4] == (mc, mb, sp, px)]
+            cfg = _config(setting, convergence_odds=odds)
+            res = [_judge(v, cfg) for k, v in sorted(by.items()) if k[:5] == setting]
             dist = [d for v, d in res if v == "correct"]
             table.append(
                 {
@@ -220,6 +253,7 @@ def _choose(rows: list[dict[str, str]], out: Path, cpu: dict[tuple[int, int, int
                     "min_bin": mb,
                     "spread_particles": sp,
                     "place_xy": px,
+                    "spread_climb": cl,
                     "convergence_odds": odds,
                     "trials": len(res),
                     "correct": sum(v == "correct" for v, _ in res),
@@ -227,7 +261,7 @@ def _choose(rows: list[dict[str, str]], out: Path, cpu: dict[tuple[int, int, int
                     "wrong": sum(v == "wrong" for v, _ in res),
                     "not_converged": sum(v == "none" for v, _ in res),
                     "median_distance_m": f"{np.median(dist):.2f}" if dist else "",
-                    "cpu_s_per_trial": f"{np.mean(cpu[(mc, mb, sp, px)]):.0f}" if cpu.get((mc, mb, sp, px)) else "",
+                    "cpu_s_per_trial": f"{np.mean(cpu[setting]):.0f}" if cpu.get(setting) else "",
                 }
             )
     out.parent.mkdir(parents=True, exist_ok=True)

@@ -63,6 +63,7 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         place_xy: 0.0,
         place_theta: std::f64::consts::FRAC_PI_2,
         spread_max: 0,
+        spread_climb: false,
         keep_ratio: 1e-3,
         seed: 0,
     };

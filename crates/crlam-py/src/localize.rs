@@ -89,7 +89,7 @@ impl MclFilter {
     #[pyo3(signature = (crm, rect, model, *, initial_pose=None, initial_cov=None, free_threshold=0.25, margin=0,
         n_min=100, n_max=5000, kld_err=0.01, kld_z=2.326_347_874_040_840_8, bin_xy=0.5, bin_theta=0.174_532_925_199_432_95,
         alpha_slow=0.001, alpha_fast=0.1, tempering=1.0, min_neff=0.0, sigma_max=0.0, anneal=0.5, beam_stride=1, max_beams=0, motion="gmapping",
-        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, min_cluster=0, keep_ratio=1e-3, min_bin=0, place_xy=0.0, place_theta=std::f64::consts::FRAC_PI_2, spread_max=0, tail_tolerance=1e-6, skip_no_returns=false, seed=0))]
+        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, min_cluster=0, keep_ratio=1e-3, min_bin=0, place_xy=0.0, place_theta=std::f64::consts::FRAC_PI_2, spread_max=0, spread_climb=false, tail_tolerance=1e-6, skip_no_returns=false, seed=0))]
     fn new(
         py: Python<'_>,
         crm: &CrmMap,
@@ -126,6 +126,7 @@ impl MclFilter {
         place_xy: f64,
         place_theta: f64,
         spread_max: usize,
+        spread_climb: bool,
         tail_tolerance: f64,
         skip_no_returns: bool,
         seed: u64,
@@ -182,6 +183,7 @@ impl MclFilter {
                 place_xy,
                 place_theta,
                 spread_max,
+                spread_climb,
                 seed,
             };
             // Validate before building the field (which may be large).

@@ -43,6 +43,7 @@ def localize_config_of(args: argparse.Namespace) -> Any:
         "min_bin",
         "place_xy",
         "spread_particles",
+        "spread_climb",
         "convergence_odds",
         "free_threshold",
         "tail_tolerance",
@@ -270,6 +271,13 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         type=nonnegative_int,
         default=None,
         help="most particles while the set is spread (a global start draws this many; 0: --max-particles)",
+    )
+    f.add_argument(
+        "--spread-climb",
+        action=argparse.BooleanOptionalAction,
+        default=None,
+        help="while spread, move each particle to the nearby pose where the scan's endpoints fit the map best "
+        "before weighing it (default: on)",
     )
     f.add_argument(
         "--keep-ratio",

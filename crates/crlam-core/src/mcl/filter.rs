@@ -38,6 +38,7 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use crate::error::{config_err, Result};
+use crate::mcl::climb::{endpoints, ClimbSettings, EndpointField};
 use crate::mcl::cluster::{clusters, clusters_with_labels, Cluster};
 use crate::mcl::field::MeanField;
 use crate::mcl::kld::{BinCounter, KldSettings};
@@ -136,6 +137,12 @@ pub struct MclConfig {
     /// far more than AMCL's 5,000 (one per occupied bin and more); with too few, a place has no
     /// particle near enough to its true pose to win. 0: `kld.n_max` throughout.
     pub spread_max: usize,
+    /// The scan-matched proposal while the set is spread (above `spread_limit`): after its
+    /// motion draw, each particle climbs to the nearby pose where the scan's endpoints fit the
+    /// map best, and is weighed there ([`super::climb`]). The climb starts with steps of half
+    /// a KLD bin (the spacing of a spread set) and halves them until the step along x and y is
+    /// at most the map's cell. A gathered set moves by the motion model alone.
+    pub spread_climb: bool,
     pub seed: u64,
 }
 
@@ -293,6 +300,8 @@ pub struct Mcl {
     averages: Option<(f64, f64)>,
     beams: (usize, Vec<usize>),
     last: Option<MclStep>,
+    /// The endpoint score of the climb (`spread_climb`), built with the localizer.
+    endpoint_field: Option<EndpointField>,
 }
 
 impl Mcl {
@@ -312,7 +321,11 @@ impl Mcl {
             averages: None,
             beams: (usize::MAX, Vec::new()),
             last: None,
+            endpoint_field: None,
         };
+        if m.cfg.spread_climb {
+            m.endpoint_field = Some(EndpointField::new(&m.field));
+        }
         m.reset(init)?;
         Ok(m)
     }
@@ -466,7 +479,23 @@ impl Mcl {
             },
             ..cfg.likelihood
         };
-        // Move (not at the first scan: nothing moved yet) and weigh, particle by particle.
+        // The climb of a spread set, on the endpoint score at this scan's σ.
+        let climb = match self.endpoint_field.as_mut() {
+            Some(e) if spread > cfg.spread_limit => {
+                e.set_sigma(sigma_hit);
+                let points = endpoints(
+                    scan.angles,
+                    scan.ranges,
+                    beams,
+                    likelihood.model.z_min,
+                    likelihood.model.z_max,
+                );
+                Some((&*e, climb_settings(cfg, field), points))
+            }
+            _ => None,
+        };
+        // Move (not at the first scan: nothing moved yet), climb while spread and weigh,
+        // particle by particle.
         let moved: Vec<Result<(Pose, ScanFit)>> = self
             .poses
             .par_iter()
@@ -477,6 +506,12 @@ impl Mcl {
                 } else {
                     let mut rng = Rng::stream(cfg.seed, 3 * step, j as u64);
                     cfg.motion.sample(p, u, n_steps, &mut rng)
+                };
+                let pose = match &climb {
+                    Some((e, settings, points)) => {
+                        e.climb(settings, pose, scan.laser_offset, points)
+                    }
+                    None => pose,
                 };
                 let sensor = compose(pose, scan.laser_offset);
                 let fit = scan_log_likelihood(
@@ -873,6 +908,23 @@ impl Mcl {
 /// random particles weighs 1/n as in AMCL's resampling (n: the new set's size), and the
 /// particles copied from cluster c share its weight W_c, scaled to the rest of the mass:
 /// (1 − injected / n) · W_c / (particles copied from c).
+/// The climb of a spread set: first steps of half a KLD bin, halved until the step along x and
+/// y is at most the map's cell; at most 40 moves (240 evaluations of the score).
+fn climb_settings(cfg: &MclConfig, field: &MeanField) -> ClimbSettings {
+    let step_xy = 0.5 * cfg.kld.bin_xy;
+    let cell = field.geometry().resolution;
+    let mut refinements = 0;
+    while refinements < 16 && step_xy / f64::from(1u32 << refinements) > cell {
+        refinements += 1;
+    }
+    ClimbSettings {
+        step_xy,
+        step_theta: 0.5 * cfg.kld.bin_theta,
+        refinements,
+        max_moves: 40,
+    }
+}
+
 fn cluster_log_weights(
     origin: &[Option<usize>],
     found: &[Cluster],
@@ -1000,6 +1052,7 @@ mod keep_tests {
             place_xy: 0.0,
             place_theta: std::f64::consts::FRAC_PI_2,
             spread_max: 0,
+            spread_climb: false,
             seed: 3,
         };
         let init = MclInit::Pose {

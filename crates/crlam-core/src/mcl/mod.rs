@@ -6,8 +6,10 @@
 //! - [`likelihood`]: the scan likelihood read from it, with a stated error bound;
 //! - [`kld`]: Fox's sample-count bound and the pose histogram;
 //! - [`cluster`]: the clusters of a weighted set;
+//! - [`climb`]: the scan-matched proposal of a spread set (an endpoint score and its climb);
 //! - [`filter`]: the localizer.
 
+pub mod climb;
 pub mod cluster;
 pub mod field;
 pub mod filter;
