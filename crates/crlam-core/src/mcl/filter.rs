@@ -300,7 +300,8 @@ pub struct Mcl {
     averages: Option<(f64, f64)>,
     beams: (usize, Vec<usize>),
     last: Option<MclStep>,
-    /// The endpoint score of the climb (`spread_climb`), built with the localizer.
+    /// The endpoint score of the climb (`spread_climb`), built at the first spread scan (a
+    /// localizer that tracks from a known pose and never loses it does without).
     endpoint_field: Option<EndpointField>,
 }
 
@@ -323,9 +324,7 @@ impl Mcl {
             last: None,
             endpoint_field: None,
         };
-        if m.cfg.spread_climb {
-            m.endpoint_field = Some(EndpointField::new(&m.field));
-        }
+
         m.reset(init)?;
         Ok(m)
     }
@@ -480,6 +479,9 @@ impl Mcl {
             ..cfg.likelihood
         };
         // The climb of a spread set, on the endpoint score at this scan's σ.
+        if cfg.spread_climb && spread > cfg.spread_limit && self.endpoint_field.is_none() {
+            self.endpoint_field = Some(EndpointField::new(field));
+        }
         let climb = match self.endpoint_field.as_mut() {
             Some(e) if spread > cfg.spread_limit => {
                 e.set_sigma(sigma_hit);
