@@ -14,7 +14,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from numpy.typing import NDArray  # noqa: E402
 
-from crlam.viz.maps import metric_axes, save_figure  # noqa: E402
+from crlam.viz.maps import metric_axes, save_figure, show_occupancy  # noqa: E402
 
 if TYPE_CHECKING:
     from crlam.localize import Localizer
@@ -41,7 +41,7 @@ def save_localization_figure(
     fig = plt.figure(figsize=(13, 6.2), constrained_layout=True)
     grid = fig.add_gridspec(2, 2, width_ratios=(1.35, 1))
     ax = fig.add_subplot(grid[:, 0])
-    ax.imshow(mean.values, origin="lower", extent=mean.extent, cmap="gray_r", vmin=0, vmax=1, interpolation="nearest")
+    show_occupancy(ax, mean.values, mean.extent)
     if reference is not None:
         ax.plot(reference[:, 0], reference[:, 1], color="tab:blue", linewidth=0.8, alpha=0.8, label="reference")
     if split > 0:

@@ -17,7 +17,7 @@ from numpy.typing import NDArray  # noqa: E402
 
 from crlam.eval.trajectory import ReferenceErrors, RelationsErrors  # noqa: E402
 from crlam.mapping import MapLayer  # noqa: E402
-from crlam.viz.maps import metric_axes, save_figure  # noqa: E402
+from crlam.viz.maps import metric_axes, save_figure, show_occupancy  # noqa: E402
 from crlam.viz.palette import colour, line_style
 
 __all__ = [
@@ -40,7 +40,6 @@ def save_trajectories_on_map(
 ) -> Path:
     """Several named trajectories (n, 2 or 3) over a map's expected occupancy."""
     vals = np.ma.masked_array(mean.values, mask=unknown) if unknown is not None else mean.values
-    cm = matplotlib.colormaps["gray_r"].with_extremes(bad="#d8d8d8")
     # The figure takes the shape of what is drawn, the map and every trajectory (odometry may run
     # far off the map), so that the equal-aspect axes fill it instead of floating in white space.
     x0, x1, y0, y1 = (float(v) for v in mean.extent)
@@ -50,7 +49,7 @@ def save_trajectories_on_map(
             y0, y1 = min(y0, float(np.min(t[:, 1]))), max(y1, float(np.max(t[:, 1])))
     aspect = (y1 - y0) / max(x1 - x0, 1e-9)
     fig, ax = plt.subplots(figsize=(8, float(np.clip(8 * aspect, 4.0, 16.0))), constrained_layout=True)
-    ax.imshow(vals, origin="lower", extent=mean.extent, cmap=cm, vmin=0, vmax=1, interpolation="nearest")
+    show_occupancy(ax, vals, mean.extent)
     # Colours from the project's palette; the ground truth is drawn dashed on top of the estimates.
     for name, t in trajectories.items():
         ax.plot(t[:, 0], t[:, 1], label=name, **line_style(name))
