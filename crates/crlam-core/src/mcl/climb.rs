@@ -225,6 +225,14 @@ mod tests {
             .collect()
     }
 
+    /// The room and its endpoint score at σ = 0.2 m.
+    fn scored_room() -> (MeanField, EndpointField) {
+        let f = room();
+        let mut e = EndpointField::new(&f);
+        e.set_sigma(0.2);
+        (f, e)
+    }
+
     const SETTINGS: ClimbSettings = ClimbSettings {
         step_xy: 0.25,
         step_theta: 0.087,
@@ -234,9 +242,7 @@ mod tests {
 
     #[test]
     fn the_score_is_highest_at_the_true_pose() {
-        let f = room();
-        let mut e = EndpointField::new(&f);
-        e.set_sigma(0.2);
+        let (f, e) = scored_room();
         let truth = [2.0, 3.0, 0.3];
         let pts = scan_from(&f, truth);
         assert!(pts.len() > 150);
@@ -251,9 +257,7 @@ mod tests {
 
     #[test]
     fn a_particle_in_the_basin_climbs_onto_the_true_pose() {
-        let f = room();
-        let mut e = EndpointField::new(&f);
-        e.set_sigma(0.2);
+        let (f, e) = scored_room();
         let truth = [2.0, 3.0, 0.3];
         let pts = scan_from(&f, truth);
         for start in [[2.3, 2.7, 0.45], [1.7, 3.2, 0.2], [2.2, 3.3, 0.15]] {
@@ -268,9 +272,7 @@ mod tests {
 
     #[test]
     fn the_climb_uses_the_laser_offset() {
-        let f = room();
-        let mut e = EndpointField::new(&f);
-        e.set_sigma(0.2);
+        let (f, e) = scored_room();
         let offset = [0.3, -0.1, 0.2];
         let robot = [2.5, 2.5, -0.4];
         let pts = scan_from(&f, compose(robot, offset));
@@ -281,9 +283,7 @@ mod tests {
 
     #[test]
     fn a_pose_at_the_optimum_stays() {
-        let f = room();
-        let mut e = EndpointField::new(&f);
-        e.set_sigma(0.2);
+        let (f, e) = scored_room();
         let pts = scan_from(&f, [3.0, 2.0, 1.0]);
         let once = e.climb(&SETTINGS, [3.1, 2.1, 1.05], [0.0; 3], &pts);
         assert_eq!(e.climb(&SETTINGS, once, [0.0; 3], &pts), once);
@@ -291,9 +291,7 @@ mod tests {
 
     #[test]
     fn the_score_follows_sigma_and_ignores_points_off_the_map() {
-        let f = room();
-        let mut e = EndpointField::new(&f);
-        e.set_sigma(0.2);
+        let (_, mut e) = scored_room();
         // An endpoint at the centre of cell (6, 36), 0.3 m from the centre of the nearest
         // wall cell (0, 36).
         let p = [[-1.0, 0.0]];
