@@ -431,16 +431,27 @@ fn near(f: &Mcl, truth: Pose) -> usize {
         .count()
 }
 
+/// A localizer of `config(n_min, n_max)` with the climb of a spread set on or off.
+fn with_climb(
+    climb: bool,
+    n_min: usize,
+    n_max: usize,
+    field: &Arc<MeanField>,
+    init: MclInit,
+) -> Mcl {
+    let cfg = MclConfig {
+        spread_climb: climb,
+        ..config(n_min, n_max)
+    };
+    Mcl::new(cfg, field.clone(), init).unwrap()
+}
+
 #[test]
 fn the_climb_puts_particles_of_a_spread_set_on_the_true_pose() {
     let (occ, field) = world();
     let log = simulate(&occ, path(150), 1);
     let with = |climb: bool| {
-        let cfg = MclConfig {
-            spread_climb: climb,
-            ..config(200, 4000)
-        };
-        let mut f = Mcl::new(cfg, field.clone(), MclInit::Global).unwrap();
+        let mut f = with_climb(climb, 200, 4000, &field, MclInit::Global);
         run(&mut f, &log, 0, 1);
         near(&f, log.truth[0])
     };
@@ -459,11 +470,7 @@ fn a_gathered_set_does_not_climb() {
         cov: [[0.01, 0.0, 0.0], [0.0, 0.01, 0.0], [0.0, 0.0, 0.003]],
     };
     let plain = |climb: bool| {
-        let cfg = MclConfig {
-            spread_climb: climb,
-            ..config(200, 1000)
-        };
-        let mut f = Mcl::new(cfg, field.clone(), init).unwrap();
+        let mut f = with_climb(climb, 200, 1000, &field, init);
         run(&mut f, &log, 0, 20);
         f.poses().to_vec()
     };
@@ -477,11 +484,7 @@ fn global_localization_with_the_climb_converges_with_few_particles() {
     let (occ, field) = world();
     let log = simulate(&occ, path(150), 1);
     let last_error = |climb: bool| {
-        let cfg = MclConfig {
-            spread_climb: climb,
-            ..config(100, 300)
-        };
-        let mut f = Mcl::new(cfg, field.clone(), MclInit::Global).unwrap();
+        let mut f = with_climb(climb, 100, 300, &field, MclInit::Global);
         let steps = run(&mut f, &log, 0, 80);
         let last = *steps.last().unwrap();
         (error(last.estimate, log.truth[79]), last)
