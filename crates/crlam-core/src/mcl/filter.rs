@@ -324,7 +324,6 @@ impl Mcl {
             last: None,
             endpoint_field: None,
         };
-
         m.reset(init)?;
         Ok(m)
     }
@@ -906,10 +905,6 @@ impl Mcl {
     }
 }
 
-/// Log-weights after a resampling that keeps every cluster's weight: each of the `injected`
-/// random particles weighs 1/n as in AMCL's resampling (n: the new set's size), and the
-/// particles copied from cluster c share its weight W_c, scaled to the rest of the mass:
-/// (1 − injected / n) · W_c / (particles copied from c).
 /// The climb of a spread set: first steps of half a KLD bin, halved until the step along x and
 /// y is at most the map's cell; at most 40 moves (240 evaluations of the score).
 fn climb_settings(cfg: &MclConfig, field: &MeanField) -> ClimbSettings {
@@ -927,6 +922,10 @@ fn climb_settings(cfg: &MclConfig, field: &MeanField) -> ClimbSettings {
     }
 }
 
+/// Log-weights after a resampling that keeps every cluster's weight: each of the `injected`
+/// random particles weighs 1/n as in AMCL's resampling (n: the new set's size), and the
+/// particles copied from cluster c share its weight W_c, scaled to the rest of the mass:
+/// (1 − injected / n) · W_c / (particles copied from c).
 fn cluster_log_weights(
     origin: &[Option<usize>],
     found: &[Cluster],
