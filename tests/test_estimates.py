@@ -133,7 +133,7 @@ def test_infinite_bandwidth_reproduces_the_weighted_mean_trajectory(office: Path
 
 
 def test_mode_records_follow_the_fill_rule_and_reach_the_run_folder(office: Path, tmp_path: Path) -> None:
-    config = SlamConfig(particles=8, seed=3, **TRIGGERS)
+    config = SlamConfig(particles=8, seed=3, fill="odometry", **TRIGGERS)
     run = _feed(office / "log.clf", config)
     processed = np.flatnonzero(run.processed)
     stamps, mode = run.mode_trajectory()

@@ -117,7 +117,7 @@ def test_best_path_trajectory_follows_the_fill_rule(office: Path, tmp_path: Path
     # One particle: its path and the weighted mean are the same poses.
     one = _feed(scans, SlamConfig(particles=1, linear_update=0.3, angular_update=0.3))
     np.testing.assert_allclose(one.best_path_trajectory()[1], one.trajectory()[1], atol=1e-9)
-    run = _feed(scans, SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3))
+    run = _feed(scans, SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3, fill="odometry"))
     assert run.filter is not None
     processed = np.array(run.processed)
     assert 2 <= processed.sum() < len(scans)
@@ -133,7 +133,8 @@ def test_best_path_trajectory_follows_the_fill_rule(office: Path, tmp_path: Path
 def test_best_path_means_are_the_proposal_means_of_the_same_lineage(office: Path, tmp_path: Path) -> None:
     scans = list(read_scans(office / "log.clf"))[:60]
 
-    triggers = {"linear_update": 0.3, "angular_update": 0.3, "particles": 6, "seed": 3}
+    # The odometry fill between processed scans, whose rule tests/test_fill.py checks in full.
+    triggers = {"linear_update": 0.3, "angular_update": 0.3, "particles": 6, "seed": 3, "fill": "odometry"}
     # The odometry proposal and a kept match have no means apart from their poses.
     assert _feed(scans, SlamConfig(**triggers)).best_path_means_trajectory() is None
     kept_match = SlamConfig(proposal="likelihood_mode", proposal_pose="match", **triggers)
@@ -194,7 +195,10 @@ def test_particle_spread_matches_hand_values() -> None:
 
 def test_particle_set_records_and_max_weight_trajectory(office: Path, tmp_path: Path) -> None:
     scans = list(read_scans(office / "log.clf"))[:60]
-    run = _feed(scans, SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3, init_sigma=(0.05, 0.05, 0.02)))
+    config = SlamConfig(
+        particles=8, seed=3, linear_update=0.3, angular_update=0.3, init_sigma=(0.05, 0.05, 0.02), fill="odometry"
+    )
+    run = _feed(scans, config)
     assert run.filter is not None
     processed = np.flatnonzero(run.processed)
     assert [r.scan_index for r in run.particle_sets] == processed.tolist()
@@ -217,7 +221,7 @@ def test_particle_set_records_and_max_weight_trajectory(office: Path, tmp_path: 
     run_slam_log(
         office / "log.clf",
         out,
-        SlamConfig(particles=8, seed=3, linear_update=0.3, angular_update=0.3, init_sigma=(0.05, 0.05, 0.02)),
+        config,
         reference=office / "groundtruth.tum",
         max_scans=60,
         progress=False,

@@ -15,8 +15,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam import _native
 from crlam.errors import ConfigError, CrlamError
+from crlam.fill import FILLS, fill_skipped
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
-from crlam.pose import between, compose, number_pair
+from crlam.pose import number_pair
 from crlam.slam_continue import SlamPrior
 
 __all__ = [
@@ -172,6 +173,17 @@ class SlamConfig:
         smoothing, available at the end of the run); an integer L weighs them with the weights
         L processed scans later (fixed lag, online with a delay of L scans). It does not change
         the filter.
+    fill : str
+        The pose written for a scan the update triggers skip (:meth:`SlamRun.trajectory` and the
+        other recorded estimates; the filter never sees these scans). ``interpolate`` (default):
+        the last processed scan's estimate composed with the raw-odometry increment since then,
+        plus the share of the correction the next processed scan's estimate makes to that
+        odometry prediction, the share being how far the robot has come towards the next
+        update as the triggers measure it (max of travelled / ``linear_update`` and turned /
+        ``angular_update``); available once that next scan is processed, a delay of at most one
+        update. ``odometry``: without the correction, the estimate as it stands online while
+        the scan is the latest. Scans after the last processed one get the odometry fill either
+        way. It does not change the filter, nor the poses of processed scans.
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
         ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
@@ -210,6 +222,7 @@ class SlamConfig:
     cause_kernel: str = "midpoint"
     mode_bandwidth: tuple[float, float] = (0.05, 0.025)
     smoothing_lag: int | None = None
+    fill: str = "interpolate"
     ogm_map: str = "log_odds"
     ogm_motion_draws: str = "per_update"
     ogm_weight_smoothing: float = 3.0
@@ -260,6 +273,8 @@ class SlamConfig:
             isinstance(self.smoothing_lag, int) and not isinstance(self.smoothing_lag, bool) and self.smoothing_lag >= 0
         ):
             raise bad("smoothing_lag", "must be None (full smoothing) or an integer >= 0")
+        if self.fill not in FILLS:
+            raise bad("fill", f"must be one of {', '.join(FILLS)}")
         if self.tempering_beams is not None and not (
             isinstance(self.tempering_beams, (int, float)) and math.isfinite(self.tempering_beams) and self.tempering_beams >= 1
         ):
@@ -595,16 +610,22 @@ class SlamRun:
         return len(self.estimates)
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """(stamps (n,), poses (n, 3)), one per scan in file order."""
-        return np.array(self.stamps), np.array(self.estimates).reshape(-1, 3)
+        """(stamps (n,), poses (n, 3)), one per scan in file order: the weighted-mean estimate at
+        each processed scan, the others by the ``fill`` rule (:mod:`crlam.fill`).
+
+        :attr:`estimates` keeps the estimates as they stood online (skipped scans: the odometry
+        fill).
+        """
+        if not self.particle_sets or not self.processed[0]:
+            return np.array(self.stamps), np.array(self.estimates).reshape(-1, 3)
+        return self._fill_path(np.array([r.estimate for r in self.particle_sets]), "weighted-mean estimates")
 
     def best_path_trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(stamps (n,), poses (n, 3)) from the final best particle's path, one per scan in file order.
 
         At a processed scan the pose is that particle's ancestor's pose there (GMapping's
         trajectory: one lineage, consistent with the map it built); in between, the same fill
-        rule as :meth:`trajectory`: the last processed pose composed with the raw-odometry
-        increment since that scan.
+        rule as :meth:`trajectory`.
         """
         if self.filter is None:
             raise ConfigError("no scan has been processed yet")
@@ -672,11 +693,16 @@ class SlamRun:
         processed = np.array(self.processed, dtype=bool)
         if path.shape[0] != int(processed.sum()):
             raise CrlamError(f"{what} has {path.shape[0]} poses for {int(processed.sum())} processed scans")
-        odom = np.array(self.odometry).reshape(-1, 3)
-        last = np.maximum.accumulate(np.where(processed, np.arange(len(processed)), 0))
-        anchor = path[np.cumsum(processed) - 1]
-        filled = compose(anchor, between(odom[last], odom))
-        return np.array(self.stamps), np.where(processed[:, None], anchor, filled)
+        poses = fill_skipped(
+            path,
+            processed,
+            np.array(self.odometry).reshape(-1, 3),
+            np.array(self.stamps, dtype=np.float64),
+            self.config.fill,
+            self.config.linear_update,
+            self.config.angular_update,
+        )
+        return np.array(self.stamps), poses
 
     def best_map(self) -> ConfidenceRichMap | LogOddsOccupancyMap:
         """The highest-weight particle's map (crm-spec B7), wrapped for the Python API."""

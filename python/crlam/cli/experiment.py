@@ -50,6 +50,7 @@ _SWEEP_FLAGS = (
     "--motion-outlier",
     "--mode-bandwidth",
     "--smoothing-lag",
+    "--fill",
 )
 _REAL_LOG_FLAGS = (
     "--linear-update",

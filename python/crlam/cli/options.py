@@ -270,6 +270,15 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             "smoothing)",
         ),
     ),
+    "--fill": (
+        "estimates",
+        dict(
+            choices=("interpolate", "odometry"),
+            help="pose of a scan the update triggers skip: the last processed estimate plus the raw odometry since "
+            "then (odometry, as it stands online) or also the share of the next processed scan's correction reached "
+            "so far (interpolate); it does not change the filter (default: the preset's)",
+        ),
+    ),
 }
 
 

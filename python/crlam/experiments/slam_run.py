@@ -41,6 +41,7 @@ from crlam import __version__
 from crlam.errors import ConfigError, DataFormatError
 from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
 from crlam.experiments.progress import scan_progress_bar
+from crlam.fill import fill_rule
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import input_description, open_log
@@ -51,12 +52,7 @@ from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
 from crlam.slam_continue import SlamPrior, pose_covariance
 
-__all__ = ["ESTIMATES", "FILL_RULE", "SlamResult", "run_slam_log", "write_run_readme", "write_toml"]
-
-FILL_RULE = (
-    "every laser scan gets a pose: processed scans the filter's weighted-mean estimate, the others the "
-    "estimate of the last processed scan composed with the raw-odometry increment since then"
-)
+__all__ = ["ESTIMATES", "SlamResult", "run_slam_log", "write_run_readme", "write_toml"]
 
 
 @dataclass
@@ -388,7 +384,7 @@ def _write_outputs(
         "neff_min": float(np.min(run.neff)) if run.neff else float("nan"),
         "n_resamples": run.filter.n_resamples,
         "particle_set": particle_set_summary(run),
-        "fill_rule": FILL_RULE,
+        "fill_rule": fill_rule(config.fill),
         "preset": config.preset,
         "deviations_from_paper": config.deviations(),
         "motion_noise_estimate": None if noise_estimate is None else noise_estimate.to_dict(),

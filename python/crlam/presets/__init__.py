@@ -55,7 +55,7 @@ DEFAULT_PRESET = "robust"
 PAPER_PRESET = "paper"
 #: SlamConfig fields that do not change the filter (recorded estimates, the random draws) or only
 #: name where the settings came from: never reported as deviations from the paper.
-NOT_DEVIATIONS = frozenset({"seed", "mode_bandwidth", "smoothing_lag", "preset"})
+NOT_DEVIATIONS = frozenset({"seed", "mode_bandwidth", "smoothing_lag", "fill", "preset"})
 
 _DIR = Path(__file__).resolve().parent
 _SECTION = re.compile(r"^\s*\[([^\]]+)\]\s*(#.*)?$")
