@@ -21,6 +21,7 @@ from crlam.eval.trajectory import (
     reference_errors,
     relations_error,
 )
+from crlam.fill import fill_skipped
 from crlam.io.relations import Relations, read_relations
 from crlam.pose import between, compose, wrap_angle
 
@@ -192,6 +193,26 @@ def test_fill_with_exact_odometry_recovers_every_pose(tmp_path: Path) -> None:
     assert "backwards" in filled.rule and "file order" in filled.rule
 
 
+def test_interpolated_fill_is_crlam_fills_rule_after_the_first_processed_scan(tmp_path: Path) -> None:
+    true = random_walk(40, seed=3)
+    odom = compose(np.array([5.0, -3.0, 1.0]), true)
+    stamps = (100.0 + 0.1 * np.arange(40)).tolist()
+    log = write_log(tmp_path / "raw.clf", stamps, odom)
+    keep = np.arange(4, 40, 6)
+    # Exact odometry: nothing to correct, every pose is recovered either way.
+    exact = fill_trajectory(np.array(stamps)[keep], true[keep], log, fill="interpolate")
+    np.testing.assert_allclose(exact.poses, fill_trajectory(np.array(stamps)[keep], true[keep], log).poses, atol=1e-9)
+    # Estimates that disagree with the odometry: after the first processed scan the rule of crlam.fill.
+    est = true[keep] + np.random.default_rng(4).normal(0.0, 0.05, (keep.size, 3))
+    got = fill_trajectory(np.array(stamps)[keep], est, log, fill="interpolate", updates=(0.5, 0.25))
+    processed = np.zeros(40, dtype=bool)
+    processed[keep] = True
+    want = fill_skipped(est, processed[4:], odom[4:], np.array(stamps[4:]), "interpolate", 0.5, 0.25)
+    np.testing.assert_allclose(got.poses[4:], want, atol=1e-9)
+    np.testing.assert_allclose(got.poses[:4], fill_trajectory(np.array(stamps)[keep], est, log).poses[:4], atol=1e-12)
+    assert not np.allclose(got.poses[5:10], fill_trajectory(np.array(stamps)[keep], est, log).poses[5:10])
+
+
 def test_fill_anchors_on_the_previous_scan_in_file_order_not_in_time(tmp_path: Path) -> None:
     odom = np.array([[0.0, 0, 0], [1.0, 0, 0], [2.0, 0, 0.5], [3.0, 1, 0.5], [4.0, 1, 1.0]])
     stamps = [1.0, 3.0, 2.0, 4.0, 5.0]  # the third scan is older than the second
@@ -303,6 +324,15 @@ def test_gmapping_corrected_with_odometry_fill_oracle(real: dict[str, object], n
     g = fill_trajectory(al.stamps, al.poses, raw)
     s2 = relations_error(g.stamps, g.poses, rel, tolerance=0.0).summary()
     assert s2["n"] == len(rel) and abs(s2["trans_mean_m"] - s["trans_mean_m"]) < 2e-4
+    # crlam slam's default fill (interpolate) on the same poses: GMapping's trajectory gains too,
+    # so comparisons use one rule for both (docs/results/real-logs.md).
+    h = fill_trajectory(al.stamps, al.poses, raw, backfill=False, fill="interpolate")
+    s3 = relations_error(h.stamps, h.poses, rel, on_missing="skip", tolerance=0.0).summary()
+    assert s3["n"] == n and printed(s3["trans_mean_m"], 4) == INTERPOLATED[name]
+    assert "share of the next processed pose's correction" in h.rule
+
+
+INTERPOLATED = {"aces": "0.0450", "intel": "0.0279"}
 
 
 def eval_parser() -> argparse.ArgumentParser:
@@ -316,19 +346,19 @@ def eval_parser() -> argparse.ArgumentParser:
 @pytest.mark.realdata
 def test_cli_eval_reproduces_the_aces_oracle(data_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "aces.json"
-    args = eval_parser().parse_args(
-        [
-            "eval",
-            str(data_dir / "corrected" / "aces-corrected.log.gz"),
-            "--relations",
-            str(data_dir / "aces" / "aces.relations"),
-            "--raw-log",
-            str(data_dir / "aces" / "aces.clf.bz2"),
-            "--no-backfill",
-            "--out",
-            str(out),
-        ]
-    )
+    args_list = [
+        "eval",
+        str(data_dir / "corrected" / "aces-corrected.log.gz"),
+        "--relations",
+        str(data_dir / "aces" / "aces.relations"),
+        "--raw-log",
+        str(data_dir / "aces" / "aces.clf.bz2"),
+        "--no-backfill",
+        "--out",
+        str(out),
+        "--force",
+    ]
+    args = eval_parser().parse_args(args_list)
     assert args.func(args) == 0
     text = capsys.readouterr().out
     assert "fill rule" in text and "file order" in text and "identical range readings" in text
@@ -337,6 +367,14 @@ def test_cli_eval_reproduces_the_aces_oracle(data_dir: Path, tmp_path: Path, cap
     assert s["n"] == 1277 and s["n_missing"] == 2 and report["fill"]["n_processed"] == 440
     assert [printed(s[k], d) for k, d in zip(KEYS, (4, 4, 2, 2))] == ["0.0493", "0.0487", "1.06", "1.50"]
     assert "between(odom_last_processed, odom_now)" in report["fill"]["rule"]
+    # The same with crlam slam's fill rule.
+    args = eval_parser().parse_args([*args_list, "--fill", "interpolate", "--fill-updates", "0.5", "0.25"])
+    assert args.func(args) == 0
+    report = json.loads(out.read_text())
+    assert report["fill"]["fill"] == "interpolate" and printed(report["summary"]["trans_mean_m"], 4) == "0.0450"
+    assert "0.5 m and turned / 0.25 rad" in report["fill"]["rule"]
+    with pytest.raises(SystemExit):
+        eval_parser().parse_args([*args_list, "--fill-updates", "0", "0.5"])
 
 
 def test_cli_eval_tum_against_reference_and_clean_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

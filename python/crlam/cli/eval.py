@@ -19,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crlam.cli.conventions import add_output_options, check_file_output, deprecated_alias, group, input_file, print_settings, say
+from crlam.cli.options import positive_float
 from crlam.errors import ConfigError, DataFormatError
 
 if TYPE_CHECKING:
@@ -122,7 +123,15 @@ def cmd_eval(args: argparse.Namespace) -> int:
             stamps, poses = al.stamps, al.poses
             report["alignment"] = {"rule": al.rule, "n_by_stamp": al.n_by_stamp, "n_by_ranges": al.n_by_ranges}
             lines.append(_wrap("alignment", al.rule))
-        filled = fill_trajectory(stamps, poses, raw, tolerance=args.tolerance, backfill=not args.no_backfill)
+        filled = fill_trajectory(
+            stamps,
+            poses,
+            raw,
+            tolerance=args.tolerance,
+            backfill=not args.no_backfill,
+            fill=args.fill,
+            updates=tuple(args.fill_updates),
+        )
         stamps, poses = filled.stamps, filled.poses
         report["fill"] = {
             "rule": filled.rule,
@@ -132,6 +141,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
             "n_omitted": filled.n_omitted,
             "n_unmatched_estimates": filled.n_unmatched_estimates,
             "backfill": not args.no_backfill,
+            "fill": args.fill,
         }
         lines.append(_wrap("fill rule", filled.rule))
         if filled.n_unmatched_estimates:
@@ -239,6 +249,23 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         action="store_true",
         help="leave out the scans before the first processed one instead of filling them backwards; relations on them "
         "are skipped and counted (this is how the README oracles were measured)",
+    )
+    match.add_argument(
+        "--fill",
+        choices=("odometry", "interpolate"),
+        default="odometry",
+        help="with --raw-log: a scan the trajectory lacks gets the last processed pose carried by the raw odometry "
+        "(odometry, the default and the data README's rule) or also the share of the next processed pose's correction "
+        "to that prediction reached so far (interpolate, crlam slam's default; see docs/run-folder.md)",
+    )
+    match.add_argument(
+        "--fill-updates",
+        type=positive_float,
+        nargs=2,
+        default=[1.0, 0.5],
+        metavar=("M", "RAD"),
+        help="with --fill interpolate: the update triggers that measure the share, max(travelled / M, turned / RAD) "
+        "(default: GMapping's 1 0.5; only the ratio matters)",
     )
     match.add_argument("--skip-missing", action="store_true", help="skip (and count) relations whose stamps have no pose")
     match.add_argument(

@@ -22,6 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import DataFormatError
 from crlam.eval.align import Se2Alignment, align_se2, ape_statistics
+from crlam.fill import fill_skipped
 from crlam.io.logs import read_scans_any
 from crlam.io.relations import Relations
 from crlam.pose import between, compose, wrap_angle
@@ -46,6 +47,8 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
 DEFAULT_TOLERANCE = 1e-6
+#: GMapping's default update triggers (m, rad): the share measure of ``fill_trajectory(fill="interpolate")``.
+GMAPPING_UPDATES = (1.0, 0.5)
 """Stamp matching tolerance (s) used after an exact lookup fails: far below the 10 ms or more
 between two scans of a laser log, far above the rounding of a stamp printed with 9 decimals."""
 
@@ -198,6 +201,8 @@ def fill_trajectory(
     *,
     tolerance: float = DEFAULT_TOLERANCE,
     backfill: bool = True,
+    fill: str = "odometry",
+    updates: tuple[float, float] = GMAPPING_UPDATES,
 ) -> FilledTrajectory:
     """Give every laser scan of a raw log a pose, from an estimate that covers only some scans.
 
@@ -214,6 +219,14 @@ def fill_trajectory(
     backfill : bool
         Fill the scans before the first processed one backwards from it (default). With False
         they are left out (``n_omitted``), as in the README oracles.
+    fill : {"odometry", "interpolate"}
+        The rule for the scans after the first processed one (:mod:`crlam.fill`): the last
+        processed pose carried by the raw odometry (default, the data README's rule), or that
+        plus the share of the next processed pose's correction to the odometry's prediction,
+        the share measured with the update triggers ``updates``.
+    updates : tuple of float
+        (linear m, angular rad) update triggers that measure the share of ``interpolate``;
+        default GMapping's 1 m / 0.5 rad (only their ratio matters).
 
     Raises
     ------
@@ -240,6 +253,10 @@ def fill_trajectory(
     fwd = ~processed & (anchor >= 0)
     a = anchor[fwd]
     poses[fwd] = compose(poses[a], between(raw.odom[a], raw.odom[fwd]))
+    if fill != "odometry":
+        after = slice(first, n)
+        done = processed[after]
+        poses[after] = fill_skipped(poses[after][done], done, raw.odom[after], raw.stamps[after], fill, updates[0], updates[1])
     keep = np.ones(n, dtype=bool)
     if backfill:
         # The increment from the first processed scan back to an earlier one: the same rule.
@@ -256,7 +273,15 @@ def fill_trajectory(
         f"{int(processed.sum())} of {n} scans of {os.path.basename(raw.path)} take the estimated pose of their "
         f"ipc_timestamp (exact match, else within {tolerance:g} s); each of the other {int(fwd.sum())} takes the pose "
         "of the last processed scan before it in file order composed with the raw-odometry increment "
-        f"between(odom_last_processed, odom_now) of the scans' odom fields; {before}."
+        f"between(odom_last_processed, odom_now) of the scans' odom fields"
+        + (
+            ""
+            if fill == "odometry"
+            else f", plus the share of the next processed pose's correction to that odometry prediction reached so far "
+            f"(max of travelled / {updates[0]:g} m and turned / {updates[1]:g} rad, over the same at the next processed "
+            "scan; none after the last processed scan)"
+        )
+        + f"; {before}."
     )
     return FilledTrajectory(
         stamps=raw.stamps[keep].copy(),
