@@ -97,6 +97,7 @@ def _json_safe(obj: Any) -> Any:
 def cmd_eval(args: argparse.Namespace) -> int:
     """Evaluate a trajectory with the relations metric or against a reference trajectory."""
     from crlam.eval.trajectory import (
+        GMAPPING_UPDATES,
         align_to_raw,
         fill_trajectory,
         index_scans,
@@ -130,7 +131,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
             tolerance=args.tolerance,
             backfill=not args.no_backfill,
             fill=args.fill,
-            updates=tuple(args.fill_updates),
+            updates=GMAPPING_UPDATES if args.fill_updates is None else tuple(args.fill_updates),
         )
         stamps, poses = filled.stamps, filled.poses
         report["fill"] = {
@@ -262,7 +263,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         "--fill-updates",
         type=positive_float,
         nargs=2,
-        default=[1.0, 0.5],
+        default=None,
         metavar=("M", "RAD"),
         help="with --fill interpolate: the update triggers that measure the share, max(travelled / M, turned / RAD) "
         "(default: GMapping's 1 0.5; only the ratio matters)",
