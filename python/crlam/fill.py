@@ -19,17 +19,14 @@ every other scan still gets a pose in the recorded trajectories. Two rules:
 
 from __future__ import annotations
 
-from typing import Literal
-
 import numpy as np
 from numpy.typing import NDArray
 
 from crlam.errors import CrlamError
 from crlam.pose import between, compose, wrap_angle
 
-__all__ = ["FILLS", "Fill", "fill_rule", "fill_skipped"]
+__all__ = ["FILLS", "fill_rule", "fill_skipped"]
 
-Fill = Literal["interpolate", "odometry"]
 #: The fill rules, the default first.
 FILLS: tuple[str, ...] = ("interpolate", "odometry")
 
@@ -118,18 +115,16 @@ def fill_skipped(
     k = segment[inner]
     start, end = index[k], index[k + 1]
     at = np.flatnonzero(inner)
-    end_odometry = odometry[end]
-    predicted = compose(path[k], between(odometry[start], end_odometry))
+    predicted = compose(path[k], between(odometry[start], odometry[end]))
     correction = path[k + 1] - predicted
     correction[:, 2] = wrap_angle(correction[:, 2])
-    span = np.where(processed, 0.0, 1.0)[inner]  # a processed scan keeps its own estimate
     reach = progress(start, end)
     by_time = reach <= 0.0
     with np.errstate(divide="ignore", invalid="ignore"):
         share = np.where(by_time, (stamps[at] - stamps[start]) / (stamps[end] - stamps[start]), progress(start, at) / reach)
-    share = np.clip(np.nan_to_num(share, nan=0.0, posinf=0.0), 0.0, 1.0) * span
+    share = np.clip(np.nan_to_num(share, nan=0.0, posinf=0.0), 0.0, 1.0)
     out = filled.copy()
     out[inner, :2] += share[:, None] * correction[:, :2]
     out[inner, 2] = wrap_angle(out[inner, 2] + share * correction[:, 2])
-    out[index] = path
+    out[index] = path  # a processed scan keeps its own estimate (its share is 0 up to rounding)
     return out

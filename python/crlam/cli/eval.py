@@ -257,7 +257,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
         default="odometry",
         help="with --raw-log: a scan the trajectory lacks gets the last processed pose carried by the raw odometry "
         "(odometry, the default and the data README's rule) or also the share of the next processed pose's correction "
-        "to that prediction reached so far (interpolate, crlam slam's default; see docs/run-folder.md)",
+        "to that prediction reached so far (interpolate, crlam slam's default; see docs/method/rbpf-clam.md)",
     )
     match.add_argument(
         "--fill-updates",

@@ -47,10 +47,10 @@ IntArray = NDArray[np.int64]
 BoolArray = NDArray[np.bool_]
 
 DEFAULT_TOLERANCE = 1e-6
-#: GMapping's default update triggers (m, rad): the share measure of ``fill_trajectory(fill="interpolate")``.
-GMAPPING_UPDATES = (1.0, 0.5)
 """Stamp matching tolerance (s) used after an exact lookup fails: far below the 10 ms or more
 between two scans of a laser log, far above the rounding of a stamp printed with 9 decimals."""
+#: GMapping's default update triggers (m, rad): the share measure of ``fill_trajectory(fill="interpolate")``.
+GMAPPING_UPDATES = (1.0, 0.5)
 
 
 def _std(x: FloatArray) -> float:
