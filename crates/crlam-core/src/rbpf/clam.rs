@@ -88,6 +88,10 @@ pub struct RbpfClam {
     /// The largest finite reading of every scan given so far (−∞ before any): the no-return rule
     /// of a full-range matcher ([`crate::rbpf::MatchRange::Full`]).
     largest_reading: f64,
+    /// Each particle's parent in the last resampling, while the children are still copies of it
+    /// (until the next processed scan); each particle its own index otherwise. Systematic
+    /// resampling keeps the children of one parent next to each other.
+    parents: Vec<usize>,
 }
 
 /// The particles' poses with uniform weights.
@@ -195,6 +199,7 @@ impl RbpfClam {
             n_processed: 0,
             paths,
             largest_reading: f64::NEG_INFINITY,
+            parents: (0..n).collect(),
         })
     }
 
@@ -321,19 +326,72 @@ impl RbpfClam {
             }
             _ => None,
         };
-        // Each particle's proposal mean, for the path tree.
-        let results: Vec<Result<Pose>> = self
-            .particles
-            .par_iter_mut()
-            .enumerate()
-            .map(|(j, p)| {
+        // The scan-match proposal from the odometry guess searches once for the children of one
+        // parent (same map, same pose) right after a resampling; every other proposal, and each
+        // child's draw, weight and map update, per particle.
+        let share_search = matches!(
+            &cfg.proposal,
+            ClamProposal::ScanMatch(settings) if settings.lattice.pose == ProposalPose::Sample
+        );
+        let mut groups: Vec<(usize, &mut [ClamParticle])> = Vec::new();
+        let mut rest: &mut [ClamParticle] = &mut self.particles;
+        let mut first = 0;
+        while !rest.is_empty() {
+            let len = if share_search {
+                self.parents[first..]
+                    .iter()
+                    .take_while(|&&q| q == self.parents[first])
+                    .count()
+            } else {
+                1
+            };
+            let (group, tail) = std::mem::take(&mut rest).split_at_mut(len);
+            groups.push((first, group));
+            rest = tail;
+            first += len;
+        }
+        // Each particle's proposal mean, for the path tree, in particle order.
+        let results: Vec<Result<Vec<Pose>>> = groups
+            .into_par_iter()
+            .map(|(first, group)| {
                 with_thread_scratch(|sc| {
-                    let mut rng = Rng::stream(cfg.seed, step, j as u64);
+                    let mut rngs: Vec<Rng> = (first..first + group.len())
+                        .map(|j| Rng::stream(cfg.seed, step, j as u64))
+                        .collect();
+                    if let (ClamProposal::ScanMatch(settings), Some(prepared)) =
+                        (&cfg.proposal, &prepared)
+                    {
+                        let leader = &mut group[0];
+                        let proposals = propose_by_scan_match(
+                            cfg,
+                            settings,
+                            prepared,
+                            leader.pose,
+                            &mut leader.map,
+                            leader.hits.as_ref(),
+                            u,
+                            n_steps,
+                            scan,
+                            &mut rngs,
+                            sc,
+                        )?;
+                        let mut means = Vec::with_capacity(group.len());
+                        for (p, proposed) in group.iter_mut().zip(proposals) {
+                            p.pose = proposed.pose;
+                            p.log_w += proposed.dlogw;
+                            if pending == PendingUpdate::None {
+                                update_map_at_pose(cfg, p, scan, sc)?;
+                            }
+                            means.push(proposed.mean);
+                        }
+                        return Ok(means);
+                    }
+                    let (p, rng) = (&mut group[0], &mut rngs[0]);
                     if cfg.proposal == ClamProposal::Odometry {
                         // Weight and map update share one walk of every beam (same pre-scan
                         // beliefs); a deferred update weighs alone, with the same weight.
                         let mean = compose(p.pose, u);
-                        let pose = cfg.motion.sample(p.pose, u, n_steps, &mut rng);
+                        let pose = cfg.motion.sample(p.pose, u, n_steps, rng);
                         let ll = if pending == PendingUpdate::Deferred {
                             weigh_at_pose(cfg, &mut p.map, pose, scan, sc)?
                         } else {
@@ -342,36 +400,24 @@ impl RbpfClam {
                         };
                         p.pose = pose;
                         p.log_w += ll / cfg.tempering;
-                        return Ok(mean);
+                        return Ok(vec![mean]);
                     }
-                    let proposed = match (&cfg.proposal, &prepared) {
-                        (ClamProposal::ScanMatch(settings), Some(prepared)) => {
-                            propose_by_scan_match(
-                                cfg,
-                                settings,
-                                prepared,
-                                p.pose,
-                                &mut p.map,
-                                p.hits.as_ref(),
-                                u,
-                                n_steps,
-                                scan,
-                                &mut rng,
-                                sc,
-                            )?
-                        }
-                        _ => propose(cfg, p, u, n_steps, scan, &mut rng, sc)?,
-                    };
+                    let proposed = propose(cfg, p, u, n_steps, scan, rng, sc)?;
                     p.pose = proposed.pose;
                     p.log_w += proposed.dlogw;
                     if pending == PendingUpdate::None {
                         update_map_at_pose(cfg, p, scan, sc)?;
                     }
-                    Ok(proposed.mean)
+                    Ok(vec![proposed.mean])
                 })
             })
             .collect();
-        let means = results.into_iter().collect::<Result<Vec<Pose>>>()?;
+        let means: Vec<Pose> = results
+            .into_iter()
+            .collect::<Result<Vec<Vec<Pose>>>>()?
+            .into_iter()
+            .flatten()
+            .collect();
         self.paths.advance(
             self.particles
                 .iter_mut()
@@ -473,8 +519,10 @@ impl RbpfClam {
                 .collect();
             self.best = idx.iter().position(|&i| i == best).unwrap_or(0);
             self.particles = new;
+            self.parents = idx;
             self.n_resamples += 1;
         } else {
+            self.parents = (0..n).collect();
             self.update_kept_maps(pending, scan, &vec![true; n])?;
             for p in &mut self.particles {
                 p.log_w = if mx.is_finite() {

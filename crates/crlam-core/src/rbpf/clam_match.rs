@@ -67,6 +67,13 @@ pub(crate) fn prepare_scan(
 }
 
 /// Proposes a particle's new pose by scan matching and weighs it (see the module documentation).
+///
+/// `rngs` holds one random stream per particle that starts from `prev` on `map`: with
+/// [`ProposalPose::Sample`] the children of one parent right after a resampling share the map,
+/// the pose and so the whole search (the climb and the lattice, a pure function of the three),
+/// and each draws and weighs its own pose; the results are those of one call per child. With
+/// [`ProposalPose::Match`] the climb starts from each particle's own motion draw, so `rngs` must
+/// hold one stream. Returns one proposal per stream, in order.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn propose_by_scan_match(
     cfg: &ClamConfig,
@@ -78,9 +85,9 @@ pub(crate) fn propose_by_scan_match(
     u: Pose,
     n_steps: usize,
     scan: &ScanInput,
-    rng: &mut Rng,
+    rngs: &mut [Rng],
     sc: &mut CrmScratch,
-) -> Result<Proposed> {
+) -> Result<Vec<Proposed>> {
     let matcher = ScanMatcher {
         params: settings.matcher,
     };
@@ -89,11 +96,21 @@ pub(crate) fn propose_by_scan_match(
     // in GMapping): from the odometry guess, the children of one parent would stay copies.
     let start = match params.pose {
         ProposalPose::Sample => compose(prev, u),
-        ProposalPose::Match => cfg.motion.sample(prev, u, n_steps, rng),
+        ProposalPose::Match => {
+            let [rng] = rngs else {
+                return Err(crate::error::CrlamError::Config {
+                    field: "proposal_pose",
+                    reason:
+                        "a kept match climbs from each particle's own draw: one particle per call"
+                            .into(),
+                });
+            };
+            cfg.motion.sample(prev, u, n_steps, rng)
+        }
     };
     let prior = MotionPrior::new(&cfg.motion, prev, u, n_steps, MOTION_FLOOR);
     // What the endpoint model says, read while the surface borrows the map.
-    let outcome = {
+    let outcomes = {
         let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
             map,
             hits,
@@ -104,89 +121,107 @@ pub(crate) fn propose_by_scan_match(
             settings.occupied_above,
         );
         let (matched, score) = matcher.optimize(&surface, prepared, start)?;
-        let outcome = if score > params.min_score {
-            let draw = matcher.improved_proposal(
+        let fit = if score > params.min_score {
+            Some(matcher.fit_proposal(
                 &surface,
                 prepared,
                 matched,
                 |x| prior.log_density(x),
                 params,
-                rng,
-            )?;
-            let (pose, mean, log_q) = match params.pose {
-                ProposalPose::Sample => (
-                    draw.pose,
-                    draw.mean,
-                    gaussian_log_density(draw.pose, draw.mean, &draw.covariance),
-                ),
-                ProposalPose::Match => (matched, matched, 0.0),
-            };
-            Outcome::Matched {
-                pose,
-                mean,
-                log_q,
-                log_eta: draw.log_normalizer,
-            }
+            )?)
         } else {
-            // Nothing to match against: the paper's proposal.
-            let pose = match params.pose {
-                ProposalPose::Sample => cfg.motion.sample(prev, u, n_steps, rng),
-                ProposalPose::Match => start,
+            None
+        };
+        let mut outcomes = Vec::with_capacity(rngs.len());
+        for rng in rngs.iter_mut() {
+            let outcome = match &fit {
+                Some(fit) => {
+                    let (pose, mean, log_q) = match params.pose {
+                        ProposalPose::Sample => {
+                            let draw = fit.draw(rng);
+                            (
+                                draw.pose,
+                                draw.mean,
+                                gaussian_log_density(draw.pose, draw.mean, &draw.covariance),
+                            )
+                        }
+                        ProposalPose::Match => (matched, matched, 0.0),
+                    };
+                    let log_eta = fit.log_normalizer();
+                    Outcome::Matched {
+                        pose,
+                        mean,
+                        log_q,
+                        log_eta,
+                    }
+                }
+                None => {
+                    // Nothing to match against: the paper's proposal.
+                    let pose = match params.pose {
+                        ProposalPose::Sample => cfg.motion.sample(prev, u, n_steps, rng),
+                        ProposalPose::Match => start,
+                    };
+                    let endpoint_ll = matcher.evaluate(&surface, prepared, pose)?.log_likelihood;
+                    Outcome::Unmatched { pose, endpoint_ll }
+                }
             };
-            let endpoint_ll = matcher.evaluate(&surface, prepared, pose)?.log_likelihood;
-            Outcome::Unmatched { pose, endpoint_ll }
-        };
-        // The returns beyond z_max that the matcher used are part of the measurement: the
-        // weight scores them with the endpoint model (the CRM scores those below z_max).
-        let far_ll = match (settings.weight, &outcome) {
-            (
-                ScanMatchWeight::Crm,
-                Outcome::Matched { pose, .. } | Outcome::Unmatched { pose, .. },
-            ) => matcher.far_log_likelihood(&surface, prepared, *pose)?,
-            (ScanMatchWeight::Endpoint, _) => 0.0,
-        };
-        (outcome, far_ll)
-    };
-    let (outcome, far_ll) = outcome;
-    let tau = cfg.tempering;
-    Ok(match (outcome, settings.weight) {
-        (Outcome::Unmatched { pose, .. }, ScanMatchWeight::Crm) => Proposed {
-            pose,
-            mean: pose,
-            dlogw: (weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll) / tau,
-        },
-        (Outcome::Unmatched { pose, endpoint_ll }, ScanMatchWeight::Endpoint) => Proposed {
-            pose,
-            mean: pose,
-            dlogw: endpoint_ll / tau,
-        },
-        (
-            Outcome::Matched {
-                pose, mean, log_q, ..
-            },
-            ScanMatchWeight::Crm,
-        ) => {
-            let ll = weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll;
-            Proposed {
-                pose,
-                mean,
-                dlogw: (ll + prior.log_density(pose) - log_q) / tau,
-            }
+            // The returns beyond z_max that the matcher used are part of the measurement: the
+            // weight scores them with the endpoint model (the CRM scores those below z_max).
+            let far_ll = match (settings.weight, &outcome) {
+                (
+                    ScanMatchWeight::Crm,
+                    Outcome::Matched { pose, .. } | Outcome::Unmatched { pose, .. },
+                ) => matcher.far_log_likelihood(&surface, prepared, *pose)?,
+                (ScanMatchWeight::Endpoint, _) => 0.0,
+            };
+            outcomes.push((outcome, far_ll));
         }
-        (
-            Outcome::Matched {
-                pose,
-                mean,
-                log_eta,
-                ..
-            },
-            ScanMatchWeight::Endpoint,
-        ) => Proposed {
-            pose,
-            mean,
-            dlogw: log_eta / tau,
-        },
-    })
+        outcomes
+    };
+    let tau = cfg.tempering;
+    outcomes
+        .into_iter()
+        .map(|(outcome, far_ll)| {
+            Ok(match (outcome, settings.weight) {
+                (Outcome::Unmatched { pose, .. }, ScanMatchWeight::Crm) => Proposed {
+                    pose,
+                    mean: pose,
+                    dlogw: (weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll) / tau,
+                },
+                (Outcome::Unmatched { pose, endpoint_ll }, ScanMatchWeight::Endpoint) => Proposed {
+                    pose,
+                    mean: pose,
+                    dlogw: endpoint_ll / tau,
+                },
+                (
+                    Outcome::Matched {
+                        pose, mean, log_q, ..
+                    },
+                    ScanMatchWeight::Crm,
+                ) => {
+                    let ll = weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll;
+                    Proposed {
+                        pose,
+                        mean,
+                        dlogw: (ll + prior.log_density(pose) - log_q) / tau,
+                    }
+                }
+                (
+                    Outcome::Matched {
+                        pose,
+                        mean,
+                        log_eta,
+                        ..
+                    },
+                    ScanMatchWeight::Endpoint,
+                ) => Proposed {
+                    pose,
+                    mean,
+                    dlogw: log_eta / tau,
+                },
+            })
+        })
+        .collect()
 }
 
 /// What the endpoint search gave one particle.
@@ -225,6 +260,50 @@ fn gaussian_log_density(x: Pose, mean: Pose, cov: &[[f64; 3]; 3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The children of one parent search once and draw each with its own stream: the same
+    /// proposals, bit for bit, as one search per child; a kept match takes one particle a call.
+    #[test]
+    fn children_of_one_parent_share_the_search_and_keep_their_own_draws() {
+        let (cfg, map, angles, ranges) = crate::rbpf::proposal::tests::room_scan(8.0);
+        let scan = ScanInput {
+            odom: [0.0; 3],
+            angles: &angles,
+            ranges: &ranges,
+            laser_offset: [0.0; 3],
+        };
+        let mut settings = ScanMatchSettings::default();
+        let prepared = prepare_scan(&cfg, &settings, &scan, 2.5).unwrap();
+        let (prev, u) = ([0.04, -0.02, 0.02], [0.03, 0.02, -0.01]);
+        let stream = |k: u64| Rng::stream(3, 7, k);
+        let mut sc = CrmScratch::default();
+        let propose = |settings: &ScanMatchSettings, rngs: &mut [Rng], sc: &mut CrmScratch| {
+            let mut m = map.clone();
+            propose_by_scan_match(
+                &cfg, settings, &prepared, prev, &mut m, None, u, 1, &scan, rngs, sc,
+            )
+        };
+        let mut together: Vec<Rng> = (0..4).map(stream).collect();
+        let shared = propose(&settings, &mut together, &mut sc).unwrap();
+        assert_eq!(shared.len(), 4);
+        for (k, s) in shared.iter().enumerate() {
+            let alone = propose(&settings, &mut [stream(k as u64)], &mut sc).unwrap();
+            assert_eq!(alone.len(), 1);
+            assert_eq!((alone[0].pose, alone[0].mean), (s.pose, s.mean));
+            assert_eq!(alone[0].dlogw.to_bits(), s.dlogw.to_bits());
+        }
+        // A match was fitted (the means are its mean, not the poses) and each child drew its own pose.
+        assert!(shared
+            .iter()
+            .all(|s| s.mean == shared[0].mean && s.pose != s.mean));
+        assert!(shared.windows(2).all(|w| w[0].pose != w[1].pose));
+        settings.lattice.pose = ProposalPose::Match;
+        assert!(propose(&settings, &mut [stream(0), stream(1)], &mut sc).is_err());
+        assert_eq!(
+            propose(&settings, &mut [stream(0)], &mut sc).unwrap().len(),
+            1
+        );
+    }
 
     #[test]
     fn gaussian_log_density_matches_the_closed_form() {

@@ -290,7 +290,7 @@ fn cholesky3(a: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     #[test]
@@ -364,7 +364,7 @@ mod tests {
 
     /// A map of a 4 m × 3 m room (0.1 m cells) seen from near its centre by 361 beams over 360°,
     /// and the scan taken at the centre.
-    fn room_scan(z_max: f64) -> (ClamConfig, CrmMap, Vec<f64>, Vec<f64>) {
+    pub(crate) fn room_scan(z_max: f64) -> (ClamConfig, CrmMap, Vec<f64>, Vec<f64>) {
         use crate::crm::CrmConfig;
         use crate::grid::GridGeometry;
         let cfg = ClamConfig::paper(

@@ -351,6 +351,23 @@ impl ScanMatcher {
         params: &ProposalParams,
         rng: &mut Rng,
     ) -> Result<ProposalDraw> {
+        Ok(self
+            .fit_proposal(surface, scan, center, log_prior, params)?
+            .draw(rng))
+    }
+
+    /// The lattice and the fitted Gaussian of [`Self::improved_proposal`], before its draw: a
+    /// pure function of the map, the scan and `center`, so particles that share all three (the
+    /// children of one parent right after a resampling) share it and draw from it each with
+    /// their own random stream.
+    pub fn fit_proposal<F: Fn(Pose) -> f64>(
+        &self,
+        surface: &MatchSurface,
+        scan: &PreparedScan,
+        center: Pose,
+        log_prior: F,
+        params: &ProposalParams,
+    ) -> Result<ProposalFit> {
         let h = params.half_steps as i64;
         let step = params.range.map(|r| r / h as f64);
         let side = (2 * h + 1) as usize;
@@ -371,29 +388,59 @@ impl ScanMatcher {
             }
         }
         let (mean_off, cov, lse) = fit_gaussian(&values, params.regularization);
-        let l = cholesky3(&cov).ok_or_else(|| crate::error::CrlamError::NonFinite {
+        let chol = cholesky3(&cov).ok_or_else(|| crate::error::CrlamError::NonFinite {
             field: "proposal covariance",
             value: cov[0][0],
         })?;
+        let log_volume = (step[0] * step[1] * step[2]).ln();
+        Ok(ProposalFit {
+            center,
+            mean_off,
+            covariance: cov,
+            chol,
+            log_normalizer: lse + log_volume,
+        })
+    }
+}
+
+/// The Gaussian the improved proposal fitted around a match ([`ScanMatcher::fit_proposal`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProposalFit {
+    center: Pose,
+    /// Mean offset from `center` (world x, y, heading).
+    mean_off: [f64; 3],
+    covariance: [[f64; 3]; 3],
+    /// Lower Cholesky factor of `covariance`.
+    chol: [[f64; 3]; 3],
+    log_normalizer: f64,
+}
+
+impl ProposalFit {
+    /// log η of the lattice (see [`ProposalDraw::log_normalizer`]).
+    pub fn log_normalizer(&self) -> f64 {
+        self.log_normalizer
+    }
+
+    /// A pose drawn from the fitted Gaussian (three standard normals from `rng`).
+    pub fn draw(&self, rng: &mut Rng) -> ProposalDraw {
         let n = [rng.normal(), rng.normal(), rng.normal()];
+        let (c, l) = (self.center, &self.chol);
         let mut pose = [0.0; 3];
         for r in 0..3 {
-            let noise: f64 = (0..=r).map(|c| l[r][c] * n[c]).sum();
-            pose[r] = center[r] + mean_off[r] + noise;
+            let noise: f64 = (0..=r).map(|k| l[r][k] * n[k]).sum();
+            pose[r] = c[r] + self.mean_off[r] + noise;
         }
         pose[2] = wrap(pose[2]);
-        let mean = [
-            center[0] + mean_off[0],
-            center[1] + mean_off[1],
-            wrap(center[2] + mean_off[2]),
-        ];
-        let log_volume = (step[0] * step[1] * step[2]).ln();
-        Ok(ProposalDraw {
+        ProposalDraw {
             pose,
-            log_normalizer: lse + log_volume,
-            mean,
-            covariance: cov,
-        })
+            log_normalizer: self.log_normalizer,
+            mean: [
+                c[0] + self.mean_off[0],
+                c[1] + self.mean_off[1],
+                wrap(c[2] + self.mean_off[2]),
+            ],
+            covariance: self.covariance,
+        }
     }
 }
 
