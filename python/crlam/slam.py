@@ -16,6 +16,7 @@ from numpy.typing import ArrayLike, NDArray
 from crlam import _native
 from crlam.errors import ConfigError, CrlamError
 from crlam.fill import FILLS, fill_skipped
+from crlam.grid_alignment import GRID_ALIGNMENTS, WallDirection, from_map_frame, into_map_frame, map_frame, map_turn
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
 from crlam.pose import number_pair
 from crlam.slam_continue import SlamPrior
@@ -184,6 +185,13 @@ class SlamConfig:
         update. ``odometry``: without the correction, the estimate as it stands online while
         the scan is the latest. Scans after the last processed one get the odometry fill either
         way. It does not change the filter, nor the poses of processed scans.
+    grid_alignment : str
+        The map's frame. ``none`` (paper): the first odometry pose's frame. ``walls``: that frame
+        turned about the first pose so that the grid runs along the walls the first scan sees
+        (:func:`crlam.grid_alignment.map_turn`): a building at an angle to the robot's first
+        heading is drawn on its own axes rather than as staircases of cells. The estimates are
+        in the map's frame; :meth:`SlamRun.to_odometry_frame` turns them back. Not used when
+        continuing a saved run (its map keeps its frame).
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
         ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
@@ -223,6 +231,7 @@ class SlamConfig:
     mode_bandwidth: tuple[float, float] = (0.05, 0.025)
     smoothing_lag: int | None = None
     fill: str = "interpolate"
+    grid_alignment: str = "none"
     ogm_map: str = "log_odds"
     ogm_motion_draws: str = "per_update"
     ogm_weight_smoothing: float = 3.0
@@ -275,6 +284,8 @@ class SlamConfig:
             raise bad("smoothing_lag", "must be None (full smoothing) or an integer >= 0")
         if self.fill not in FILLS:
             raise bad("fill", f"must be one of {', '.join(FILLS)}")
+        if self.grid_alignment not in GRID_ALIGNMENTS:
+            raise bad("grid_alignment", f"must be one of {', '.join(GRID_ALIGNMENTS)}")
         if self.tempering_beams is not None and not (
             isinstance(self.tempering_beams, (int, float)) and math.isfinite(self.tempering_beams) and self.tempering_beams >= 1
         ):
@@ -554,12 +565,61 @@ class SlamRun:
     # at processed scan k + L; proposal means where the filter records them.
     _lagged: list[NDArray[np.float64]] = field(default_factory=list, repr=False)
     _lagged_means: list[NDArray[np.float64]] = field(default_factory=list, repr=False)
+    #: The map's frame in the odometry frame's terms (``config.grid_alignment``; set at the first
+    #: scan): ``compose(map_frame, q)`` is odometry pose q in the map's frame. Every pose the run
+    #: records, :attr:`odometry` included, is in the map's frame.
+    map_frame: NDArray[np.float64] | None = None
+    #: The point (x, y m, odometry frame) the map's frame is turned about: the first pose's.
+    map_pivot: NDArray[np.float64] | None = None
+    #: The first scan's wall direction the turn was taken from (``grid_alignment="walls"``).
+    map_walls: WallDirection | None = None
+
+    @property
+    def map_turn(self) -> float:
+        """The map frame's turn (rad) against the odometry frame, about the first pose (0: none)."""
+        return 0.0 if self.map_frame is None else float(self.map_frame[2])
+
+    def to_odometry_frame(self, poses: ArrayLike) -> NDArray[np.float64]:
+        """Poses (..., 3) of this run's map frame in the odometry's frame, e.g. to compare them
+        with a reference that starts where the odometry starts."""
+        p = np.array(poses, dtype=np.float64)
+        return p if self.map_frame is None else from_map_frame(self.map_frame, p)
+
+    def map_frame_record(self) -> dict[str, Any]:
+        """What ``metrics.json`` records about the map's frame (``map_frame``)."""
+        walls = self.map_walls
+        return {
+            "grid_alignment": self.config.grid_alignment,
+            "turn_deg": math.degrees(self.map_turn),
+            "pivot": None if self.map_pivot is None else [float(v) for v in self.map_pivot],
+            "first_scan_walls": None
+            if walls is None
+            else {
+                "angle_deg": math.degrees(walls.angle),
+                "concentration": walls.concentration,
+                "wall_length_m": walls.wall_length,
+            },
+        }
+
+    def _to_map_frame(self, odom: NDArray[np.float64]) -> NDArray[np.float64]:
+        return odom if self.map_frame is None else np.ascontiguousarray(into_map_frame(self.map_frame, odom))
 
     def step(self, odom: ArrayLike, angles: ArrayLike, ranges: ArrayLike, laser_offset: ArrayLike, stamp: float) -> SlamStep:
-        """Feeds one scan (odometry pose of the robot, beam bearings, ranges, laser offset)."""
+        """Feeds one scan (odometry pose of the robot, beam bearings, ranges, laser offset).
+
+        The odometry pose is in the odometry's frame; the step's estimate, like every pose the
+        run records, is in the map's frame (:attr:`map_frame`)."""
         odom = np.ascontiguousarray(odom, dtype=np.float64)
         if self.filter is None:
+            turn = 0.0
+            if self.config.grid_alignment == "walls" and self.prior is None:
+                turn, self.map_walls = map_turn(angles, ranges, laser_offset, float(odom[2]), max_range=self.config.max_range)
+            self.map_pivot = odom[:2].copy()
+            self.map_frame = map_frame(turn, self.map_pivot)
+            odom = self._to_map_frame(odom)
             self.filter = make_filter(self.config, odom, self.prior)
+        else:
+            odom = self._to_map_frame(odom)
         p, e, n, r = self.filter.process(
             odom,
             np.ascontiguousarray(angles, dtype=np.float64),

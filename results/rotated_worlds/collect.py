@@ -11,12 +11,13 @@ import sys
 from pathlib import Path
 
 SETTINGS = {
-    "default": "`robust` preset (the default)",
-    "hit-means": "`--hit-means`",
-    "match": "`--proposal-pose match`",
-    "gmapping-lattice": "`--lattice-step 0.01 0.005`",
-    "range20": "`--max-range 20`",
-    "cell005": "`--resolution 0.05`",
+    "default": "`robust` preset (the default: the grid turned onto the first scan's walls)",
+    "no-alignment": "`--grid-alignment none` (the first pose's frame)",
+    "hit-means": "`--grid-alignment none --hit-means`",
+    "match": "`--grid-alignment none --proposal-pose match`",
+    "gmapping-lattice": "`--grid-alignment none --lattice-step 0.01 0.005`",
+    "range20": "`--grid-alignment none --max-range 20`",
+    "cell005": "`--grid-alignment none --resolution 0.05`",
     "ogm-gmapping": "RBPF-OGM in GMapping's setting",
 }
 LOGS = ("museum-0", "museum-1", "office-0", "office-1")

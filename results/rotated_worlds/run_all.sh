@@ -27,10 +27,12 @@ run() {  # run NAME SEEDS flags...
     done
 }
 run default "0 1"
-run hit-means "0 1" --hit-means
-run match "0 1" --proposal-pose match
-run gmapping-lattice "0 1" --lattice-step 0.01 0.005
-run range20 "0" --max-range 20
-run cell005 "0" --resolution 0.05
+# The variants below keep the first pose's frame: what the default is without its turn.
+run no-alignment "0 1" --grid-alignment none
+run hit-means "0 1" --grid-alignment none --hit-means
+run match "0 1" --grid-alignment none --proposal-pose match
+run gmapping-lattice "0 1" --grid-alignment none --lattice-step 0.01 0.005
+run range20 "0" --grid-alignment none --max-range 20
+run cell005 "0" --grid-alignment none --resolution 0.05
 run ogm-gmapping "0" --preset paper --method ogm --ogm-map gmapping --motion gmapping --ogm-motion-draws per_scan \
     --particles 30 --resolution 0.05 --max-range 80 --linear-update 1.0 --angular-update 0.5 --max-map-cells 1e8

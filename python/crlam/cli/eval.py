@@ -13,6 +13,7 @@ import os
 import sys
 import textwrap
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
@@ -174,6 +175,10 @@ def cmd_eval(args: argparse.Namespace) -> int:
             lines.append(f"  {label:<16s} {_fmt(mean):>10s} {_fmt(std):>10s}")
     else:
         ref = load_trajectory(args.reference)
+        turn, poses = _odometry_frame(Path(args.trajectory), poses)
+        if turn:
+            report["map_frame_turn_deg"] = turn
+            lines.append(_wrap("map frame", f"turned back by {-turn:.2f} deg into the odometry's frame (the run's metrics.json)"))
         res = reference_errors(stamps, poses, ref.stamps, ref.poses, tolerance=args.tolerance, align=args.align)
         summary = res.summary()
         ape = res.ape()
@@ -276,3 +281,21 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     deprecated_alias(p, "--json", "--out")
     p.set_defaults(func=cmd_eval)
     return p
+
+
+def _odometry_frame(trajectory: Path, poses: NDArray[np.float64]) -> tuple[float, NDArray[np.float64]]:
+    """A trajectory of a ``crlam slam`` run folder whose map frame is turned (``--grid-alignment
+    walls``), turned back into the odometry's frame, where a reference that starts where the
+    odometry starts lives: (the turn in deg, the poses). The run's ``metrics.json`` sits beside
+    the file or one folder up (``estimates/``); without one, or without a turn, (0, poses)."""
+    from crlam.experiments.resume import load_json_dict
+    from crlam.grid_alignment import frame_from_record, from_map_frame
+
+    if trajectory.suffix != ".tum" or not trajectory.is_file():
+        return 0.0, poses
+    for folder in (trajectory.parent, trajectory.parent.parent):
+        metrics = load_json_dict(folder / "metrics.json")
+        if metrics is not None and isinstance(metrics.get("map_frame"), dict):
+            frame = frame_from_record(metrics["map_frame"])
+            return math.degrees(float(frame[2])), from_map_frame(frame, poses)
+    return 0.0, poses

@@ -34,6 +34,7 @@ __all__ = ["add_parser", "cmd_experiment"]
 #: The SLAM flags both filter sweeps take (table1 adds --particles; real-logs the GMapping-side flags).
 _SWEEP_FLAGS = (
     "--resolution",
+    "--grid-alignment",
     "--weight-stride",
     "--tempering",
     "--tempering-beams",

@@ -224,6 +224,15 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
         dict(type=positive_float, help=f"cell size in metres (paper: 0.2; {FROM_PRESET})"),
     ),
     "--max-range": ("map and sensor", dict(type=positive_float, help=f"z_max in metres (paper: 8; {FROM_PRESET})")),
+    "--grid-alignment": (
+        "map and sensor",
+        dict(
+            choices=("none", "walls"),  # crlam.grid_alignment.GRID_ALIGNMENTS
+            help="the map's frame: the first odometry pose's (none, paper) or that frame turned about the first pose "
+            "so that the grid runs along the walls of the first scan (walls); estimates are written in the map's "
+            f"frame, metrics.json records the turn ({FROM_PRESET})",
+        ),
+    ),
     "--map-stride": (
         "map and sensor",
         dict(type=positive_int, help=f"every n-th beam for the map update (paper: 1; {FROM_PRESET})"),

@@ -19,6 +19,7 @@ from tqdm import tqdm
 
 from crlam.eval.maps import MapScores, score_map, world_coverage
 from crlam.experiments.known_poses import KnownPoseScan, MappingRun, map_scans, write_map_folder
+from crlam.grid_alignment import from_map_frame, into_map_frame
 from crlam.mapping import ConfidenceRichMap, MapLayer, MappingConfig
 from crlam.sim.simulate import SimulatedLog, SimulationConfig, simulate, write_simulation
 from crlam.slam import SlamConfig, SlamRun
@@ -59,12 +60,22 @@ def _scores(run: MappingRun, log: SimulatedLog) -> tuple[MapScores, MapScores]:
 
 @dataclass(eq=False)
 class _WholeRun:
-    """RBPF-CLAM over a whole simulated log: its estimate (n, 3), best map and wall time (s)."""
+    """RBPF-CLAM over a whole simulated log: its estimate (n, 3) in the map's frame, best map,
+    wall time (s), and the map frame's pose F (``compose(F, q)``: odometry-frame pose q in it)."""
 
     config: SlamConfig
     poses: NDArray[np.float64]
     map: ConfidenceRichMap
     wall_time_s: float
+    map_frame: NDArray[np.float64]
+
+    def in_map_frame(self, poses: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Odometry-frame poses (the simulation's ground truth) in the map's frame."""
+        return into_map_frame(self.map_frame, poses)
+
+    def in_odometry_frame(self) -> NDArray[np.float64]:
+        """The estimate in the odometry's (the simulation's) frame."""
+        return from_map_frame(self.map_frame, self.poses)
 
 
 def _slam_whole_run(log: SimulatedLog, *, seed: int, progress: bool) -> _WholeRun:
@@ -77,7 +88,8 @@ def _slam_whole_run(log: SimulatedLog, *, seed: int, progress: bool) -> _WholeRu
     wall = time.perf_counter() - t0
     best = run.best_map()
     assert isinstance(best, ConfidenceRichMap)
-    return _WholeRun(cfg, run.trajectory()[1], best, wall)
+    assert run.map_frame is not None
+    return _WholeRun(cfg, run.trajectory()[1], best, wall, run.map_frame)
 
 
 def _save_slam_figure(slam: _WholeRun, log: SimulatedLog, path: Path) -> Path:
@@ -92,7 +104,7 @@ def _save_slam_figure(slam: _WholeRun, log: SimulatedLog, path: Path) -> Path:
         log.world.resolution,
         mean,
         unknown_mask(slam.map, ent),
-        truth=log.poses,
+        truth=slam.in_map_frame(log.poses),
         estimate=slam.poses,
         title=f"RBPF-CLAM ({DEMO_PRESET} preset, {slam.config.particles} particles) over {log.n_scans} scans",
     )
@@ -148,7 +160,7 @@ def run_demo(
     loc_rows = loc.table()
     say(f"[6/8] SLAM: RBPF-CLAM ({DEMO_PRESET} preset) over all {n_scans} scans ...", flush=True)
     slam = _slam_whole_run(log, seed=seed, progress=progress)
-    slam_rmse = float(np.sqrt(np.mean(np.sum((slam.poses[:, :2] - log.poses[:, :2]) ** 2, axis=1))))
+    slam_rmse = float(np.sqrt(np.mean(np.sum((slam.in_odometry_frame()[:, :2] - log.poses[:, :2]) ** 2, axis=1))))
     odo_rmse = float(np.sqrt(np.mean(np.sum((log.odometry[:, :2] - log.poses[:, :2]) ** 2, axis=1))))
     _save_slam_figure(slam, log, out / "slam_map.png")
     say("[7/8] planning: IIG with five information functions on the office world ...", flush=True)

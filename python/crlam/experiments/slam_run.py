@@ -39,9 +39,10 @@ from tqdm import tqdm
 
 from crlam import __version__
 from crlam.errors import ConfigError, DataFormatError
-from crlam.eval.trajectory import RelationsErrors, reference_errors, relations_error
+from crlam.eval.trajectory import ReferenceErrors, RelationsErrors, reference_errors, relations_error
 from crlam.experiments.progress import scan_progress_bar
 from crlam.fill import fill_rule
+from crlam.grid_alignment import into_map_frame
 from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import input_description, open_log
@@ -391,22 +392,29 @@ def _write_outputs(
         "input": input_info,
         "scan_odometry": None if front_end is None else front_end.config.to_dict() | front_end.stats.to_dict(),
         "continued_from": None if prior is None else prior.describe(),
+        "map_frame": run.map_frame_record(),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
     if reference is not None:
         ref = read_tum(reference)
-        errs = reference_errors(stamps, poses, ref.timestamps, ref.poses)
+
+        def ref_errors(traj: NDArray[np.float64]) -> ReferenceErrors:
+            # The reference is in the odometry's frame: a turned map frame is turned back first.
+            return reference_errors(stamps, run.to_odometry_frame(traj), ref.timestamps, ref.poses)
+
+        errs = ref_errors(poses)
         metrics["reference"] = {"path": str(reference), **errs.summary()}
-        path_errs = reference_errors(stamps, path_poses, ref.timestamps, ref.poses)
-        metrics["reference_best_path"] = path_errs.summary()
-        metrics["reference_max_weight"] = reference_errors(stamps, max_weight_poses, ref.timestamps, ref.poses).summary()
-        metrics["reference_mode"] = reference_errors(stamps, mode_poses, ref.timestamps, ref.poses).summary()
+        metrics["reference_best_path"] = ref_errors(path_poses).summary()
+        metrics["reference_max_weight"] = ref_errors(max_weight_poses).summary()
+        metrics["reference_mode"] = ref_errors(mode_poses).summary()
         for suffix, sm_poses in smoothed.items():
-            metrics[f"reference_smoothed{suffix}"] = reference_errors(stamps, sm_poses, ref.timestamps, ref.poses).summary()
+            metrics[f"reference_smoothed{suffix}"] = ref_errors(sm_poses).summary()
         if means_poses is not None:
-            metrics["reference_best_path_means"] = reference_errors(stamps, means_poses, ref.timestamps, ref.poses).summary()
-        ref_poses = (ref.timestamps, ref.poses, errs)
+            metrics["reference_best_path_means"] = ref_errors(means_poses).summary()
+        # Drawn over the map: the reference in the map's frame.
+        ref_in_map = ref.poses if run.map_frame is None else into_map_frame(run.map_frame, ref.poses)
+        ref_poses = (ref.timestamps, ref_in_map, errs)
     if relations is not None:
         # A run cut short by --max-scans cannot cover every relation; the others are counted.
         rels = read_relations(relations)

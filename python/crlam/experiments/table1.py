@@ -16,12 +16,14 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from crlam.errors import ConfigError
 from crlam.eval.trajectory import ReferenceErrors, aggregate_runs, reference_errors
 from crlam.experiments.executor import Executor
 from crlam.experiments.resume import close_experiment, load_json_dict, open_experiment
 from crlam.experiments.sweep import RunSpec, run_sweep
+from crlam.grid_alignment import frame_from_record, from_map_frame, into_map_frame
 from crlam.io.belief import load_belief
 from crlam.io.tum import read_tum
 from crlam.mapping import ConfidenceRichMap
@@ -249,11 +251,20 @@ def _write_figures(out: Path, sim_dir: Path, specs: Sequence[RunSpec], done: dic
     if crm_run is not None and not (crm_run.folder(out) / "belief.npz").is_file():
         # A run folder kept without its map (e.g. committed results): keep the figure there is.
         crm_run = None
+
+    # Each run writes its poses in its map's frame; the ground truth is in the odometry's frame.
+    def odometry_frame_poses(s: RunSpec, poses: NDArray[np.float64]) -> NDArray[np.float64]:
+        return from_map_frame(frame_from_record(done[s.name].get("map_frame")), poses)
+
     for m, s in firsts.items():
         t = read_tum(s.folder(out) / "trajectory.tum")
-        trajs[METHOD_NAMES.get(m, m)] = t.poses
-        errs.append((METHOD_NAMES.get(m, m), reference_errors(t.timestamps, t.poses, gt.timestamps, gt.poses)))
+        poses = odometry_frame_poses(s, t.poses)
+        trajs[METHOD_NAMES.get(m, m)] = poses
+        errs.append((METHOD_NAMES.get(m, m), reference_errors(t.timestamps, poses, gt.timestamps, gt.poses)))
     if crm_run is not None:
+        # Drawn on run 0's RBPF-CLAM map: every trajectory in that map's frame.
+        frame = frame_from_record(done[crm_run.name].get("map_frame"))
+        trajs = {k: into_map_frame(frame, v) for k, v in trajs.items()}
         crm = ConfidenceRichMap.from_archive(load_belief(crm_run.folder(out) / "belief.npz"))
         mean, _, ent = crm.layers()
         save_trajectories_on_map(
@@ -271,7 +282,7 @@ def _write_figures(out: Path, sim_dir: Path, specs: Sequence[RunSpec], done: dic
         if s.name in done and traj.is_file():
             t = read_tum(traj)
             spread.setdefault(METHOD_NAMES.get(s.config.method, s.config.method), []).append(
-                reference_errors(t.timestamps, t.poses, gt.timestamps, gt.poses)
+                reference_errors(t.timestamps, odometry_frame_poses(s, t.poses), gt.timestamps, gt.poses)
             )
     if sum(len(v) for v in spread.values()) > len(firsts):
         save_error_spread_figure(
