@@ -616,10 +616,9 @@ class SlamRun:
                 turn, self.map_walls = map_turn(angles, ranges, laser_offset, float(odom[2]), max_range=self.config.max_range)
             self.map_pivot = odom[:2].copy()
             self.map_frame = map_frame(turn, self.map_pivot)
-            odom = self._to_map_frame(odom)
+        odom = self._to_map_frame(odom)
+        if self.filter is None:
             self.filter = make_filter(self.config, odom, self.prior)
-        else:
-            odom = self._to_map_frame(odom)
         p, e, n, r = self.filter.process(
             odom,
             np.ascontiguousarray(angles, dtype=np.float64),
