@@ -1,9 +1,11 @@
 //! The confidence-rich map: tiled f32 pmfs per cell, their means and derived layers (the scan
 //! updates and likelihoods are in `scan.rs`).
 
+use std::sync::Arc;
+
 use crate::crm::beam_job::BeamJob;
 use crate::crm::levels::{level_values, moments, tilted_prior, uniform_prior, LevelPlacement};
-use crate::crm::mean_cache::{MeanCache, TileMeans};
+use crate::crm::mean_cache::{MeanCache, MeanTable, TileMeans};
 use crate::crm::reading_table::ReadingTable;
 use crate::crm::scan_cells::ScanCells;
 use crate::crm::windowed::WindowScratch;
@@ -195,6 +197,12 @@ impl CrmMap {
             m += x * q as f64;
         }
         m / s
+    }
+
+    /// The window table of means cached for this map's content (filled by a batch scan's
+    /// weight, or carried over its update), if there is one: `mean_at`'s values over its rect.
+    pub(crate) fn window_means(&self) -> Option<Arc<MeanTable>> {
+        self.means.window_table()
     }
 
     /// The block means shared by the copies of this map (`None` for a fixed extent), for walks

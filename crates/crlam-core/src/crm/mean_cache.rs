@@ -180,6 +180,19 @@ impl MeanCache {
         t
     }
 
+    /// The window table cached for this map version, if one was filled (or carried over).
+    pub(crate) fn window_table(&self) -> Option<Arc<MeanTable>> {
+        let slot = self.shared.window.lock().unwrap_or_else(|e| e.into_inner());
+        slot.clone()
+    }
+
+    /// Caches `table` as this map version's window table. It must hold this version's means
+    /// (see [`super::CrmMap`]'s batch update, which carries the pre-scan table over the write).
+    pub(crate) fn set_window_table(&self, table: MeanTable) {
+        let mut slot = self.shared.window.lock().unwrap_or_else(|e| e.into_inner());
+        *slot = Some(Arc::new(table));
+    }
+
     /// The block means of the map, made by `make` on first use.
     pub(crate) fn tiles(&self, make: impl FnOnce() -> TileMeans) -> &TileMeans {
         self.shared.tiles.get_or_init(make)

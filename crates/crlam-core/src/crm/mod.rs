@@ -26,7 +26,7 @@ mod lanes;
 mod lanes_avx2;
 pub mod levels;
 pub mod map;
-mod mean_cache;
+pub(crate) mod mean_cache;
 mod reading_table;
 mod scan;
 mod scan_cells;

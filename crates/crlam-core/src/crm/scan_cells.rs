@@ -200,6 +200,26 @@ impl ScanCells {
         }
     }
 
+    /// Gives up the scan's mean table (after [`Self::write_back`] it no longer describes the
+    /// map), so that a caller holding the only other reference can take it over.
+    pub(crate) fn release_mean_table(&mut self) {
+        self.means = None;
+    }
+
+    /// Brings `table`, which held the pre-scan means, up to date with the map after
+    /// [`Self::write_back`]: every cell this scan touched that lies in the table is recomputed
+    /// from `grid` ([`pmf_mean`], `CrmMap::mean_at`'s sums in its order, so the table equals a
+    /// fresh fill bit for bit); the scan wrote no other cell.
+    pub(crate) fn refresh_means(&self, grid: &TiledGrid<f32>, mu: &[f64], table: &mut MeanTable) {
+        let r = table.rect;
+        for &(ix, iy) in &self.cells {
+            if r.contains(ix, iy) {
+                let i = ((iy - r.iy0) * r.nx + (ix - r.ix0)) as usize;
+                table.values[i] = pmf_mean(grid.get(ix, iy), mu);
+            }
+        }
+    }
+
     /// Pre-scan mean m̂ of cell `id`.
     #[inline]
     pub(crate) fn mean(&self, id: usize) -> f64 {

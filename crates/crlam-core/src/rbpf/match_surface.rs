@@ -16,9 +16,11 @@
 //! the same class, so the matcher's results do not depend on whether, or where, a patch exists.
 
 use std::cell::Cell;
+use std::sync::Arc;
 
 use super::prepared_scan::PreparedScan;
 use super::scanmatch_params::FreeTest;
+use crate::crm::mean_cache::MeanTable;
 use crate::crm::CrmMap;
 use crate::grid::{CellRect, GridGeometry, TiledGrid};
 use crate::ogm::{hit_mean_of, LogOddsGrid};
@@ -119,6 +121,9 @@ pub struct MatchSurface<'a> {
     /// over its levels (Intel, robust preset: the dense patch's means were 14 % of the run).
     classes: Vec<Cell<u8>>,
     free_test: FreeTest,
+    /// A confidence-rich map's cached window means (the same values as `mean_at`), read for the
+    /// patch's classes where they cover the cell: a table read instead of a sum over levels.
+    means: Option<Arc<MeanTable>>,
 }
 
 impl<'a> MatchSurface<'a> {
@@ -136,6 +141,7 @@ impl<'a> MatchSurface<'a> {
             ny: 0,
             classes: Vec::new(),
             free_test,
+            means: None,
         }
     }
 
@@ -250,6 +256,7 @@ impl<'a> MatchSurface<'a> {
         // Classes are filled in on first read (see `classes`), from the same mean as a dense
         // `means_into` would give, so the matcher's results do not change.
         surface.set_patch(rect, vec![Cell::new(UNREAD); rect.n_cells()]);
+        surface.means = map.window_means();
         surface
     }
 
@@ -308,21 +315,32 @@ impl<'a> MatchSurface<'a> {
             if class != UNREAD {
                 return class;
             }
-            let class = match self.cells {
-                Cells::Crm {
-                    map,
-                    occupied_above,
-                    ..
-                } => class_of(
-                    (map.mean_at(ix, iy) - occupied_above) as f32,
-                    self.free_test,
-                ),
-                Cells::LogOdds(_) => class_of(self.cells.value(ix, iy), self.free_test),
-            };
-            slot.set(class);
-            return class;
+            return self.first_read(slot, ix, iy);
         }
         class_of(self.cells.value(ix, iy), self.free_test)
+    }
+
+    /// The class of patch cell (ix, iy) on its first read, stored in its `slot` (kept out of
+    /// line: the matcher's loops read classes already known far more often).
+    #[cold]
+    #[inline(never)]
+    fn first_read(&self, slot: &Cell<u8>, ix: i64, iy: i64) -> u8 {
+        let class = match self.cells {
+            Cells::Crm {
+                map,
+                occupied_above,
+                ..
+            } => {
+                let mean = match &self.means {
+                    Some(t) if t.rect.contains(ix, iy) => t.get(ix, iy),
+                    _ => map.mean_at(ix, iy),
+                };
+                class_of((mean - occupied_above) as f32, self.free_test)
+            }
+            Cells::LogOdds(_) => class_of(self.cells.value(ix, iy), self.free_test),
+        };
+        slot.set(class);
+        class
     }
 }
 
