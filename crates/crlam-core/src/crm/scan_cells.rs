@@ -207,13 +207,13 @@ impl ScanCells {
     }
 
     /// Brings `table`, which held the pre-scan means, up to date with the map after
-    /// [`Self::write_back`]: every cell this scan touched that lies in the table is recomputed
+    /// [`Self::write_back`]: every cell it wrote that lies in the table is recomputed
     /// from `grid` ([`pmf_mean`], `CrmMap::mean_at`'s sums in its order, so the table equals a
     /// fresh fill bit for bit); the scan wrote no other cell.
     pub(crate) fn refresh_means(&self, grid: &TiledGrid<f32>, mu: &[f64], table: &mut MeanTable) {
         let r = table.rect;
-        for &(ix, iy) in &self.cells {
-            if r.contains(ix, iy) {
+        for (id, &(ix, iy)) in self.cells.iter().enumerate() {
+            if self.writes(id) && r.contains(ix, iy) {
                 let i = ((iy - r.iy0) * r.nx + (ix - r.ix0)) as usize;
                 table.values[i] = pmf_mean(grid.get(ix, iy), mu);
             }
@@ -294,6 +294,17 @@ impl ScanCells {
         }
     }
 
+    /// Whether [`Self::write_back`] writes cell `id`: a factor or a pass was applied and the
+    /// cell is not frozen.
+    #[inline]
+    fn writes(&self, id: usize) -> bool {
+        match self.state[id] {
+            CellState::Frozen => false,
+            CellState::Read => self.passes[id] > 0,
+            CellState::Updated => true,
+        }
+    }
+
     /// Makes rows 0..=n of the pass-power table available for levels `mu`.
     fn ensure_pass_pow(&mut self, mu: &[f64], n: usize) {
         let k = mu.len();
@@ -331,12 +342,10 @@ impl ScanCells {
         let mut p = [0.0f64; MAX_LEVELS];
         let p = &mut p[..k];
         for (id, &(ix, iy)) in self.cells.iter().enumerate() {
-            let n = self.passes[id] as usize;
-            match self.state[id] {
-                CellState::Frozen => continue,
-                CellState::Read if n == 0 => continue,
-                _ => {}
+            if !self.writes(id) {
+                continue;
             }
+            let n = self.passes[id] as usize;
             let dst = grid.get_mut(ix, iy)?;
             // A cell without a factor product starts from its stored pmf as it is: the
             // normalisation below removes its scale with the factors'.
