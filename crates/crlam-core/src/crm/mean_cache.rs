@@ -6,7 +6,8 @@
 //! read from each particle's tiles they miss the cache every time (the cells along a beam are
 //! not contiguous in memory). A [`MeanCache`] travels with the map's clones: the first scan of
 //! any copy fills it for a window around its pose, the others read it. A map that is written
-//! gets a fresh cache, so a cache only ever holds means of the content it was filled from. The
+//! gets a fresh cache, so a cache only ever holds means of the content it was filled from (a
+//! batch update carries its window table over, with the cells it wrote recomputed). The
 //! values are [`super::CrmMap::mean_at`]'s bit for bit, so results do not depend on which copy
 //! (or thread) filled it.
 
