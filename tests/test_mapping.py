@@ -167,6 +167,8 @@ def test_belief_archive_round_trip(tmp_path) -> None:
         ({"origin": (0.0, 0.1, 0.2)}, "origin"),
         ({"origin": "ab"}, "origin"),
         ({"extent": (0, 0, 1)}, "extent"),
+        ({"hits_first": 1}, "hits_first"),
+        ({"hits_first": True, "scan_update": "sequential"}, "hits_first"),
     ],
 )
 def test_bad_config_values_name_the_field(kwargs, field) -> None:
@@ -242,6 +244,32 @@ def test_noise_free_hits_land_on_occupied_cells_with_the_chord_kernel() -> None:
         frac[kernel] = float(np.mean(m.expected_occupancy().sample(pts, fill=0.0) > 0.5))
     assert frac["chord"] > 0.9, frac
     assert frac["midpoint"] < frac["chord"], frac
+
+
+def test_hits_first_keeps_more_hit_points_on_occupied_cells() -> None:
+    """Exact poses and ranges, the spec's midpoint kernel: a scan whose hits take precedence over
+    its own passes (``hits_first``) leaves more of the hit points on cells with m̂ > 0.5 than the
+    paper's batch update, which lets a beam crossing a wall at a slant erase its neighbours' hits;
+    the cells no hit point lies on or next to stay as free as without it."""
+    occ = np.zeros((1000, 1000), np.uint8)
+    occ[:, :3] = occ[:, -3:] = occ[:3, :] = occ[-3:, :] = 1
+    occ[407:410, 100:700] = 1
+    rng = np.random.default_rng(1)
+    poses = np.stack([rng.uniform(1, 9, 150), rng.uniform(0.5, 3.5, 150), rng.uniform(-3, 3, 150)], 1)
+    ang = np.linspace(-np.pi / 2, np.pi / 2, 180)
+    r = _native.cast_ranges(occ, 0.0, 0.0, 0.01, poses, ang, 20.0)
+    pts = _hit_points(poses, ang, r, 20.0)
+    frac, free = {}, {}
+    for first in (False, True):
+        m = ConfidenceRichMap(MappingConfig(resolution=0.1, max_range=20.0, hits_first=first, origin=(0.013, 0.013)))
+        m.update_many(poses, ang, np.where(np.isfinite(r), r, np.inf))
+        mean = m.expected_occupancy()
+        frac[first] = float(np.mean(mean.sample(pts, fill=0.0) > 0.5))
+        # The cells inside the room, away from every wall: free either way.
+        inner = mean.sample(np.stack(np.meshgrid(np.linspace(1.5, 8.5, 30), np.linspace(0.6, 3.4, 10)), -1).reshape(-1, 2), fill=1.0)
+        free[first] = float(np.mean(inner < 0.2))
+    assert frac[True] > frac[False] + 0.01, frac  # measured: 0.641 -> 0.665
+    assert free[True] == free[False] == 1.0, free
 
 
 @pytest.mark.realdata

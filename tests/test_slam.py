@@ -298,11 +298,18 @@ def test_cli_slam_and_clean_errors(office: Path, tmp_path: Path, capsys: pytest.
         ("ogm_weight_smoothing", float("inf")),
         # The paper's odometry proposal has no match to keep.
         ("proposal_pose", "match"),
+        ("hits_first", 1),
     ],
 )
 def test_bad_slam_config_names_the_field(field: str, value: object) -> None:
     with pytest.raises(ConfigError, match=field):
         SlamConfig(**{field: value})  # type: ignore[arg-type]
+
+
+def test_hits_first_needs_the_batch_update() -> None:
+    with pytest.raises(ConfigError, match="hits_first"):
+        SlamConfig(hits_first=True, scan_update="sequential")
+    assert SlamConfig(hits_first=True).mapping_config().hits_first
 
 
 def test_the_native_filters_check_the_proposal_pose() -> None:

@@ -123,6 +123,7 @@ class CrmMap:
         batch_kernel: str = "windowed",
         beam_stride: int = 1,
         zero_is_no_return: bool = False,
+        hits_first: bool = False,
     ) -> dict[str, int]: ...
     def update_scans(
         self,
@@ -135,6 +136,7 @@ class CrmMap:
         batch_kernel: str = "windowed",
         beam_stride: int = 1,
         zero_is_no_return: bool = False,
+        hits_first: bool = False,
     ) -> dict[str, int]: ...
     def scan_log_likelihood(
         self,
@@ -207,6 +209,7 @@ class ClamFilter:
         extent: _CellRect | None = None,
         scan_update: str = "batch",
         batch_kernel: str = "windowed",
+        hits_first: bool = False,
         weight_stride: int = 1,
         map_stride: int = 1,
         tempering: float = 1.0,

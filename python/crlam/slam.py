@@ -67,6 +67,11 @@ class SlamConfig:
     batch_kernel : str
         RBPF-CLAM batch scans: ``windowed`` (default) or ``full_ray`` (the reference sweep of
         every cell); the two agree to rounding (see :class:`crlam.mapping.MappingConfig`).
+    hits_first : bool
+        RBPF-CLAM batch map updates: a cell that a beam of the scan makes more occupied ignores
+        the scan's beams that pass through it to readings far beyond, so one scan cannot erase
+        its own hits (paper: ``False``, every beam's factor multiplied; see
+        :class:`crlam.mapping.MappingConfig`). Needs ``scan_update = "batch"``.
     weight_stride, map_stride : int
         Use every n-th beam for the weights / the map update (paper: 1).
     tempering : float
@@ -207,6 +212,7 @@ class SlamConfig:
     weight_model: str = "mixture"
     scan_update: str = "batch"
     batch_kernel: str = "windowed"
+    hits_first: bool = False
     weight_stride: int = 1
     map_stride: int = 1
     tempering: float = 1.0
@@ -276,6 +282,10 @@ class SlamConfig:
             raise bad("mode_bandwidth", "needs 2 bandwidths > 0 (m, rad; inf allowed)")
         if not isinstance(self.hit_means, bool):
             raise bad("hit_means", "must be True or False")
+        if not isinstance(self.hits_first, bool):
+            raise bad("hits_first", "must be True or False")
+        if self.hits_first and self.scan_update != "batch":
+            raise bad("hits_first", "needs scan_update = 'batch' (a sequential update applies each beam before the next)")
         if self.preset is not None and not isinstance(self.preset, str):
             raise bad("preset", "must be None or a preset name")
         if self.smoothing_lag is not None and not (
@@ -333,6 +343,7 @@ class SlamConfig:
             model=self.mapping_model,
             scan_update=self.scan_update,
             batch_kernel=self.batch_kernel,
+            hits_first=self.hits_first,
             sigma_range=self.sigma_range,
             cause_kernel=self.cause_kernel,
         )
@@ -414,6 +425,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike, prior: SlamPrior | 
             resolution=config.resolution,
             scan_update=config.scan_update,
             batch_kernel=config.batch_kernel,
+            hits_first=bool(config.hits_first),
             weight_stride=config.weight_stride,
             map_stride=config.map_stride,
             tempering=config.tempering,

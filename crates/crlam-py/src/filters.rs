@@ -340,7 +340,7 @@ filter_pymethods!(ClamFilter {
     #[new]
     #[pyo3(signature = (initial_pose, mapping_model, weight_model, *, n_particles=100, resolution=0.2, origin=(0.0, 0.0),
         n_levels=10, levels="midpoints", belief_floor=1e-12, tile_size=32, extent=None, scan_update="batch",
-        batch_kernel="windowed", weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
+        batch_kernel="windowed", hits_first=false, weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
         proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm",
         match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, seed=0, prior_map=None, initial_cov=None))]
@@ -358,6 +358,7 @@ filter_pymethods!(ClamFilter {
         extent: Option<(i64, i64, i64, i64)>,
         scan_update: &str,
         batch_kernel: &str,
+        hits_first: bool,
         weight_stride: usize,
         map_stride: usize,
         tempering: f64,
@@ -458,6 +459,7 @@ filter_pymethods!(ClamFilter {
             weight_model: weight_model.inner,
             scan_update: ScanUpdateMode::parse(scan_update).py_err()?,
             batch_kernel: BatchKernel::parse(batch_kernel).py_err()?,
+            hits_first,
             weight_stride,
             map_stride,
             tempering,

@@ -169,12 +169,14 @@ fn scan_opts(
     kernel: &str,
     beam_stride: usize,
     zero_is_no_return: bool,
+    hits_first: bool,
 ) -> PyResult<ScanOptions> {
     Ok(ScanOptions {
         mode: ScanUpdateMode::parse(mode).py_err()?,
         kernel: BatchKernel::parse(kernel).py_err()?,
         beam_stride,
         zero_is_no_return,
+        hits_first,
     })
 }
 
@@ -312,7 +314,7 @@ impl CrmMap {
     }
 
     /// Updates the map with one scan from the sensor pose; returns counters.
-    #[pyo3(signature = (pose, angles, ranges, model, *, mode="batch", batch_kernel="windowed", beam_stride=1, zero_is_no_return=false))]
+    #[pyo3(signature = (pose, angles, ranges, model, *, mode="batch", batch_kernel="windowed", beam_stride=1, zero_is_no_return=false, hits_first=false))]
     #[allow(clippy::too_many_arguments)]
     fn update_scan<'py>(
         &mut self,
@@ -325,9 +327,16 @@ impl CrmMap {
         batch_kernel: &str,
         beam_stride: usize,
         zero_is_no_return: bool,
+        hits_first: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         guard("CrmMap.update_scan", || {
-            let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
+            let opts = scan_opts(
+                mode,
+                batch_kernel,
+                beam_stride,
+                zero_is_no_return,
+                hits_first,
+            )?;
             let pose = pose3(&pose)?;
             let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
             let m = model.inner;
@@ -340,7 +349,7 @@ impl CrmMap {
     }
 
     /// Updates the map with n scans (poses (n, 3), ranges (n, m), shared angles (m,)).
-    #[pyo3(signature = (poses, angles, ranges, model, *, mode="batch", batch_kernel="windowed", beam_stride=1, zero_is_no_return=false))]
+    #[pyo3(signature = (poses, angles, ranges, model, *, mode="batch", batch_kernel="windowed", beam_stride=1, zero_is_no_return=false, hits_first=false))]
     #[allow(clippy::too_many_arguments)]
     fn update_scans<'py>(
         &mut self,
@@ -353,9 +362,16 @@ impl CrmMap {
         batch_kernel: &str,
         beam_stride: usize,
         zero_is_no_return: bool,
+        hits_first: bool,
     ) -> PyResult<Bound<'py, PyDict>> {
         guard("CrmMap.update_scans", || {
-            let opts = scan_opts(mode, batch_kernel, beam_stride, zero_is_no_return)?;
+            let opts = scan_opts(
+                mode,
+                batch_kernel,
+                beam_stride,
+                zero_is_no_return,
+                hits_first,
+            )?;
             let poses = poses_n3(&poses)?;
             let a = slice1(&angles, "angles")?;
             let shape = ranges.shape();
@@ -405,7 +421,7 @@ impl CrmMap {
         zero_is_no_return: bool,
     ) -> PyResult<(f64, usize)> {
         guard("CrmMap.scan_log_likelihood", || {
-            let opts = scan_opts("batch", "windowed", beam_stride, zero_is_no_return)?;
+            let opts = scan_opts("batch", "windowed", beam_stride, zero_is_no_return, false)?;
             let pose = pose3(&pose)?;
             let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
             let m = model.inner;

@@ -41,6 +41,7 @@ _SWEEP_FLAGS = (
     "--scan-match-weight",
     "--match-range",
     "--hit-means",
+    "--hits-first",
     "--motion-noise",
     "--sigma-range",
     "--cause-kernel",

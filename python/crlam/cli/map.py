@@ -30,6 +30,7 @@ def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
         levels=args.levels,
         scan_update=args.scan_update,
         batch_kernel=args.batch_kernel,
+        hits_first=args.hits_first,
         cause_kernel=args.cause_kernel,
         beam_stride=args.map_stride,
     )
@@ -87,6 +88,13 @@ def add_map_options(p: argparse.ArgumentParser) -> None:
         help="where a cause sits in its cell: chord midpoint (spec default) or spread along the chord",
     )
     g.add_argument("--batch-kernel", choices=BATCH_KERNELS, default="windowed", help=BATCH_KERNEL_HELP)
+    g.add_argument(
+        "--hits-first",
+        action=argparse.BooleanOptionalAction,
+        default=False,
+        help="batch updates: a cell that a beam of the scan makes more occupied ignores the scan's beams that pass "
+        "through it to readings far beyond (default: off, every factor, as the spec)",
+    )
     g.add_argument("--map-stride", type=positive_int, default=1, help="every n-th beam for the map update (default: 1)")
     deprecated_alias(p, "--model", "--crm-model")
     deprecated_alias(p, "--beam-stride", "--map-stride")

@@ -240,6 +240,14 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
     "--sigma-range": ("map and sensor", dict(type=nonnegative_float, help=SIGMA_RANGE_HELP)),
     "--cause-kernel": ("map and sensor", dict(choices=CAUSE_KERNELS, help=CAUSE_KERNEL_HELP)),
     "--batch-kernel": ("map and sensor", dict(choices=BATCH_KERNELS, help=f"{BATCH_KERNEL_HELP} ({FROM_PRESET})")),
+    "--hits-first": (
+        "map and sensor",
+        dict(
+            action=argparse.BooleanOptionalAction,
+            help="RBPF-CLAM batch map updates: a cell that a beam of the scan makes more occupied ignores the scan's "
+            f"beams that pass through it to readings far beyond (paper: off; {FROM_PRESET})",
+        ),
+    ),
     "--motion": (
         "motion model",
         dict(

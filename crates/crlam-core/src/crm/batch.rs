@@ -13,7 +13,7 @@ use crate::crm::lanes::LaneOutcome;
 use crate::crm::map::{CrmMap, CrmScratch};
 use crate::crm::mean_cache::MeanTable;
 use crate::crm::scan_cells::scan_window;
-use crate::crm::windowed::{LaneStart, WindowedBeam, WindowedScan};
+use crate::crm::windowed::{LaneStart, WindowedBeam, WindowedScan, FACTOR_EPS};
 use crate::error::Result;
 use crate::sensor::SensorModel;
 
@@ -185,7 +185,8 @@ impl CrmMap {
                     let _ = self.means_into(rect, out);
                 })
             });
-        sc.scan.begin(self.grid.geometry(), origin, z_max, means);
+        sc.scan
+            .begin(self.grid.geometry(), origin, z_max, means, opts.hits_first);
         // Beam directions by the angle-sum rule from the scan's (cos, sin) table, which every
         // particle of a filter shares: one sin/cos pair per beam and scan instead of per particle.
         sc.directions.prepare(angles);
@@ -413,8 +414,14 @@ impl CrmMap {
             st.n_used += 1;
             st.n_no_return += usize::from(plan.no_return);
             for l in 0..sc.cells.len() {
-                sc.scan
-                    .apply(&self.grid, sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, st);
+                let (alpha, mhat) = (sc.alpha[l], sc.mhat[l]);
+                // Hits first drops passes, so a pass must be one here as in the windowed kernel.
+                if sc.scan.hits_first() && (alpha * (1.0 - mhat) + 1.0).abs() <= FACTOR_EPS {
+                    sc.scan.pass(sc.ids[l], st);
+                } else {
+                    sc.scan
+                        .apply(&self.grid, sc.ids[l], alpha, mhat, &self.mu, st);
+                }
             }
         }
         (total, weighed)
@@ -443,6 +450,79 @@ mod tests {
     use crate::crm::map::{CrmConfig, CrmMap, CrmScratch};
     use crate::grid::GridGeometry;
     use crate::sensor::{SensorModel, SensorModelKind};
+
+    /// With hits first, a cell that one beam of the scan ends in keeps that beam's update alone
+    /// when another beam of the scan passes through it on its way to a farther hit; cells that
+    /// no beam hits take every factor as before. Without it the passing beam erodes the hit.
+    /// The windowed kernel and the full sweep agree either way; a sequential update refuses it.
+    #[test]
+    fn hits_first_keeps_a_hit_that_another_beam_of_the_scan_passes() {
+        use crate::crm::beam::ScanUpdateMode;
+        let g = GridGeometry::new([0.0123, -0.0271], 0.1).unwrap();
+        let fresh = || CrmMap::new(&CrmConfig::new(g)).unwrap();
+        let model = SensorModel::with_defaults(SensorModelKind::Ijrr, 8.0, 0.1);
+        let mut sc = CrmScratch::default();
+        // Two beams along +x: one ends at 2.05 m, the other passes there and ends at 4.05 m.
+        let (near, far) = ([0.0], [2.05]);
+        let both = ([0.0, 0.0], [2.05, 4.05]);
+        let hit = g.cell_of(2.05, 0.0);
+        let passed = g.cell_of(3.05, 0.0);
+        let update = |angles: &[f64], ranges: &[f64], opts: &ScanOptions, sc: &mut CrmScratch| {
+            let mut m = fresh();
+            m.update_scan([0.0, 0.0, 0.0], angles, ranges, &model, opts, sc)
+                .unwrap();
+            m
+        };
+        for kernel in [BatchKernel::Windowed, BatchKernel::FullRay] {
+            let plain = ScanOptions {
+                kernel,
+                ..ScanOptions::default()
+            };
+            let first = ScanOptions {
+                hits_first: true,
+                ..plain
+            };
+            let alone = update(&near, &far, &plain, &mut sc);
+            let passing_alone = update(&[0.0], &[4.05], &plain, &mut sc);
+            let eroded = update(&both.0, &both.1, &plain, &mut sc);
+            let kept = update(&both.0, &both.1, &first, &mut sc);
+            let m0 = alone.mean_at(hit.0, hit.1);
+            assert!(m0 > 0.6, "{kernel:?}: the hit cell's mean {m0}");
+            assert!(eroded.mean_at(hit.0, hit.1) < m0 - 0.1, "{kernel:?}");
+            for (a, b) in kept.cell(hit.0, hit.1).iter().zip(alone.cell(hit.0, hit.1)) {
+                assert!((a - b).abs() <= 1e-7, "{kernel:?}: {a} vs {b}");
+            }
+            // A cell only the far beam reaches takes its factors with or without hits first.
+            assert_eq!(
+                kept.cell(passed.0, passed.1),
+                passing_alone.cell(passed.0, passed.1)
+            );
+        }
+        let windowed = ScanOptions {
+            hits_first: true,
+            ..ScanOptions::default()
+        };
+        let full = ScanOptions {
+            kernel: BatchKernel::FullRay,
+            ..windowed
+        };
+        let (a, b) = (
+            update(&both.0, &both.1, &windowed, &mut sc),
+            update(&both.0, &both.1, &full, &mut sc),
+        );
+        for c in [hit, passed, g.cell_of(1.05, 0.0)] {
+            assert!((a.mean_at(c.0, c.1) - b.mean_at(c.0, c.1)).abs() < 1e-9);
+        }
+        let sequential = ScanOptions {
+            mode: ScanUpdateMode::Sequential,
+            ..windowed
+        };
+        let mut m = fresh();
+        let err = m
+            .update_scan([0.0; 3], &both.0, &both.1, &model, &sequential, &mut sc)
+            .unwrap_err();
+        assert!(err.to_string().contains("hits_first"), "{err}");
+    }
 
     /// The window table a batch update carries over equals a fresh fill of the written map's
     /// means bit for bit, whether the pre-scan table was the map's alone or shared with a copy

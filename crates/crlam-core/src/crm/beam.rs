@@ -80,6 +80,10 @@ pub struct ScanOptions {
     pub beam_stride: usize,
     /// Treat a range of exactly 0 as a no-return (some drivers); otherwise it is dropped.
     pub zero_is_no_return: bool,
+    /// Batch mode only: a cell that a beam of the scan makes more occupied drops the passes of
+    /// the scan's beams, whose readings lie far beyond it (see [`super::scan_cells`]). Not the
+    /// paper's update (crm-spec 3.3 multiplies every factor); off by default.
+    pub hits_first: bool,
 }
 
 impl Default for ScanOptions {
@@ -89,6 +93,7 @@ impl Default for ScanOptions {
             kernel: BatchKernel::Windowed,
             beam_stride: 1,
             zero_is_no_return: false,
+            hits_first: false,
         }
     }
 }
@@ -198,6 +203,12 @@ pub(crate) fn check_scan(
     }
     if opts.beam_stride == 0 {
         return Err(config_err("beam_stride", "must be >= 1"));
+    }
+    if opts.hits_first && opts.mode != ScanUpdateMode::Batch {
+        return Err(config_err(
+            "hits_first",
+            "needs the batch scan update: a sequential update applies each beam before the next",
+        ));
     }
     if let Some((i, a)) = angles.iter().enumerate().find(|(_, a)| !a.is_finite()) {
         return Err(CrlamError::Shape(format!(

@@ -2,6 +2,15 @@
 //! per scan however many beams cross it, how many beams passed it (factor ∝ 1 − μ, see
 //! [`super::windowed`]) and the product of the other factors its beams applied, written back
 //! once at the end of the scan.
+//!
+//! With hits first ([`super::ScanOptions::hits_first`]) a cell that some beam of the scan makes
+//! more occupied (α > 0) drops the passes of the scan's beams (a pass: a beam whose reading lies
+//! so far beyond the cell that no cause at or before it explains the reading; its factor is
+//! (1 − μ)/(1 − m̂)). One scan then cannot erase its own hits: where a beam meets a wall at a
+//! slant it crosses the wall's cells before the point it hits, so without the rule the scan's
+//! neighbouring beams, ending in those cells, lose their hits to it, and a wall seen at a slant
+//! is thinned into a dotted line, differently from each viewpoint. The other factors (those of
+//! the cells near a reading, with their likelihoods) are all applied, as without the rule.
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -59,6 +68,10 @@ pub(crate) struct ScanCells {
     /// its largest entry is 1; grown on demand, rebuilt when the levels change.
     pass_pow: Vec<f64>,
     pass_levels: Vec<f64>,
+    /// This scan keeps the hits first (see the module documentation).
+    hits_first: bool,
+    /// Per cell, with hits first: some beam made it more occupied (α > 0).
+    hit: Vec<bool>,
 }
 
 /// The stored pmf of a cell normalised in f64: the sum in storage order, as [`pmf_mean`] and
@@ -92,7 +105,10 @@ impl ScanCells {
         position: [f64; 2],
         z_max: f64,
         means: Option<Arc<MeanTable>>,
+        hits_first: bool,
     ) {
+        self.hits_first = hits_first;
+        self.hit.clear();
         for &i in &self.dirty {
             self.ids[i as usize] = 0;
         }
@@ -137,6 +153,9 @@ impl ScanCells {
         self.cells.push((ix, iy));
         self.state.push(CellState::Read);
         self.passes.push(0);
+        if self.hits_first {
+            self.hit.push(false);
+        }
         self.slot.push(NO_SLOT);
         let tag = id as u32 + 1;
         match dense {
@@ -249,6 +268,9 @@ impl ScanCells {
             let (ix, iy) = self.cells[id];
             read_pmf(grid.get(ix, iy), &mut self.acc[s * k..]);
         }
+        if self.hits_first && alpha > 0.0 {
+            self.hit[id] = true;
+        }
         let s = self.slot[id] as usize;
         let p = &mut self.acc[s * k..(s + 1) * k];
         let c0 = 1.0 - alpha * mhat;
@@ -270,6 +292,11 @@ impl ScanCells {
             let inv = 1.0 / sum;
             p.iter_mut().for_each(|x| *x *= inv);
         }
+    }
+
+    /// Whether this scan keeps its hits first (see the module documentation).
+    pub(crate) fn hits_first(&self) -> bool {
+        self.hits_first
     }
 
     /// Records that a beam passed cell `id`: its factor is (1 − μ)/(1 − m̂) (crm-spec 3.1, the
@@ -326,6 +353,20 @@ impl ScanCells {
         }
     }
 
+    /// Cell `id`'s pmf times the scan's factors other than passes, unnormalised, into `p`: its
+    /// stored pmf `stored` as it is when it has no factor product (the normalisation removes
+    /// the scale with the factors').
+    fn factored_pmf(&self, id: usize, stored: &[f32], p: &mut [f64]) {
+        let k = p.len();
+        match self.slot[id] {
+            NO_SLOT => p.iter_mut().zip(stored).for_each(|(x, &q)| *x = q as f64),
+            s => {
+                let s = s as usize;
+                p.copy_from_slice(&self.acc[s * k..(s + 1) * k]);
+            }
+        }
+    }
+
     /// Normalises (with the floor) and stores every updated or passed cell into `grid`; `mu`
     /// are the levels (for the pass factors).
     pub(crate) fn write_back(
@@ -345,17 +386,16 @@ impl ScanCells {
             if !self.writes(id) {
                 continue;
             }
-            let n = self.passes[id] as usize;
+            // With hits first, a cell some beam made more occupied drops the scan's passes.
+            let n = if self.hits_first && self.hit[id] {
+                0
+            } else {
+                self.passes[id] as usize
+            };
             let dst = grid.get_mut(ix, iy)?;
             // A cell without a factor product starts from its stored pmf as it is: the
             // normalisation below removes its scale with the factors'.
-            match self.slot[id] {
-                NO_SLOT => p
-                    .iter_mut()
-                    .zip(dst.iter())
-                    .for_each(|(x, &q)| *x = q as f64),
-                s => p.copy_from_slice(&self.acc[s as usize * k..(s as usize + 1) * k]),
-            }
+            self.factored_pmf(id, dst, p);
             let s = if n > 0 {
                 let row = &self.pass_pow[n * k..(n + 1) * k];
                 let mut s = 0.0;
@@ -367,13 +407,7 @@ impl ScanCells {
                     s
                 } else {
                     // Undo the table factors and redo them in logs (rare: underflow).
-                    match self.slot[id] {
-                        NO_SLOT => p
-                            .iter_mut()
-                            .zip(dst.iter())
-                            .for_each(|(x, &q)| *x = q as f64),
-                        s => p.copy_from_slice(&self.acc[s as usize * k..(s as usize + 1) * k]),
-                    }
+                    self.factored_pmf(id, dst, p);
                     if !passes_in_logs(p, mu, n) {
                         continue;
                     }

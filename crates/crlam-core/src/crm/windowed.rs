@@ -51,7 +51,7 @@ pub(crate) const TAIL_EPS: f64 = 1.0 / (1u64 << 60) as f64;
 /// A factor within this of 1 (|α| small) is skipped; one within this of the pass shape
 /// (|α (1 − m̂) + 1| small) is counted as a pass. Both differ from the swept factor by less than
 /// 2^-50 relative, far below the f32 storage of the pmfs.
-const FACTOR_EPS: f64 = 1.0 / (1u64 << 50) as f64;
+pub(crate) const FACTOR_EPS: f64 = 1.0 / (1u64 << 50) as f64;
 
 /// The window starts at least this many σ of the mapping model below the reading.
 const MAP_WINDOW_SIGMAS: f64 = 10.0;
@@ -470,7 +470,7 @@ mod tests {
         let kernel = WindowedScan::new(&model, None).unwrap();
         let plan = plan_beam(&model, &ScanOptions::default(), 0.2, [0.1, 0.1], 0.0, 4.05).unwrap();
         let mut sc = CrmScratch::default();
-        sc.scan.begin(map.geometry(), [0.1, 0.1], 8.0, None);
+        sc.scan.begin(map.geometry(), [0.1, 0.1], 8.0, None, false);
         let mut st = ScanStats::default();
         let out = kernel.beam(
             map.grid(),

@@ -80,6 +80,10 @@ pub struct ClamConfig {
     pub scan_update: ScanUpdateMode,
     /// How batch scans compute each beam (the results agree to rounding).
     pub batch_kernel: BatchKernel,
+    /// Batch map updates keep the scan's hits first: a cell a beam makes more occupied drops the
+    /// scan's factors that make it less occupied ([`crate::crm::ScanOptions::hits_first`];
+    /// the paper: false).
+    pub hits_first: bool,
     /// Beams used for the weights (every n-th; the paper: 1).
     pub weight_stride: usize,
     /// Beams used for the map update (every n-th; the paper: 1).
@@ -130,6 +134,7 @@ impl ClamConfig {
             crm,
             scan_update: ScanUpdateMode::Batch,
             batch_kernel: BatchKernel::Windowed,
+            hits_first: false,
             weight_stride: 1,
             map_stride: 1,
             tempering: 1.0,
@@ -378,6 +383,7 @@ pub(crate) fn scan_opts(cfg: &ClamConfig, stride: usize) -> ScanOptions {
         mode: cfg.scan_update,
         kernel: cfg.batch_kernel,
         beam_stride: stride,
+        hits_first: cfg.hits_first,
         ..ScanOptions::default()
     }
 }
