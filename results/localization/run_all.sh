@@ -32,11 +32,11 @@ done_ "$RUNS/tb4-global" || crlam localize "$BAG" --map "$BAG/mac_1st_floor_fina
     "$RUNS/aces-first.clf.gz" "$RUNS/aces-second.clf.gz"
 for s in 0 1 2 3 4 5 6 7 8 9 10 11; do
     done_ "$RUNS/aces-whole-s$s" || crlam slam "$DATA/aces/aces.clf.bz2" --out "$RUNS/aces-whole-s$s" --seed $s \
-        --relations "$DATA/aces/aces.relations" --quiet --force
-    done_ "$RUNS/aces-first-s$s" || crlam slam "$RUNS/aces-first.clf.gz" --out "$RUNS/aces-first-s$s" --seed $s --quiet --force
+        --relations "$DATA/aces/aces.relations" --no-hits-first --quiet --force
+    done_ "$RUNS/aces-first-s$s" || crlam slam "$RUNS/aces-first.clf.gz" --out "$RUNS/aces-first-s$s" --seed $s --no-hits-first --quiet --force
     (cd "$RUNS/aces-first-s$s" && find . -type f -print0 | sort -z | xargs -0 sha256sum) > "$RUNS/aces-first-s$s.sha256"
     done_ "$RUNS/aces-cont-s$s" || crlam slam "$RUNS/aces-second.clf.gz" --out "$RUNS/aces-cont-s$s" \
-        --continue "$RUNS/aces-first-s$s" --seed $s --quiet --force
+        --continue "$RUNS/aces-first-s$s" --seed $s --no-hits-first --quiet --force
     (cd "$RUNS/aces-first-s$s" && sha256sum --quiet -c "../aces-first-s$s.sha256") && echo "aces-first-s$s untouched"
 done
 

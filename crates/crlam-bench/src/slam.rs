@@ -346,8 +346,8 @@ pub fn rbpf_clam_likelihood_mode_scans(
     ))
 }
 
-/// RBPF-CLAM as the `robust` preset runs it (the scan-match proposal, 0.1 m grid, 8 m, Thrun's
-/// odometry model with the preset's noise, tempering 40) on the 180-beam filter workload, every
+/// RBPF-CLAM as the `robust` preset runs it (the scan-match proposal, 0.1 m grid, 8 m, map
+/// updates that keep the scan's hits first, Thrun's odometry model, tempering 40) on the 180-beam filter workload, every
 /// scan processed, one thread: the figure to set beside `rbpf_ogm_gmapping_scans_per_s_180x30`.
 pub fn rbpf_clam_scan_match_scans(n_scans: usize, n_particles: usize) -> Result<BenchFigure> {
     use crlam_core::motion::MotionModel;
@@ -362,6 +362,7 @@ pub fn rbpf_clam_scan_match_scans(n_scans: usize, n_particles: usize) -> Result<
             alpha: [0.1, 0.1, 0.002, 0.1],
         };
         cfg.tempering = 40.0;
+        cfg.hits_first = true;
         cfg.proposal = ClamProposal::ScanMatch(ScanMatchSettings::default());
     })?;
     let name = match n_particles {
