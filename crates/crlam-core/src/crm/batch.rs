@@ -13,7 +13,7 @@ use crate::crm::lanes::LaneOutcome;
 use crate::crm::map::{CrmMap, CrmScratch};
 use crate::crm::mean_cache::MeanTable;
 use crate::crm::scan_cells::scan_window;
-use crate::crm::windowed::{LaneStart, WindowedBeam, WindowedScan, FACTOR_EPS};
+use crate::crm::windowed::{LaneStart, WindowedBeam, WindowedScan};
 use crate::error::Result;
 use crate::sensor::SensorModel;
 
@@ -414,14 +414,8 @@ impl CrmMap {
             st.n_used += 1;
             st.n_no_return += usize::from(plan.no_return);
             for l in 0..sc.cells.len() {
-                let (alpha, mhat) = (sc.alpha[l], sc.mhat[l]);
-                // Hits first drops passes, so a pass must be one here as in the windowed kernel.
-                if sc.scan.hits_first() && (alpha * (1.0 - mhat) + 1.0).abs() <= FACTOR_EPS {
-                    sc.scan.pass(sc.ids[l], st);
-                } else {
-                    sc.scan
-                        .apply(&self.grid, sc.ids[l], alpha, mhat, &self.mu, st);
-                }
+                sc.scan
+                    .apply(&self.grid, sc.ids[l], sc.alpha[l], sc.mhat[l], &self.mu, st);
             }
         }
         (total, weighed)

@@ -4,9 +4,9 @@
 //! once at the end of the scan.
 //!
 //! With hits first ([`super::ScanOptions::hits_first`]) a cell that some beam of the scan makes
-//! more occupied (α > 0) drops the passes of the scan's beams (a pass: a beam whose reading lies
-//! so far beyond the cell that no cause at or before it explains the reading; its factor is
-//! (1 − μ)/(1 − m̂)). One scan then cannot erase its own hits: where a beam meets a wall at a
+//! more occupied (α > [`HIT_ALPHA_MIN`]) drops the passes of the scan's beams (a pass: a beam
+//! whose reading lies so far beyond the cell that causes beyond it explain the reading, to a
+//! millionth ([`PASS_LIKE`]); its factor is then (1 − μ)/(1 − m̂)). One scan then cannot erase its own hits: where a beam meets a wall at a
 //! slant it crosses the wall's cells before the point it hits, so without the rule the scan's
 //! neighbouring beams, ending in those cells, lose their hits to it, and a wall seen at a slant
 //! is thinned into a dotted line, differently from each viewpoint. The other factors (those of
@@ -27,6 +27,19 @@ const MAX_WINDOW_CELLS: i64 = 1 << 22;
 
 /// Largest number of levels (the level count is at most 64, plus one for endpoints).
 const MAX_LEVELS: usize = 65;
+
+/// With hits first, a factor makes its cell a hit of the scan when α exceeds this. The cells just
+/// past a reading get α ≈ 0 as a difference of two nearly equal likelihoods, with a sign that
+/// rounding decides; a threshold far above rounding (α enters as 1 + α(μ − m̂), so 1e-9 moves no
+/// level's mass by more than a billionth) keeps the choice of hit cells from depending on it.
+const HIT_ALPHA_MIN: f64 = 1e-9;
+
+/// With hits first, a factor within this of the pass shape ((1 − μ)/(1 − m̂), |α(1 − m̂) + 1|
+/// small) is one of the passes a hit cell drops: a beam whose reading is explained, to a
+/// millionth, by causes beyond the cell. The windowed kernel folds the exact passes into counts
+/// and applies the rest; the choice of which factors a hit cell drops must not depend on that
+/// (or on rounding), so it uses this tolerance, far above both.
+const PASS_LIKE: f64 = 1e-6;
 
 /// No factor product held for the cell (its pmf is read from the tiles at write-back).
 const NO_SLOT: u32 = u32::MAX;
@@ -70,8 +83,12 @@ pub(crate) struct ScanCells {
     pass_levels: Vec<f64>,
     /// This scan keeps the hits first (see the module documentation).
     hits_first: bool,
-    /// Per cell, with hits first: some beam made it more occupied (α > 0).
+    /// Per cell, with hits first: some beam made it more occupied (α > [`HIT_ALPHA_MIN`]).
     hit: Vec<bool>,
+    /// K per slot, with hits first: the product of the factors within [`PASS_LIKE`] of the pass
+    /// shape (unnormalised), dropped with the passes on a hit cell; `acc` then holds the
+    /// pre-scan pmf times the other factors.
+    misses: Vec<f64>,
 }
 
 /// The stored pmf of a cell normalised in f64: the sum in storage order, as [`pmf_mean`] and
@@ -109,6 +126,7 @@ impl ScanCells {
     ) {
         self.hits_first = hits_first;
         self.hit.clear();
+        self.misses.clear();
         for &i in &self.dirty {
             self.ids[i as usize] = 0;
         }
@@ -267,12 +285,19 @@ impl ScanCells {
             self.acc.resize((s + 1) * k, 0.0);
             let (ix, iy) = self.cells[id];
             read_pmf(grid.get(ix, iy), &mut self.acc[s * k..]);
+            if self.hits_first {
+                self.misses.resize((s + 1) * k, 1.0);
+            }
         }
-        if self.hits_first && alpha > 0.0 {
+        if self.hits_first && alpha > HIT_ALPHA_MIN {
             self.hit[id] = true;
         }
         let s = self.slot[id] as usize;
-        let p = &mut self.acc[s * k..(s + 1) * k];
+        let p = if self.hits_first && (alpha * (1.0 - mhat) + 1.0).abs() <= PASS_LIKE {
+            &mut self.misses[s * k..(s + 1) * k]
+        } else {
+            &mut self.acc[s * k..(s + 1) * k]
+        };
         let c0 = 1.0 - alpha * mhat;
         let mut sum = 0.0;
         for i in 0..k {
@@ -292,11 +317,6 @@ impl ScanCells {
             let inv = 1.0 / sum;
             p.iter_mut().for_each(|x| *x *= inv);
         }
-    }
-
-    /// Whether this scan keeps its hits first (see the module documentation).
-    pub(crate) fn hits_first(&self) -> bool {
-        self.hits_first
     }
 
     /// Records that a beam passed cell `id`: its factor is (1 − μ)/(1 − m̂) (crm-spec 3.1, the
@@ -353,16 +373,22 @@ impl ScanCells {
         }
     }
 
-    /// Cell `id`'s pmf times the scan's factors other than passes, unnormalised, into `p`: its
-    /// stored pmf `stored` as it is when it has no factor product (the normalisation removes
-    /// the scale with the factors').
-    fn factored_pmf(&self, id: usize, stored: &[f32], p: &mut [f64]) {
+    /// Cell `id`'s pmf times the scan's factors other than the counted passes, unnormalised,
+    /// into `p`: its stored pmf `stored` as it is when it has no factor product (the
+    /// normalisation removes the scale with the factors'); with hits first, the pass-like
+    /// factors only when the cell is not a `hit`.
+    fn factored_pmf(&self, id: usize, hit: bool, stored: &[f32], p: &mut [f64]) {
         let k = p.len();
         match self.slot[id] {
             NO_SLOT => p.iter_mut().zip(stored).for_each(|(x, &q)| *x = q as f64),
             s => {
                 let s = s as usize;
                 p.copy_from_slice(&self.acc[s * k..(s + 1) * k]);
+                if self.hits_first && !hit {
+                    for (x, &m) in p.iter_mut().zip(&self.misses[s * k..(s + 1) * k]) {
+                        *x *= m;
+                    }
+                }
             }
         }
     }
@@ -387,15 +413,12 @@ impl ScanCells {
                 continue;
             }
             // With hits first, a cell some beam made more occupied drops the scan's passes.
-            let n = if self.hits_first && self.hit[id] {
-                0
-            } else {
-                self.passes[id] as usize
-            };
+            let hit = self.hits_first && self.hit[id];
+            let n = if hit { 0 } else { self.passes[id] as usize };
             let dst = grid.get_mut(ix, iy)?;
             // A cell without a factor product starts from its stored pmf as it is: the
             // normalisation below removes its scale with the factors'.
-            self.factored_pmf(id, dst, p);
+            self.factored_pmf(id, hit, dst, p);
             let s = if n > 0 {
                 let row = &self.pass_pow[n * k..(n + 1) * k];
                 let mut s = 0.0;
@@ -407,7 +430,7 @@ impl ScanCells {
                     s
                 } else {
                     // Undo the table factors and redo them in logs (rare: underflow).
-                    self.factored_pmf(id, dst, p);
+                    self.factored_pmf(id, hit, dst, p);
                     if !passes_in_logs(p, mu, n) {
                         continue;
                     }

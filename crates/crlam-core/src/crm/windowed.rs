@@ -51,7 +51,7 @@ pub(crate) const TAIL_EPS: f64 = 1.0 / (1u64 << 60) as f64;
 /// A factor within this of 1 (|α| small) is skipped; one within this of the pass shape
 /// (|α (1 − m̂) + 1| small) is counted as a pass. Both differ from the swept factor by less than
 /// 2^-50 relative, far below the f32 storage of the pmfs.
-pub(crate) const FACTOR_EPS: f64 = 1.0 / (1u64 << 50) as f64;
+const FACTOR_EPS: f64 = 1.0 / (1u64 << 50) as f64;
 
 /// The window starts at least this many σ of the mapping model below the reading.
 const MAP_WINDOW_SIGMAS: f64 = 10.0;
