@@ -268,7 +268,7 @@ def test_hits_first_keeps_more_hit_points_on_occupied_cells() -> None:
         # The cells inside the room, away from every wall: free either way.
         inner = mean.sample(np.stack(np.meshgrid(np.linspace(1.5, 8.5, 30), np.linspace(0.6, 3.4, 10)), -1).reshape(-1, 2), fill=1.0)
         free[first] = float(np.mean(inner < 0.2))
-    assert frac[True] > frac[False] + 0.01, frac  # measured: 0.641 -> 0.665
+    assert frac[True] > frac[False] + 0.05, frac  # measured: 0.641 -> 0.785
     assert free[True] == free[False] == 1.0, free
 
 
