@@ -7,13 +7,17 @@ occupancy and confidence, with the trajectory) and a Nav2 floor map, at the same
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+import numpy as np
+
 from crlam.experiments.known_poses import unknown_mask
+from crlam.grid_alignment import frame_from_record, from_map_frame
 from crlam.io.belief import load_belief
 from crlam.io.nav2 import read_nav2_map, read_pgm
 from crlam.io.tum import read_tum
@@ -52,8 +56,9 @@ def floor_figure(map_yaml: Path, out: Path, title: str, window: list[float] | No
 
 
 def overlay_figure(run: Path, map_yaml: Path, out: Path, window: list[float]) -> None:
-    """The run's cells of expected occupancy above 0.6 (red) drawn on the floor map's image, both
-    in their own frames (not aligned): how far apart the two frames put the walls."""
+    """The run's cells of expected occupancy above 0.6 (red) drawn on the floor map's image, the
+    run's turned back from its map's frame into its odometry frame (``map_frame`` of its
+    metrics.json), the two frames not aligned: how far apart they put the walls."""
     crm = ConfidenceRichMap.from_archive(load_belief(run / "belief.npz"))
     mean, _, _ = crm.layers()
     m = read_nav2_map(map_yaml)
@@ -65,7 +70,10 @@ def overlay_figure(run: Path, map_yaml: Path, out: Path, window: list[float]) ->
     ax.imshow(image, cmap="gray", vmin=0, vmax=255, extent=[x0, x0 + nx * res, y0, y0 + ny * res], interpolation="nearest")
     iy, ix = (mean.values > 0.6).nonzero()
     ex = mean.extent
-    ax.plot(ex[0] + (ix + 0.5) * mean.resolution, ex[2] + (iy + 0.5) * mean.resolution, "r.", ms=2, label="run: m > 0.6")
+    cells = np.stack([ex[0] + (ix + 0.5) * mean.resolution, ex[2] + (iy + 0.5) * mean.resolution, np.zeros(ix.size)], 1)
+    frame = frame_from_record(json.loads((run / "metrics.json").read_text()).get("map_frame"))
+    cells = from_map_frame(frame, cells)
+    ax.plot(cells[:, 0], cells[:, 1], "r.", ms=2, label="run: m > 0.6")
     ax.set_xlim(window[0], window[1])
     ax.set_ylim(window[2], window[3])
     ax.grid(True, linewidth=0.3)
