@@ -226,21 +226,28 @@ def _dilate(mask: np.ndarray) -> np.ndarray:
     return out2
 
 
-def test_noise_free_hits_land_on_occupied_cells_with_the_chord_kernel() -> None:
-    """Exact poses and ranges: with the chord kernel > 90 % of hit points fall on cells with
-    m̂ > 0.5; the spec's midpoint kernel blurs walls seen at grazing angles (BENCHMARKS.md)."""
+def _room_scans(seed: int, n_scans: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Noise-free 180-beam scans from random poses in a 10 m x 4 m room (a 1 cm raster with an
+    inner wall): poses (n, 3), bearings (180,), ranges (n, 180) with inf for no return, and the
+    hit points (m, 2)."""
     occ = np.zeros((1000, 1000), np.uint8)
     occ[:, :3] = occ[:, -3:] = occ[:3, :] = occ[-3:, :] = 1
     occ[407:410, 100:700] = 1
-    rng = np.random.default_rng(0)
-    poses = np.stack([rng.uniform(1, 9, 200), rng.uniform(0.5, 3.5, 200), rng.uniform(-3, 3, 200)], 1)
+    rng = np.random.default_rng(seed)
+    poses = np.stack([rng.uniform(1, 9, n_scans), rng.uniform(0.5, 3.5, n_scans), rng.uniform(-3, 3, n_scans)], 1)
     ang = np.linspace(-np.pi / 2, np.pi / 2, 180)
     r = _native.cast_ranges(occ, 0.0, 0.0, 0.01, poses, ang, 20.0)
-    pts = _hit_points(poses, ang, r, 20.0)
+    return poses, ang, np.where(np.isfinite(r), r, np.inf), _hit_points(poses, ang, r, 20.0)
+
+
+def test_noise_free_hits_land_on_occupied_cells_with_the_chord_kernel() -> None:
+    """Exact poses and ranges: with the chord kernel > 90 % of hit points fall on cells with
+    m̂ > 0.5; the spec's midpoint kernel blurs walls seen at grazing angles (BENCHMARKS.md)."""
+    poses, ang, r, pts = _room_scans(seed=0, n_scans=200)
     frac = {}
     for kernel in ("midpoint", "chord"):
         m = ConfidenceRichMap(MappingConfig(resolution=0.1, max_range=20.0, cause_kernel=kernel, origin=(0.013, 0.013)))
-        m.update_many(poses, ang, np.where(np.isfinite(r), r, np.inf))
+        m.update_many(poses, ang, r)
         frac[kernel] = float(np.mean(m.expected_occupancy().sample(pts, fill=0.0) > 0.5))
     assert frac["chord"] > 0.9, frac
     assert frac["midpoint"] < frac["chord"], frac
@@ -251,18 +258,11 @@ def test_hits_first_keeps_more_hit_points_on_occupied_cells() -> None:
     its own passes (``hits_first``) leaves more of the hit points on cells with m̂ > 0.5 than the
     paper's batch update, which lets a beam crossing a wall at a slant erase its neighbours' hits;
     the cells no hit point lies on or next to stay as free as without it."""
-    occ = np.zeros((1000, 1000), np.uint8)
-    occ[:, :3] = occ[:, -3:] = occ[:3, :] = occ[-3:, :] = 1
-    occ[407:410, 100:700] = 1
-    rng = np.random.default_rng(1)
-    poses = np.stack([rng.uniform(1, 9, 150), rng.uniform(0.5, 3.5, 150), rng.uniform(-3, 3, 150)], 1)
-    ang = np.linspace(-np.pi / 2, np.pi / 2, 180)
-    r = _native.cast_ranges(occ, 0.0, 0.0, 0.01, poses, ang, 20.0)
-    pts = _hit_points(poses, ang, r, 20.0)
+    poses, ang, r, pts = _room_scans(seed=1, n_scans=150)
     frac, free = {}, {}
     for first in (False, True):
         m = ConfidenceRichMap(MappingConfig(resolution=0.1, max_range=20.0, hits_first=first, origin=(0.013, 0.013)))
-        m.update_many(poses, ang, np.where(np.isfinite(r), r, np.inf))
+        m.update_many(poses, ang, r)
         mean = m.expected_occupancy()
         frac[first] = float(np.mean(mean.sample(pts, fill=0.0) > 0.5))
         # The cells inside the room, away from every wall: free either way.

@@ -6,11 +6,12 @@
 //! With hits first ([`super::ScanOptions::hits_first`]) a cell that some beam of the scan makes
 //! more occupied (α > [`HIT_ALPHA_MIN`]) drops the passes of the scan's beams (a pass: a beam
 //! whose reading lies so far beyond the cell that causes beyond it explain the reading, to a
-//! millionth ([`PASS_LIKE`]); its factor is then (1 − μ)/(1 − m̂)). One scan then cannot erase its own hits: where a beam meets a wall at a
-//! slant it crosses the wall's cells before the point it hits, so without the rule the scan's
-//! neighbouring beams, ending in those cells, lose their hits to it, and a wall seen at a slant
-//! is thinned into a dotted line, differently from each viewpoint. The other factors (those of
-//! the cells near a reading, with their likelihoods) are all applied, as without the rule.
+//! millionth ([`PASS_LIKE`]); its factor is then (1 − μ)/(1 − m̂)). One scan then cannot erase
+//! its own hits: where a beam meets a wall at a slant it crosses the wall's cells before the
+//! point it hits, so without the rule the scan's neighbouring beams, ending in those cells, lose
+//! their hits to it, and a wall seen at a slant is thinned into a dotted line, differently from
+//! each viewpoint. The other factors (those of the cells near a reading, with their
+//! likelihoods) are all applied, as without the rule.
 
 use std::collections::HashMap;
 use std::sync::Arc;
