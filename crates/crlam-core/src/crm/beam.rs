@@ -80,9 +80,9 @@ pub struct ScanOptions {
     pub beam_stride: usize,
     /// Treat a range of exactly 0 as a no-return (some drivers); otherwise it is dropped.
     pub zero_is_no_return: bool,
-    /// Batch mode only: a cell that a beam of the scan makes more occupied drops the passes of
-    /// the scan's beams, whose readings lie far beyond it (see [`super::scan_cells`]). Not the
-    /// paper's update (crm-spec 3.3 multiplies every factor); off by default.
+    /// Batch mode only: a cell that a beam of the scan makes more occupied ignores the scan's
+    /// passes (the factors of beams whose readings lie far beyond it). Not the paper's update
+    /// (crm-spec 3.3 multiplies every factor); off by default.
     pub hits_first: bool,
 }
 
