@@ -126,10 +126,10 @@ class MappingConfig:
         models take the full sweep) or ``"full_ray"`` (every cell's likelihood and factor: the
         reference). The two agree to f32 storage precision.
     hits_first : bool
-        Batch updates only: a cell that a beam of the scan makes more occupied (α > 0) drops the
-        passes of the scan's beams, those whose readings lie so far beyond it that no cause at or
-        before it explains them (factor (1 − μ)/(1 − m̂)); every other factor is applied as
-        without it (default ``False``: every factor, as crm-spec 3.3). Where a beam meets a wall
+        Batch updates only: a cell that a beam of the scan makes more occupied (α > 1e-9, above
+        rounding) drops the passes of the scan's beams, those whose readings lie so far beyond it
+        that causes beyond it explain them to a millionth (factor (1 − μ)/(1 − m̂)); every other
+        factor is applied as without it (default ``False``: every factor, as crm-spec 3.3). Where a beam meets a wall
         at a slant it crosses the wall's cells before the point it hits, so without this a scan
         thins a slanted wall into a dotted line, differently from each viewpoint (Cartographer
         likewise lets a scan's hits take precedence over its misses).
