@@ -228,6 +228,7 @@ class ClamFilter:
         scan_match_weight: str = "crm",
         match_range: str | float = ...,  # "z_max"
         hit_means: bool = ...,  # False
+        front_end: tuple[float, float] | None = None,
         seed: int = 0,
         prior_map: CrmMap | None = None,
         initial_cov: NDArray[np.float64] | None = None,
@@ -263,6 +264,7 @@ class ClamFilter:
     @property
     def n_particles(self) -> int: ...
     def best_map(self) -> CrmMap: ...
+    def front_end_counts(self) -> tuple[int, int]: ...
     def map_memory(self) -> tuple[int, int, int]: ...
 
 @final

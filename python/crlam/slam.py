@@ -33,6 +33,10 @@ __all__ = [
 
 Method = Literal["clam", "ogm"]
 
+#: Front ends in front of the scan-match proposal: ``none`` (the odometry increment as given) or
+#: ``correlative`` (a wide-window search on the best particle's map corrects it; docs/method/front-end.md).
+FRONT_ENDS = ("none", "correlative")
+
 #: Largest ``match_range`` in metres (the native matcher's bound on a usable range).
 MAX_MATCH_RANGE = 1e5
 
@@ -67,6 +71,13 @@ class SlamConfig:
     batch_kernel : str
         RBPF-CLAM batch scans: ``windowed`` (default) or ``full_ray`` (the reference sweep of
         every cell); the two agree to rounding (see :class:`crlam.mapping.MappingConfig`).
+    front_end : str
+        RBPF-CLAM scan_match: ``"correlative"`` searches ±``front_end_window`` (m, rad) around the
+        odometry's guess on the best particle's map by branch and bound before the particles'
+        proposals, and a confident match replaces the odometry increment they start from (sharp
+        turns, wheel slip, a late laser); ``"none"`` (paper) uses the increment as given.
+    front_end_window : tuple of float
+        Half-widths of the correlative search: translation (m) and heading (rad).
     hits_first : bool
         RBPF-CLAM batch map updates: a cell that a beam of the scan makes more occupied ignores
         the scan's beams that pass through it to readings far beyond, so one scan cannot erase
@@ -226,6 +237,8 @@ class SlamConfig:
     scan_match_weight: str = "crm"
     match_range: str | float = "z_max"
     hit_means: bool = False
+    front_end: str = "none"
+    front_end_window: tuple[float, float] = (0.4, 0.35)
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
     motion_noise: str = "model"
@@ -284,6 +297,18 @@ class SlamConfig:
             raise bad("hit_means", "must be True or False")
         if not isinstance(self.hits_first, bool):
             raise bad("hits_first", "must be True or False")
+        if self.front_end not in FRONT_ENDS:
+            raise bad("front_end", f"must be one of {', '.join(FRONT_ENDS)}")
+        if self.front_end != "none" and not (self.method == "clam" and self.proposal == "scan_match"):
+            raise bad("front_end", "the correlative front end needs method = 'clam' and proposal = 'scan_match'")
+        window = self.front_end_window
+        if not (
+            len(window) == 2
+            and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in window)
+            and 0 < window[0] <= 10
+            and 0 < window[1] <= math.pi
+        ):
+            raise bad("front_end_window", "needs a half-width in (0, 10] m and one in (0, pi] rad")
         if self.hits_first and self.scan_update != "batch":
             raise bad("hits_first", "needs scan_update = 'batch' (a sequential update applies each beam before the next)")
         if self.preset is not None and not isinstance(self.preset, str):
@@ -444,6 +469,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike, prior: SlamPrior | 
             scan_match_weight=config.scan_match_weight,
             match_range=config.match_range if isinstance(config.match_range, str) else float(config.match_range),
             hit_means=bool(config.hit_means),
+            front_end=None if config.front_end == "none" else (float(config.front_end_window[0]), float(config.front_end_window[1])),
             seed=config.seed,
             prior_map=None if prior is None else prior.map.native,
             initial_cov=None if prior is None else np.ascontiguousarray(prior.cov, dtype=np.float64),

@@ -6,10 +6,10 @@ use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::MatchRange;
 use crlam_core::rbpf::{
-    mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamPrior, ClamProposal, FilterStep,
-    LocalMapMatcher as CoreLocalMapMatcher, MatcherParams, ModeBandwidth, MotionDraws,
-    OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput,
-    ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
+    mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamPrior, ClamProposal,
+    CorrelativeSettings, FilterStep, LocalMapMatcher as CoreLocalMapMatcher, MatcherParams,
+    ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose,
+    RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -343,7 +343,7 @@ filter_pymethods!(ClamFilter {
         batch_kernel="windowed", hits_first=false, weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
         proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm",
-        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, seed=0, prior_map=None, initial_cov=None))]
+        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, front_end=None, seed=0, prior_map=None, initial_cov=None))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -377,6 +377,7 @@ filter_pymethods!(ClamFilter {
         scan_match_weight: &str,
         match_range: MatchRangeArg,
         hit_means: bool,
+        front_end: Option<(f64, f64)>,
         seed: u64,
         prior_map: Option<PyRef<'_, CrmMap>>,
         initial_cov: Option<PyReadonlyArray2<'_, f64>>,
@@ -438,6 +439,11 @@ filter_pymethods!(ClamFilter {
                     weight: scan_match_weight,
                     match_range,
                     hit_means,
+                    front_end: front_end.map(|(linear, angular)| CorrelativeSettings {
+                        linear_window: linear,
+                        angular_window: angular,
+                        ..CorrelativeSettings::default()
+                    }),
                     ..defaults
                 })
             }
@@ -506,6 +512,13 @@ filter_pymethods!(ClamFilter {
             self.inner.best_map().clone(),
             self.inner.config().crm.tile_size,
         )
+    }
+
+    /// (processed scans the correlative front end searched, those whose odometry increment it
+    /// corrected).
+    fn front_end_counts(&self) -> (usize, usize) {
+        let c = self.inner.front_end_counts();
+        (c.searched, c.corrected)
     }
 });
 

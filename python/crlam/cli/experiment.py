@@ -42,6 +42,8 @@ _SWEEP_FLAGS = (
     "--match-range",
     "--hit-means",
     "--hits-first",
+    "--front-end",
+    "--front-end-window",
     "--motion-noise",
     "--sigma-range",
     "--cause-kernel",

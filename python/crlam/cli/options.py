@@ -202,6 +202,24 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"centre, as GMapping does (paper: off; {FROM_PRESET})",
         ),
     ),
+    "--front-end": (
+        "filter",
+        dict(
+            choices=("none", "correlative"),  # crlam.slam.FRONT_ENDS
+            help="RBPF-CLAM scan_match: correlative searches a wide window around the odometry's guess on the best "
+            "particle's map (branch and bound) and a confident match corrects the increment every particle starts "
+            f"from; none uses the odometry as given (paper: none; {FROM_PRESET})",
+        ),
+    ),
+    "--front-end-window": (
+        "filter",
+        dict(
+            type=positive_float,
+            nargs=2,
+            metavar=("M", "RAD"),
+            help=f"half-widths of the correlative front end's search, translation and heading ({FROM_PRESET})",
+        ),
+    ),
     "--linear-update": (
         "filter",
         dict(

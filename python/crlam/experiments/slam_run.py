@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 from tqdm import tqdm
 
-from crlam import __version__
+from crlam import __version__, _native
 from crlam.errors import ConfigError, DataFormatError
 from crlam.eval.trajectory import ReferenceErrors, RelationsErrors, reference_errors, relations_error
 from crlam.experiments.progress import scan_progress_bar
@@ -63,6 +63,19 @@ class SlamResult:
     run: SlamRun
     metrics: dict[str, Any]
     out_dir: Path
+
+
+def correlative_front_end_record(run: SlamRun) -> dict[str, Any] | None:
+    """What ``metrics.json`` records of the correlative front end: the processed scans it
+    searched and those whose odometry increment its match corrected (``None`` when it is off)."""
+    if run.config.front_end == "none" or not isinstance(run.filter, _native.ClamFilter):
+        return None
+    searched, corrected = run.filter.front_end_counts()
+    return {
+        "window": [float(v) for v in run.config.front_end_window],
+        "searched": int(searched),
+        "corrected": int(corrected),
+    }
 
 
 def peak_rss_mb() -> float:
@@ -393,6 +406,7 @@ def _write_outputs(
         "scan_odometry": None if front_end is None else front_end.config.to_dict() | front_end.stats.to_dict(),
         "continued_from": None if prior is None else prior.describe(),
         "map_frame": run.map_frame_record(),
+        "correlative_front_end": correlative_front_end_record(run),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None

@@ -17,7 +17,7 @@ use crate::error::{config_err, Result};
 use crate::pose::{between, compose, covariance_factor, draw_pose, wrap, Pose};
 use crate::rbpf::clam_config::scan_opts;
 pub use crate::rbpf::clam_config::{ClamConfig, ClamProposal};
-use crate::rbpf::clam_match::{prepare_scan, propose_by_scan_match};
+use crate::rbpf::clam_match::{corrected_increment, prepare_scan, propose_by_scan_match};
 use crate::rbpf::clam_particle::weigh_at_pose;
 pub use crate::rbpf::clam_particle::ClamParticle;
 use crate::rbpf::common::{
@@ -92,6 +92,16 @@ pub struct RbpfClam {
     /// (until the next processed scan); each particle its own index otherwise. Systematic
     /// resampling keeps the children of one parent next to each other.
     parents: Vec<usize>,
+    /// What the correlative front end did (see [`FrontEndCounts`]).
+    front_end: FrontEndCounts,
+}
+
+/// Processed scans the correlative front end searched, and those whose odometry increment its
+/// match replaced.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FrontEndCounts {
+    pub searched: usize,
+    pub corrected: usize,
 }
 
 /// The particles' poses with uniform weights.
@@ -200,6 +210,7 @@ impl RbpfClam {
             paths,
             largest_reading: f64::NEG_INFINITY,
             parents: (0..n).collect(),
+            front_end: FrontEndCounts::default(),
         })
     }
 
@@ -241,6 +252,11 @@ impl RbpfClam {
         let w = &self.weighed;
         self.paths
             .ancestor_means(&w.nodes, &w.weights, max_lag, proposal_means)
+    }
+
+    /// What the correlative front end did so far.
+    pub fn front_end_counts(&self) -> FrontEndCounts {
+        self.front_end
     }
 
     pub fn n_resamples(&self) -> usize {
@@ -325,6 +341,34 @@ impl RbpfClam {
                 Some(prepare_scan(cfg, settings, scan, self.largest_reading)?)
             }
             _ => None,
+        };
+        // The correlative front end: one wide search on the best particle's map; a confident
+        // match corrects the increment every particle starts from.
+        let u = match (&cfg.proposal, &prepared) {
+            (ClamProposal::ScanMatch(settings), Some(prepared)) => match &settings.front_end {
+                Some(front_end) => {
+                    let best = &self.particles[self.best];
+                    let (corrected, found) = corrected_increment(
+                        cfg,
+                        settings,
+                        front_end,
+                        prepared,
+                        best.pose,
+                        &best.map,
+                        best.hits.as_ref(),
+                        u,
+                    )?;
+                    if found.is_some() {
+                        self.front_end.searched += 1;
+                        if corrected != u {
+                            self.front_end.corrected += 1;
+                        }
+                    }
+                    corrected
+                }
+                None => u,
+            },
+            _ => u,
         };
         // The scan-match proposal from the odometry guess searches once for the children of one
         // parent (same map, same pose) right after a resampling; every other proposal, and each

@@ -7,6 +7,7 @@ use crate::crm::{BatchKernel, CrmConfig, ScanOptions, ScanUpdateMode};
 use crate::error::{config_err, Result};
 use crate::motion::MotionModel;
 use crate::rbpf::common::{ProposalPose, UpdateTrigger};
+use crate::rbpf::correlative::CorrelativeSettings;
 use crate::rbpf::prepared_scan::{BeamSelection, MAX_USABLE_RANGE};
 use crate::rbpf::scanmatch_params::{MatcherParams, ProposalParams};
 use crate::sensor::SensorModel;
@@ -347,6 +348,11 @@ pub struct ScanMatchSettings {
     ///
     /// [`HitMeans`]: crate::rbpf::HitMeans
     pub hit_means: bool,
+    /// A correlative search over a wide window around the odometry's guess on the best
+    /// particle's map, before the particles' proposals (see [`crate::rbpf::correlative`]): a
+    /// confident match replaces the odometry increment every particle starts from. `None`: the
+    /// odometry increment as given (the paper's and GMapping's).
+    pub front_end: Option<CorrelativeSettings>,
 }
 
 impl Default for ScanMatchSettings {
@@ -358,6 +364,7 @@ impl Default for ScanMatchSettings {
             weight: ScanMatchWeight::Crm,
             match_range: MatchRange::ZMax,
             hit_means: false,
+            front_end: None,
         }
     }
 }
@@ -367,6 +374,9 @@ impl ScanMatchSettings {
         self.matcher.validate()?;
         self.lattice.validate()?;
         self.match_range.validate()?;
+        if let Some(front_end) = &self.front_end {
+            front_end.validate()?;
+        }
         if !(self.occupied_above.is_finite() && (0.0..1.0).contains(&self.occupied_above)) {
             return Err(crate::error::config_err(
                 "occupied_above",

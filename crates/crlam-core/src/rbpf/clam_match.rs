@@ -29,13 +29,16 @@
 
 use crate::crm::{CrmMap, CrmScratch};
 use crate::error::Result;
-use crate::pose::{compose, wrap, Pose};
+use crate::pose::{between, compose, wrap, Pose};
 use crate::rbpf::clam_config::ClamConfig;
 pub use crate::rbpf::clam_config::{
     MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
 };
 use crate::rbpf::clam_particle::weigh_at_pose;
 use crate::rbpf::common::{ProposalPose, ScanInput};
+use crate::rbpf::correlative::{
+    self, depth_for_window, field_rect, CorrelativeMatch, CorrelativeSettings, LikelihoodField,
+};
 use crate::rbpf::hit_means::HitMeans;
 use crate::rbpf::motion_prior::MotionPrior;
 use crate::rbpf::proposal::Proposed;
@@ -64,6 +67,71 @@ pub(crate) fn prepare_scan(
         settings.match_range.selection(z_max, largest),
         settings.matcher.beam_stride,
     )
+}
+
+/// Relative gain in the endpoint score that the climb from the correlative match must show over
+/// the climb from the odometry's guess before it replaces the guess: a tie keeps the odometry.
+const CLIMB_GAIN: f64 = 0.01;
+
+/// The odometry increment the particles start from, after the correlative search of
+/// `front_end` around `compose(prev, u)` on `map` (the best particle's map, `hits` its hit
+/// means, `prev` its pose), and the search's result (`None` when the scan has no endpoint below
+/// z_max to search with).
+///
+/// The search's pose lies on a lattice of whole cells and heading steps, and its field is
+/// coarser than the endpoint matcher's, so it does not replace the guess by itself: when it is
+/// confident ([`CorrelativeMatch::is_confident`]), GMapping's hill climb runs from both the guess
+/// and the match on the best particle's map, and the increment becomes the one to the climb
+/// from the match only when that climb scores higher by more than [`CLIMB_GAIN`]. Where the
+/// odometry is good both climbs end at the same pose and the increment is `u` unchanged.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn corrected_increment(
+    cfg: &ClamConfig,
+    settings: &ScanMatchSettings,
+    front_end: &CorrelativeSettings,
+    prepared: &PreparedScan,
+    prev: Pose,
+    map: &CrmMap,
+    hits: Option<&HitMeans>,
+    u: Pose,
+) -> Result<(Pose, Option<CorrelativeMatch>)> {
+    let endpoints: Vec<[f64; 2]> = prepared.near_endpoints().collect();
+    if endpoints.is_empty() {
+        return Ok((u, None));
+    }
+    let guess = compose(prev, u);
+    let g = *map.geometry();
+    let z_max = cfg.weight_model.z_max.min(cfg.mapping_model.z_max);
+    let rect = field_rect(&g, guess, z_max, front_end)?;
+    let mut means = vec![0.0; rect.n_cells()];
+    map.means_into(rect, &mut means)?;
+    let occupied: Vec<bool> = means.iter().map(|&m| m > settings.occupied_above).collect();
+    let w = (front_end.linear_window / g.resolution).ceil() as i64;
+    let field = LikelihoodField::new(g, rect, &occupied, depth_for_window(w))?;
+    let found = correlative::search(&field, &endpoints, guess, front_end)?;
+    if !found.is_confident(front_end) {
+        return Ok((u, Some(found)));
+    }
+    let matcher = ScanMatcher {
+        params: settings.matcher,
+    };
+    let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
+        map,
+        hits,
+        prepared,
+        guess,
+        settings.matcher.kernel_size,
+        settings.matcher.free_test,
+        settings.occupied_above,
+    );
+    let (_, from_guess) = matcher.optimize(&surface, prepared, guess)?;
+    let (climbed, from_match) = matcher.optimize(&surface, prepared, found.pose)?;
+    let increment = if from_match > from_guess * (1.0 + CLIMB_GAIN) {
+        between(prev, climbed)
+    } else {
+        u
+    };
+    Ok((increment, Some(found)))
 }
 
 /// Proposes a particle's new pose by scan matching and weighs it (see the module documentation).

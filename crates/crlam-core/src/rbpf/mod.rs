@@ -11,7 +11,8 @@
 //! 1. [`lineage`] (the path tree), [`estimate`], [`common`] (the filters' shared input, triggers
 //!    and estimate), `motion_prior`;
 //! 2. `scanmatch_params`, `prepared_scan` (a scan's matching beams), [`hit_means`] (where in
-//!    its cells a CRM saw its walls), [`match_surface`] (the cells the matcher reads), [`scanmatch`] (GMapping's matcher and improved proposal);
+//!    its cells a CRM saw its walls), [`match_surface`] (the cells the matcher reads), [`scanmatch`] (GMapping's matcher and improved proposal),
+//!    [`correlative`] (the wide-window search in front of it);
 //! 3. RBPF-OGM: `ogm_config`, then [`ogm`];
 //! 4. RBPF-CLAM: `clam_config` (settings), `clam_particle` (the particle and its weight at a
 //!    pose), `proposal` (the likelihood-mode proposal), [`clam_match`] (the scan-match
@@ -22,6 +23,7 @@ mod clam_config;
 pub mod clam_match;
 mod clam_particle;
 pub mod common;
+pub mod correlative;
 pub mod estimate;
 pub mod hit_means;
 pub mod lineage;
@@ -35,12 +37,13 @@ mod proposal;
 pub mod scanmatch;
 mod scanmatch_params;
 
-pub use clam::{ClamConfig, ClamParticle, ClamPrior, ClamProposal, RbpfClam};
+pub use clam::{ClamConfig, ClamParticle, ClamPrior, ClamProposal, FrontEndCounts, RbpfClam};
 pub use clam_match::{MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE};
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,
     UpdateTrigger,
 };
+pub use correlative::{CorrelativeMatch, CorrelativeSettings};
 pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
 pub use hit_means::HitMeans;
 pub use lineage::{NodeId, PathTree, NO_NODE};
