@@ -229,6 +229,7 @@ class ClamFilter:
         match_range: str | float = ...,  # "z_max"
         hit_means: bool = ...,  # False
         front_end: tuple[float, float] | None = None,
+        match_min_score: float = 0.0,
         seed: int = 0,
         prior_map: CrmMap | None = None,
         initial_cov: NDArray[np.float64] | None = None,

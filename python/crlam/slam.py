@@ -17,6 +17,7 @@ from crlam import _native
 from crlam.errors import ConfigError, CrlamError
 from crlam.fill import FILLS, fill_skipped
 from crlam.grid_alignment import GRID_ALIGNMENTS, WallDirection, from_map_frame, into_map_frame, map_frame, map_turn
+from crlam.map_range import MAP_RANGES
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
 from crlam.pose import number_pair
 from crlam.slam_continue import SlamPrior
@@ -76,6 +77,17 @@ class SlamConfig:
         odometry's guess on the best particle's map by branch and bound before the particles'
         proposals, and a confident match replaces the odometry increment they start from (sharp
         turns, wheel slip, a late laser); ``"none"`` (paper) uses the increment as given.
+    map_range : str
+        ``"fixed"`` (paper): z_max is ``max_range``. ``"readings"``: a run of a whole log
+        (:func:`crlam.experiments.slam_run.run_slam_log`, ``crlam slam``) sets ``max_range`` to
+        the range within which 90 % of the returns of the log's first 2,000 scans lie, rounded
+        up to a metre, between the configured ``max_range`` and 20 m (:mod:`crlam.map_range`);
+        :class:`SlamRun` fed scan by scan uses ``max_range`` as given.
+    match_min_score : float
+        RBPF-CLAM scan_match: a particle's scan match counts only when its endpoint score (the
+        sum over beams of exp(-d²/σ), at most one per beam) exceeds this; otherwise the particle
+        takes the paper's proposal, a motion-model draw weighed by the CRM likelihood
+        (GMapping's ``minimumScore``; paper and GMapping: 0, any match counts).
     front_end_window : tuple of float
         Half-widths of the correlative search: translation (m) and heading (rad).
     hits_first : bool
@@ -237,7 +249,9 @@ class SlamConfig:
     scan_match_weight: str = "crm"
     match_range: str | float = "z_max"
     hit_means: bool = False
+    map_range: str = "fixed"
     front_end: str = "none"
+    match_min_score: float = 0.0
     front_end_window: tuple[float, float] = (0.4, 0.35)
     motion: str = "gaussian"
     motion_params: tuple[float, ...] | None = None
@@ -297,6 +311,15 @@ class SlamConfig:
             raise bad("hit_means", "must be True or False")
         if not isinstance(self.hits_first, bool):
             raise bad("hits_first", "must be True or False")
+        if not (
+            isinstance(self.match_min_score, (int, float))
+            and not isinstance(self.match_min_score, bool)
+            and math.isfinite(self.match_min_score)
+            and self.match_min_score >= 0
+        ):
+            raise bad("match_min_score", "must be finite and >= 0")
+        if self.map_range not in MAP_RANGES:
+            raise bad("map_range", f"must be one of {', '.join(MAP_RANGES)}")
         if self.front_end not in FRONT_ENDS:
             raise bad("front_end", f"must be one of {', '.join(FRONT_ENDS)}")
         if self.front_end != "none" and not (self.method == "clam" and self.proposal == "scan_match"):
@@ -469,13 +492,23 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike, prior: SlamPrior | 
             scan_match_weight=config.scan_match_weight,
             match_range=config.match_range if isinstance(config.match_range, str) else float(config.match_range),
             hit_means=bool(config.hit_means),
-            front_end=None if config.front_end == "none" else (float(config.front_end_window[0]), float(config.front_end_window[1])),
+            match_min_score=float(config.match_min_score),
+            front_end=None
+            if config.front_end == "none"
+            else (float(config.front_end_window[0]), float(config.front_end_window[1])),
             seed=config.seed,
             prior_map=None if prior is None else prior.map.native,
             initial_cov=None if prior is None else np.ascontiguousarray(prior.cov, dtype=np.float64),
         )
     except ValueError as e:
         raise ConfigError(f"SlamConfig: {e}") from e
+
+
+def _front_end_window(config: SlamConfig) -> tuple[float, float] | None:
+    """The correlative front end's half-widths (m, rad) for the native filter; None when it is off."""
+    if config.front_end == "none":
+        return None
+    return (float(config.front_end_window[0]), float(config.front_end_window[1]))
 
 
 @dataclass(frozen=True)

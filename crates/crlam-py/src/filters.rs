@@ -343,7 +343,7 @@ filter_pymethods!(ClamFilter {
         batch_kernel="windowed", hits_first=false, weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
         proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm",
-        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, front_end=None, seed=0, prior_map=None, initial_cov=None))]
+        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, front_end=None, match_min_score=0.0, seed=0, prior_map=None, initial_cov=None))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -378,6 +378,7 @@ filter_pymethods!(ClamFilter {
         match_range: MatchRangeArg,
         hit_means: bool,
         front_end: Option<(f64, f64)>,
+        match_min_score: f64,
         seed: u64,
         prior_map: Option<PyRef<'_, CrmMap>>,
         initial_cov: Option<PyReadonlyArray2<'_, f64>>,
@@ -434,6 +435,7 @@ filter_pymethods!(ClamFilter {
                     lattice: ProposalParams {
                         pose: rule,
                         range: [lattice_step.0, lattice_step.0, lattice_step.1],
+                        min_score: match_min_score,
                         ..defaults.lattice
                     },
                     weight: scan_match_weight,

@@ -42,6 +42,8 @@ _SWEEP_FLAGS = (
     "--match-range",
     "--hit-means",
     "--hits-first",
+    "--match-min-score",
+    "--map-range",
     "--front-end",
     "--front-end-window",
     "--motion-noise",

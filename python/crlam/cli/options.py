@@ -202,6 +202,15 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"centre, as GMapping does (paper: off; {FROM_PRESET})",
         ),
     ),
+    "--match-min-score": (
+        "filter",
+        dict(
+            type=nonnegative_float,
+            metavar="S",
+            help="RBPF-CLAM scan_match: a scan match counts only when its endpoint score (about one per well-matched "
+            f"beam) exceeds S, else the particle follows the odometry (GMapping's minimumScore; paper: 0; {FROM_PRESET})",
+        ),
+    ),
     "--front-end": (
         "filter",
         dict(
@@ -241,7 +250,18 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
         "map and sensor",
         dict(type=positive_float, help=f"cell size in metres (paper: 0.2; {FROM_PRESET})"),
     ),
-    "--max-range": ("map and sensor", dict(type=positive_float, help=f"z_max in metres (paper: 8; {FROM_PRESET})")),
+    "--max-range": (
+        "map and sensor",
+        dict(type=positive_float, help=f"z_max in metres; with --map-range readings the least z_max (paper: 8; {FROM_PRESET})"),
+    ),
+    "--map-range": (
+        "map and sensor",
+        dict(
+            choices=("fixed", "readings"),  # crlam.map_range.MAP_RANGES
+            help="z_max: fixed (--max-range) or readings: the range within which 90 %% of the log's returns lie, "
+            f"rounded up to a metre, between --max-range and 20 m; metrics.json records the choice ({FROM_PRESET})",
+        ),
+    ),
     "--grid-alignment": (
         "map and sensor",
         dict(

@@ -49,6 +49,7 @@ from crlam.io.logs import input_description, open_log
 from crlam.io.nav2 import write_nav2_map
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
+from crlam.map_range import MapRangeChoice
 from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
 from crlam.slam_continue import SlamPrior, pose_covariance
@@ -194,6 +195,14 @@ def run_slam_log(
     source = resolve_odometry(log_path, odometry, bag_options)
     if source[0] == "scan_match":
         config = scan_match_filter_config(config)
+    map_range = None
+    if config.map_range == "readings":
+        from dataclasses import replace
+
+        from crlam.map_range import map_range_from_readings
+
+        map_range = map_range_from_readings(open_log(log_path, **(bag_options or {})), config.max_range, max_scans=max_scans)
+        config = replace(config, max_range=map_range.max_range)
     noise_estimate = None
     if config.motion_noise == "estimate" and config.motion_params is None:
         from dataclasses import replace
@@ -245,6 +254,7 @@ def run_slam_log(
         odometry_info,
         front_end,
         prior,
+        map_range=map_range,
     )
 
 
@@ -323,6 +333,7 @@ def _write_outputs(
     odometry_info: dict[str, str] | None = None,
     front_end: Any = None,
     prior: SlamPrior | None = None,
+    map_range: MapRangeChoice | None = None,
 ) -> SlamResult:
     run, wall = run_wall
     input_info = input_description(reader) | (odometry_info or {})
@@ -407,6 +418,7 @@ def _write_outputs(
         "continued_from": None if prior is None else prior.describe(),
         "map_frame": run.map_frame_record(),
         "correlative_front_end": correlative_front_end_record(run),
+        "map_range": None if map_range is None else map_range.to_dict(),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
