@@ -3,6 +3,7 @@ crlam.body_mask, crlam.laser_mount, crlam.lidar_check)."""
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import replace
 from pathlib import Path
@@ -230,3 +231,41 @@ def test_mount_undecided_without_motion_says_so(sim: list[LaserScan], capsys: An
 def test_lidar_setup_without_checks_changes_nothing(sim: list[LaserScan]) -> None:
     setup = LidarSetup(mount_mode="given")
     assert setup.correct(sim[0]) is sim[0] and setup.body_mask_for_scans() is None
+
+
+# -- end to end: crlam slam on a bag whose laser is upside down, not said in the bag ------------
+
+
+def _flipped_bag(scans: list[LaserScan], path: Path) -> Path:
+    """The scans mirrored (upside down) with 3 body beams, their odometry on /odom, no mount."""
+    with McapBagWriter(path) as w:
+        for s in scans:
+            t = 100.0 + s.timestamp
+            w.write("/odom", "nav_msgs/msg/Odometry", round(t * 1e9), w.odometry(t, "odom", "base_link", s.odom))
+            r = s.ranges[::-1].copy()
+            r[[60, 61, 62]] = 0.2
+            amin = -(s.angle_min + s.angle_increment * (s.n_beams - 1))
+            msg = w.laser_scan(t + 1e-4, "laser", r, amin, s.angle_increment, s.max_range)
+            w.write("/scan", "sensor_msgs/msg/LaserScan", round((t + 1e-4) * 1e9), msg)
+        t_end = 100.0 + scans[-1].timestamp + 0.05
+        w.write("/odom", "nav_msgs/msg/Odometry", round(t_end * 1e9), w.odometry(t_end, "odom", "base_link", scans[-1].odom))
+    return path
+
+
+def test_slam_reports_and_corrects_a_hidden_flip(sim: list[LaserScan], tmp_path: Path, capsys: Any) -> None:
+    bag = _flipped_bag(sim[:400], tmp_path / "flipped")
+    out = tmp_path / "run"
+    argv = ["slam", str(bag), "--out", str(out), "--quiet", "--particles", "5"]
+    assert main(argv) == 0
+    err = capsys.readouterr().err
+    assert "laser mount" in err and "flip yes" in err and "body mask: 3 of 180" in err
+    lidar = json.loads((out / "metrics.json").read_text())["input"]["lidar"]
+    assert lidar["laser_mount"] == "auto" and lidar["data_states_mount"] is False
+    assert lidar["mount_used"]["upside_down_against_data"] is True and abs(lidar["mount_used"]["yaw_deg"]) < 1e-9
+    assert lidar["body_mask"]["beams"] == [60, 61, 62]
+    assert lidar["readings"]["n_body_masked"] == 3 * 400
+    # With the mount given, nothing is checked.
+    out2 = tmp_path / "run2"
+    assert main([*argv[:3], str(out2), *argv[4:], "--laser-mount", "0", "0", "0", "--upside-down"]) == 0
+    lidar = json.loads((out2 / "metrics.json").read_text())["input"]["lidar"]
+    assert lidar["laser_mount"] == "given" and lidar["mount_estimate"] is None
