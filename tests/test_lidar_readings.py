@@ -198,6 +198,7 @@ def _mounted(scans: list[LaserScan], yaw: float, flip: bool) -> list[LaserScan]:
     return out
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("yaw_deg", "flip"), [(0.0, False), (180.0, True), (90.0, False), (270.0, True), (30.0, False)])
 def test_mount_detected_on_simulated_scans(sim: list[LaserScan], yaw_deg: float, flip: bool) -> None:
     scans = _mounted(sim, math.radians(yaw_deg), flip)
@@ -252,6 +253,7 @@ def _flipped_bag(scans: list[LaserScan], path: Path) -> Path:
     return path
 
 
+@pytest.mark.slow
 def test_slam_reports_and_corrects_a_hidden_flip(sim: list[LaserScan], tmp_path: Path, capsys: Any) -> None:
     bag = _flipped_bag(sim[:400], tmp_path / "flipped")
     out = tmp_path / "run"
@@ -269,3 +271,25 @@ def test_slam_reports_and_corrects_a_hidden_flip(sim: list[LaserScan], tmp_path:
     assert main([*argv[:3], str(out2), *argv[4:], "--laser-mount", "0", "0", "0", "--upside-down"]) == 0
     lidar = json.loads((out2 / "metrics.json").read_text())["input"]["lidar"]
     assert lidar["laser_mount"] == "given" and lidar["mount_estimate"] is None
+
+
+# -- real data (skipped without CRLAM_DATA) ------------------------------------------------------
+
+
+@pytest.mark.realdata
+def test_turtlebot4_mount_found_again_when_hidden(data_dir: Path) -> None:
+    """The TurtleBot 4 bag's /tf_static mounts its lidar turned by 90 deg; with the mount hidden
+    (and with it mirrored) the check finds it again from the scans and the odometry."""
+    from crlam.io.logs import open_log
+
+    bag = data_dir / "bags" / "turtlebot4-mac-floor"
+    if not bag.is_dir():
+        pytest.skip(f"{bag} not found")
+    stated = check_lidar(open_log(bag), "auto", "off", warn=False)
+    assert stated.correction is None and stated.data_mount is not None
+    assert abs(stated.data_mount[2] - math.pi / 2) < 1e-6
+    for upside_down in (False, True):
+        setup = check_lidar(open_log(bag, laser_mount=[0.0, 0.0, 0.0], upside_down=upside_down), "auto", "off", warn=False)
+        assert setup.correction is not None
+        flip, yaw, _, _ = setup.correction
+        assert flip is upside_down and abs(math.remainder(yaw - math.pi / 2, math.tau)) < 1e-9

@@ -1,6 +1,6 @@
 """The lidar checks of ``crlam slam`` before the filter runs: body beams and the laser mount.
 
-:func:`check_lidar` reads the first scans of the log once (up to :data:`SCANS_READ` scans, keeping
+:func:`check_lidar` reads the first records of the log once (up to :data:`SCANS_READ` records, keeping
 up to :data:`SCANS_KEPT` with motion: the odometry moved 2 cm or turned 0.02 rad since the last one
 kept) and applies
 
@@ -39,7 +39,7 @@ from crlam.laser_mount import MountEstimate, estimate_mount
 __all__ = ["MOUNT_MODES", "SCANS_KEPT", "SCANS_READ", "LidarSetup", "check_lidar", "check_lidar_of_log"]
 
 MOUNT_MODES = ("auto", "data", "given")
-SCANS_READ = 2000
+SCANS_READ = 4000
 SCANS_KEPT = 300
 _YAW_TOLERANCE = math.radians(10.0)
 _OFFSET_TOLERANCE = 0.10
@@ -118,7 +118,7 @@ def check_lidar(
     scans: list[LaserScan] = []
     last: NDArray[np.float64] | None = None
     for k, rec in enumerate(records):
-        if k >= SCANS_READ * 2 or len(scans) >= SCANS_KEPT:
+        if k >= SCANS_READ or len(scans) >= SCANS_KEPT:
             break
         if not isinstance(rec, LaserScan):
             continue
