@@ -119,11 +119,15 @@ def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
     path.write_text("\n".join(parts))
 
 
-def _scan_inputs(scan: LaserScan, readings: ReadingFilter) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Beam bearings and ranges of a scan for the filter: the no-return policy and the body mask
-    of :mod:`crlam.io.readings` applied."""
+def _scan_inputs(scan: LaserScan, readings: ReadingFilter | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Beam bearings and ranges of a scan for a filter: the no-return policy and body mask of
+    ``readings`` (:mod:`crlam.io.readings`) applied; without it (localization), readings at the
+    sensor's own maximum become inf (the filter's z_max then makes every longer reading a
+    no-return as well)."""
     if not np.all(np.isfinite(scan.odom)):
         raise DataFormatError(f"odometry pose {scan.odom.tolist()} is not finite", line=scan.line, field="odom")
+    if readings is None:
+        return scan.angles, np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
     return readings.apply(scan.angles, scan.ranges, scan.max_range)
 
 
