@@ -248,6 +248,22 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"beams that pass through it to readings far beyond (paper: off; {FROM_PRESET})",
         ),
     ),
+    "--no-return": (
+        "map and sensor",
+        dict(
+            choices=("drop", "z_max"),
+            help="what a no-return (inf, NaN, 0, below range_min, at or above range_max) does: left out, it never "
+            f"clears a cell (drop), or the z_max atom that clears its beam to z_max (z_max: paper; {FROM_PRESET})",
+        ),
+    ),
+    "--body-mask": (
+        "map and sensor",
+        dict(
+            choices=("auto", "off"),
+            help="leave out the beams that read the robot's own body, found in the first scans (auto) or use every "
+            f"beam (off: paper; {FROM_PRESET})",
+        ),
+    ),
     "--motion": (
         "motion model",
         dict(
