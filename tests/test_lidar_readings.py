@@ -293,3 +293,13 @@ def test_turtlebot4_mount_found_again_when_hidden(data_dir: Path) -> None:
         assert setup.correction is not None
         flip, yaw, _, _ = setup.correction
         assert flip is upside_down and abs(math.remainder(yaw - math.pi / 2, math.tau)) < 1e-9
+
+
+def test_crlam_map_takes_the_policy(tmp_path: Path) -> None:
+    bag = _bag_with_every_kind(tmp_path / "kinds")
+    for policy, dropped in (("drop", 6), ("z_max", 0)):
+        out = tmp_path / policy
+        assert main(["map", str(bag), "--out", str(out), "--quiet", "--no-return", policy]) == 0
+        record = json.loads((out / "mapping.json").read_text())
+        assert record["no_return"] == policy
+        assert record["readings"]["n_no_return"] == 6 and record["readings"]["n_no_return_dropped"] == dropped
