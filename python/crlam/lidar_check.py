@@ -25,6 +25,7 @@ from __future__ import annotations
 import itertools
 import math
 import sys
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -71,6 +72,11 @@ class LidarSetup:
             ranges = ranges[::-1].copy()
             amin = -(scan.angle_min + scan.angle_increment * (scan.n_beams - 1))
         return replace(scan, ranges=ranges, angle_min=amin, laser_offset=np.array([x, y, yaw]))
+
+    def corrected(self, records: Iterable[Any]) -> Iterator[Any]:
+        """``records`` with every scan :meth:`correct`-ed (other records as they are)."""
+        for rec in records:
+            yield self.correct(rec) if isinstance(rec, LaserScan) else rec
 
     def body_mask_for_scans(self) -> NDArray[np.bool_] | None:
         """The body mask in the beam order of the corrected scans."""

@@ -190,6 +190,9 @@ def run_slam_log(
     source = resolve_odometry(log_path, odometry, bag_options)
     if source[0] == "scan_match":
         config = scan_match_filter_config(config)
+    from crlam.lidar_check import check_lidar_of_log
+
+    lidar = check_lidar_of_log(log_path, bag_options, laser_mount, config.body_mask, wheel=source[0] == "wheel")
     noise_estimate = None
     if config.motion_noise == "estimate" and config.motion_params is None:
         from dataclasses import replace
@@ -197,7 +200,7 @@ def run_slam_log(
         from crlam.motion_noise import estimate_gmapping_noise
 
         noise_estimate = estimate_gmapping_noise(
-            open_log(log_path, **(bag_options or {})),
+            lidar.corrected(open_log(log_path, **(bag_options or {}))),
             linear_update=config.linear_update,
             angular_update=config.angular_update,
             max_range=config.max_range,
@@ -205,9 +208,6 @@ def run_slam_log(
             seed=config.seed,
         )
         config = replace(config, motion_params=noise_estimate.params)
-    from crlam.lidar_check import check_lidar_of_log
-
-    lidar = check_lidar_of_log(log_path, bag_options, laser_mount, config.body_mask, wheel=source[0] == "wheel")
     reader = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
     records: Any = reader
     front_end = None
