@@ -303,3 +303,23 @@ def test_crlam_map_takes_the_policy(tmp_path: Path) -> None:
         record = json.loads((out / "mapping.json").read_text())
         assert record["no_return"] == policy
         assert record["readings"]["n_no_return"] == 6 and record["readings"]["n_no_return_dropped"] == dropped
+
+
+@pytest.mark.slow
+def test_mount_offset_recovered_on_simulated_scans(sim: list[LaserScan]) -> None:
+    """A laser 0.2 m ahead and 0.1 m left of the base, turned by 90 deg and upside down, none of it
+    in the data: the base's odometry is the laser's pose composed with the mount's inverse."""
+    from crlam.pose import compose
+
+    mount = np.array([0.2, 0.1, math.pi / 2])
+    c, s = math.cos(mount[2]), math.sin(mount[2])
+    inverse = np.array([-(c * mount[0] + s * mount[1]), -(-s * mount[0] + c * mount[1]), -mount[2]])
+    scans = [
+        replace(x, odom=np.asarray(compose(compose(x.odom, [0.0, 0.0, mount[2]]), inverse)))
+        for x in _mounted(sim, float(mount[2]), True)
+    ]
+    setup = check_lidar(scans, "auto", "off", warn=False)
+    assert setup.correction is not None
+    flip, yaw, x, y = setup.correction
+    assert flip and abs(math.remainder(yaw - mount[2], math.tau)) < 1e-9
+    assert math.hypot(x - mount[0], y - mount[1]) < 0.05

@@ -28,7 +28,7 @@ Yaw and offset
     length of the angle between R(ψ) t_L and t + (R(φ) − I) m, weighed by |t|, is at least
     :data:`YAW_CONCENTRATION` (0.8) over at least 10 pairs and 1 m of travel. Mounts are built
     square: a yaw within :data:`SNAP` (5 deg) of a multiple of 90 deg is taken as that multiple.
-    The offset m is estimated only when the turns make it observable (Σ(2 − 2 cos φ) ≥ 1, and
+    The offset m is estimated only when the turns make it observable (Σ(2 − 2 cos φ) ≥ 0.25, and
     a standard error of at most 5 cm); otherwise the data's offset (or none) is kept.
 """
 
@@ -99,7 +99,9 @@ class MountEstimate:
     offset : ndarray, shape (2,) or None
         Mount position (m) in the base frame; None when not observable.
     offset_std : float or None
-        Its standard error (m).
+        The standard error (m) of the offset's fit (also when it was not observable enough).
+    offset_fit : ndarray, shape (2,) or None
+        The fitted offset (m), kept or not.
     n_pairs, n_turning : int
         Matched pairs, and those that turned at least 3 deg.
     flip_agreement : float
@@ -120,6 +122,7 @@ class MountEstimate:
     flip_agreement: float
     yaw_concentration: float
     reason: str
+    offset_fit: NDArray[np.float64] | None = None
 
     @property
     def decided(self) -> bool:
@@ -133,6 +136,7 @@ class MountEstimate:
             "yaw_continuous_deg": None if self.yaw_continuous is None else math.degrees(self.yaw_continuous),
             "offset_m": None if self.offset is None else [float(v) for v in self.offset],
             "offset_std_m": self.offset_std,
+            "offset_fit_m": None if self.offset_fit is None else [float(v) for v in self.offset_fit],
             "n_pairs": self.n_pairs,
             "n_turning_pairs": self.n_turning,
             "flip_agreement": self.flip_agreement,
@@ -226,11 +230,8 @@ def estimate_mount(
     res = rhs.reshape(-1) - a_flat @ m
     sigma = float(np.sqrt(np.sum(res**2) / max(len(res) - 2, 1)))
     std = sigma / math.sqrt(info) if info > 0 else math.inf
-    offset = m if info >= 1.0 and std <= 0.05 else None
+    offset = m if info >= 0.25 and std <= 0.05 else None
     reason = f"flip {'yes' if flip else 'no'} ({agreement:.0%} of {nt} turning pairs), yaw {math.degrees(yaw_used):.1f} deg"
-    reason += f" (concentration {conc:.2f})" + (
-        f", offset ({m[0]:.3f}, {m[1]:.3f}) m +- {std:.3f}" if offset is not None else ", offset not observable"
-    )
-    return MountEstimate(
-        flip, yaw_used, math.remainder(yaw, math.tau), offset, None if offset is None else std, n, nt, agreement, conc, reason
-    )
+    fit = f"offset ({m[0]:.3f}, {m[1]:.3f}) m +- {std:.3f}"
+    reason += f" (concentration {conc:.2f}), " + (fit if offset is not None else f"offset not observable ({fit})")
+    return MountEstimate(flip, yaw_used, math.remainder(yaw, math.tau), offset, std, n, nt, agreement, conc, reason, offset_fit=m)

@@ -14,9 +14,10 @@ The estimate is relative to the bearings as the data gives them (a bag's ``/tf_s
 with its upside-down mirroring, or a CARMEN line's laser pose). When it is decided and
 differs from the data (a flip, a yaw more than 10 deg away, or an offset more than 10 cm away
 when the offset is observable) the estimate replaces the data's mount for the whole run, and
-stderr says so. When it cannot decide, the data's mount is kept; if the data states no mount at
-all (a bag whose transforms do not link the laser to the base), stderr warns that the mount is
-unchecked. ``laser_mount = "data"`` uses the data's mount without a check. ``metrics.json``
+stderr says so; each part (flip, yaw, offset) is replaced only where it differs by more than
+that tolerance (a stated offset is more precise than one fitted from the first scans). When it
+cannot decide, the data's mount is kept and stderr warns that the mount is unchecked
+(``laser mount UNCHECKED``). ``laser_mount = "data"`` uses the data's mount without a check. ``metrics.json``
 records all of it under ``lidar``.
 """
 
@@ -161,8 +162,13 @@ def check_lidar(
         data = setup.data_mount or (0.0, 0.0, 0.0)
         if est.decided and _differs(est, data):
             assert est.yaw is not None
-            x, y = (data[0], data[1]) if est.offset is None else (float(est.offset[0]), float(est.offset[1]))
-            setup.correction = (bool(est.flip), float(est.yaw), x, y)
+            # Each part of the data's mount is replaced only where the estimate differs from it by
+            # more than the tolerance: the estimate's offset is less precise than a stated one.
+            x, y = data[0], data[1]
+            if est.offset is not None and math.hypot(est.offset[0] - x, est.offset[1] - y) > _OFFSET_TOLERANCE:
+                x, y = float(est.offset[0]), float(est.offset[1])
+            yaw = data[2] if abs(math.remainder(est.yaw - data[2], math.tau)) <= _YAW_TOLERANCE else est.yaw
+            setup.correction = (bool(est.flip), float(yaw), x, y)
             notes.append(
                 f"laser mount: the scans move against the odometry under the data's mount {data}; using the "
                 f"estimate: {est.reason}"
