@@ -323,3 +323,24 @@ def test_mount_offset_recovered_on_simulated_scans(sim: list[LaserScan]) -> None
     flip, yaw, x, y = setup.correction
     assert flip and abs(math.remainder(yaw - mount[2], math.tau)) < 1e-9
     assert math.hypot(x - mount[0], y - mount[1]) < 0.05
+
+
+def test_laser_mount_option_values() -> None:
+    import argparse
+
+    from crlam.cli.options import bag_options, laser_mount_mode
+    from crlam.errors import ConfigError
+
+    def ns(**kw: Any) -> argparse.Namespace:
+        return argparse.Namespace(**{"laser_mount": None, "upside_down": False, **kw})
+
+    assert laser_mount_mode(ns()) == "auto" and "laser_mount" not in bag_options(ns())
+    assert laser_mount_mode(ns(laser_mount=["auto"])) == "auto" and "laser_mount" not in bag_options(ns(laser_mount=["auto"]))
+    assert laser_mount_mode(ns(laser_mount=["data"])) == "data"
+    assert laser_mount_mode(ns(laser_mount=["0.2", "0", "3.14"])) == "given"
+    assert bag_options(ns(laser_mount=["0.2", "0", "3.14"]))["laser_mount"] == [0.2, 0.0, 3.14]
+    assert laser_mount_mode(ns(upside_down=True)) == "given"
+    with pytest.raises(ConfigError, match="--laser-mount"):
+        bag_options(ns(laser_mount=["0.2", "0"]))
+    with pytest.raises(ConfigError, match="--laser-mount"):
+        laser_mount_mode(ns(laser_mount=["sideways"]))
