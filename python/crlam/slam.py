@@ -220,6 +220,13 @@ class SlamConfig:
         heading is drawn on its own axes rather than as staircases of cells. The estimates are
         in the map's frame; :meth:`SlamRun.to_odometry_frame` turns them back. Not used when
         continuing a saved run (its map keeps its frame).
+    no_return : str
+        What a no-return (``inf``, NaN, 0, below ``range_min``, at or above ``range_max``)
+        does (:mod:`crlam.io.readings`): ``"z_max"`` (paper: the z_max atom, the beam clears
+        the cells to z_max) or ``"drop"`` (left out: never clears a cell).
+    body_mask : str
+        ``"auto"``: beams that read the robot's own body are found in the first scans and left
+        out (:mod:`crlam.body_mask`); ``"off"`` (paper): every beam is used.
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
         ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
@@ -268,6 +275,8 @@ class SlamConfig:
     ogm_map: str = "log_odds"
     ogm_motion_draws: str = "per_update"
     ogm_weight_smoothing: float = 3.0
+    no_return: str = "z_max"
+    body_mask: str = "off"
     preset: str | None = field(default=None, compare=False)
 
     @classmethod
@@ -368,6 +377,10 @@ class SlamConfig:
             raise bad("ogm_motion_draws", "must be 'per_update' or 'per_scan'")
         if self.cause_kernel not in ("midpoint", "chord"):
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
+        if self.no_return not in ("drop", "z_max"):
+            raise bad("no_return", "must be 'drop' or 'z_max' (crlam.io.readings)")
+        if self.body_mask not in ("auto", "off"):
+            raise bad("body_mask", "must be 'auto' or 'off' (crlam.body_mask)")
         if self.batch_kernel not in ("windowed", "full_ray"):
             raise bad("batch_kernel", "must be 'windowed' or 'full_ray'")
         if self.motion not in ("gaussian", "thrun", "gmapping"):

@@ -52,6 +52,7 @@ def cmd_map(args: argparse.Namespace) -> int:
             max_scans=args.max_scans,
             progress=not args.quiet,
             bag_options=bag_options(args),
+            no_return=args.no_return,
         )
     print(f"mapped {run.n_scans} scans in {run.wall_time_s:.1f} s ({run.n_scans / max(run.wall_time_s, 1e-9):.0f} scans/s)")
     for name, path in files.items():
@@ -96,6 +97,14 @@ def add_map_options(p: argparse.ArgumentParser) -> None:
         "through it to readings far beyond (default: off, every factor, as the spec)",
     )
     g.add_argument("--map-stride", type=positive_int, default=1, help="every n-th beam for the map update (default: 1)")
+    g.add_argument(
+        "--no-return",
+        choices=("z_max", "drop"),
+        default="z_max",
+        help="what a no-return (inf, NaN, 0, below range_min, at or above range_max) does: the z_max atom, which "
+        "clears its beam to z_max (default, the spec), or left out, never clearing a cell (drop: crlam slam's "
+        "default preset)",
+    )
     deprecated_alias(p, "--model", "--crm-model")
     deprecated_alias(p, "--beam-stride", "--map-stride")
 

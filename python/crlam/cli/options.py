@@ -286,6 +286,22 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"beams that pass through it to readings far beyond (paper: off; {FROM_PRESET})",
         ),
     ),
+    "--no-return": (
+        "map and sensor",
+        dict(
+            choices=("drop", "z_max"),
+            help="what a no-return (inf, NaN, 0, below range_min, at or above range_max) does: left out, it never "
+            f"clears a cell (drop), or the z_max atom that clears its beam to z_max (z_max: paper; {FROM_PRESET})",
+        ),
+    ),
+    "--body-mask": (
+        "map and sensor",
+        dict(
+            choices=("auto", "off"),
+            help="leave out the beams that read the robot's own body, found in the first scans (auto) or use every "
+            f"beam (off: paper; {FROM_PRESET})",
+        ),
+    ),
     "--motion": (
         "motion model",
         dict(
@@ -403,11 +419,12 @@ def add_bag_options(p: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--laser-mount",
-        type=float,
-        nargs=3,
+        nargs="+",
         default=None,
-        metavar=("X", "Y", "YAW"),
-        help="laser pose in the base frame (m, m, rad); replaces the one of /tf_static",
+        metavar="X Y YAW | auto | data",
+        help="laser pose in the base frame (m, m, rad), replacing the one of /tf_static; or 'auto' (crlam slam's "
+        "default: the data's mount checked against the odometry, and replaced by the one the scans show when they "
+        "disagree: yaw, upside down, offset) or 'data' (the data's mount, unchecked)",
     )
     g.add_argument("--upside-down", action="store_true", help="the laser is mounted upside down: mirror its bearings")
     g.add_argument("--odom-frame", default=None, help="the odometry frame, parent of the base frame in /tf (default: odom)")
@@ -442,11 +459,38 @@ def bag_options(args: argparse.Namespace) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for name in _BAG_OPTION_NAMES:
         value = getattr(args, name, None)
+        if name == "laser_mount" and value is not None:
+            value = _mount_values(value)
         if value is not None:
             out[name] = value
     if getattr(args, "upside_down", False):
         out["upside_down"] = True
     return out
+
+
+def laser_mount_mode(args: argparse.Namespace) -> str:
+    """``crlam slam``'s mount mode: ``given`` (``--laser-mount X Y YAW`` or ``--upside-down``),
+    else ``auto`` (the default) or ``data`` as ``--laser-mount`` says."""
+    value = getattr(args, "laser_mount", None)
+    if getattr(args, "upside_down", False) or (value is not None and _mount_values(value) is not None):
+        return "given"
+    return "auto" if value is None else str(value[0]).lower()
+
+
+def _mount_values(value: Any) -> list[float] | None:
+    """``--laser-mount``'s three numbers, or None for ``auto`` / ``data``."""
+    from crlam.errors import ConfigError
+
+    items = [str(v) for v in value]
+    if len(items) == 1 and items[0].lower() in ("auto", "data"):
+        return None
+    try:
+        numbers = [float(v) for v in items]
+    except ValueError:
+        numbers = []
+    if len(numbers) != 3:
+        raise ConfigError(f"--laser-mount takes X Y YAW (m, m, rad), 'auto' or 'data' (got {' '.join(items)})")
+    return numbers
 
 
 def stored_input_options(table: dict[str, Any]) -> tuple[dict[str, Any], str | None]:

@@ -14,6 +14,7 @@ from crlam.cli.options import (
     add_preset_option,
     add_slam_flags,
     bag_options,
+    laser_mount_mode,
     positive_int,
     slam_overrides,
     staged_output,
@@ -103,6 +104,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
             odometry=odometry,
             prior=prior,
             verbose=args.verbose,
+            laser_mount=laser_mount_mode(args),
         )
     m = res.metrics
     print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")

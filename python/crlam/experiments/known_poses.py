@@ -26,6 +26,7 @@ from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import count_scans, input_description, open_log
 from crlam.io.nav2 import write_nav2_map
+from crlam.io.readings import ReadingFilter
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MapLayer, MappingConfig, ScanUpdateStats
 from crlam.pose import compose
 
@@ -79,10 +80,14 @@ def mapping_ranges(scan: LaserScan) -> NDArray[np.float64]:
     return np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
 
 
-def known_pose_scans(reader: Iterable[object], source: PoseSource) -> Iterator[KnownPoseScan]:
+def known_pose_scans(
+    reader: Iterable[object], source: PoseSource, readings: ReadingFilter | None = None
+) -> Iterator[KnownPoseScan]:
     """Laser scans of a CARMEN record stream as :class:`KnownPoseScan` (odometry is skipped).
 
-    A scan whose pose is not finite raises :class:`DataFormatError` naming its line.
+    A scan whose pose is not finite raises :class:`DataFormatError` naming its line. With
+    ``readings`` its no-return policy (:mod:`crlam.io.readings`) decides the scan's beams;
+    without, no-returns are ``inf`` (:func:`mapping_ranges`).
     """
     for rec in reader:
         if not isinstance(rec, LaserScan):
@@ -90,7 +95,11 @@ def known_pose_scans(reader: Iterable[object], source: PoseSource) -> Iterator[K
         pose = sensor_pose(rec, source)
         if not np.all(np.isfinite(pose)):
             raise DataFormatError(f"scan pose {pose.tolist()} is not finite", line=rec.line, field=f"{source} pose")
-        yield KnownPoseScan(np.asarray(pose, dtype=np.float64), rec.angles, mapping_ranges(rec), rec.timestamp)
+        if readings is None:
+            yield KnownPoseScan(np.asarray(pose, dtype=np.float64), rec.angles, mapping_ranges(rec), rec.timestamp)
+        else:
+            angles, ranges = readings.apply(rec.angles, rec.ranges, rec.max_range)
+            yield KnownPoseScan(np.asarray(pose, dtype=np.float64), angles, ranges, rec.timestamp)
 
 
 @dataclass
@@ -216,16 +225,20 @@ def map_log(
     max_scans: int | None = None,
     progress: bool = True,
     bag_options: dict[str, Any] | None = None,
+    no_return: str = "z_max",
 ) -> tuple[MappingRun, dict[str, Path]]:
     """``crlam map``: maps a CARMEN log or a ROS bag with trusted poses and writes the map folder.
+
+    ``no_return`` is the no-return policy (:mod:`crlam.io.readings`): ``z_max`` (the spec's
+    atom) or ``drop``; ``mapping.json`` records it and the beams it left out.
 
     A bag's scans carry the odometry pose (composed with the laser mount) in both pose fields, so
     ``poses`` makes no difference there; ``bag_options`` go to :func:`crlam.io.logs.open_log`."""
     reader = open_log(log_path, on_error=on_error, **(bag_options or {}))
     total = count_scans(log_path, max_scans, bag_options=bag_options) if progress else None
-    run = map_scans(
-        known_pose_scans(reader, poses), config, max_scans=max_scans, progress=progress, desc=Path(log_path).name, total=total
-    )
+    readings = ReadingFilter(no_return, config.max_range)
+    scans = known_pose_scans(reader, poses, readings)
+    run = map_scans(scans, config, max_scans=max_scans, progress=progress, desc=Path(log_path).name, total=total)
     st = reader.stats
     extra: dict[str, object] = {
         "log": str(log_path),
@@ -241,6 +254,8 @@ def map_log(
             "n_nonfinite_ranges": st.n_nonfinite_ranges,
             "n_nonpositive_ranges": st.n_nonpositive_ranges,
         },
+        "no_return": no_return,
+        "readings": readings.stats.to_dict(),
     }
     files = write_map_folder(run, out_dir, title=f"{Path(log_path).name}: CRM ({config.model}), poses from {poses}", extra=extra)
     return run, files

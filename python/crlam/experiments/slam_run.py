@@ -47,8 +47,10 @@ from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import input_description, open_log
 from crlam.io.nav2 import write_nav2_map
+from crlam.io.readings import ReadingFilter
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
+from crlam.lidar_check import LidarSetup
 from crlam.map_range import MapRangeChoice
 from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
@@ -131,13 +133,16 @@ def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
     path.write_text("\n".join(parts))
 
 
-def _scan_inputs(scan: LaserScan) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Beam bearings and ranges of a scan; readings at the sensor's own maximum become inf (the
-    filter's z_max then makes every longer reading a no-return as well)."""
+def _scan_inputs(scan: LaserScan, readings: ReadingFilter | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Beam bearings and ranges of a scan for a filter: the no-return policy and body mask of
+    ``readings`` (:mod:`crlam.io.readings`) applied; without it (localization), readings at the
+    sensor's own maximum become inf (the filter's z_max then makes every longer reading a
+    no-return as well)."""
     if not np.all(np.isfinite(scan.odom)):
         raise DataFormatError(f"odometry pose {scan.odom.tolist()} is not finite", line=scan.line, field="odom")
-    ranges = np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
-    return scan.angles, ranges
+    if readings is None:
+        return scan.angles, np.where(scan.ranges >= scan.max_range, np.inf, scan.ranges)
+    return readings.apply(scan.angles, scan.ranges, scan.max_range)
 
 
 def within_sensor_range(config: SlamConfig, sensor_max_range: float) -> SlamConfig:
@@ -169,6 +174,7 @@ def run_slam_log(
     prior: SlamPrior | None = None,
     odometry: str = "auto",
     verbose: bool = False,
+    laser_mount: str = "auto",
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
@@ -181,7 +187,10 @@ def run_slam_log(
     not read, and the filter takes :func:`~crlam.scan_odometry.scan_match_filter_config`'s motion
     noise) or ``auto`` (``scan_match`` when the input has no odometry); ``config.toml`` and
     ``metrics.json`` record which was used and why. ``prior`` continues a saved run
-    (:mod:`crlam.slam_continue`): its folder is only read, and must not be ``out_dir``."""
+    (:mod:`crlam.slam_continue`): its folder is only read, and must not be ``out_dir``.
+    ``laser_mount`` is ``auto`` (check the mount against the odometry, :mod:`crlam.lidar_check`),
+    ``data`` (the data's mount unchecked) or ``given`` (set by ``bag_options``); with
+    ``config.body_mask = "auto"`` the body beams are found by the same pre-pass."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
@@ -195,13 +204,18 @@ def run_slam_log(
     source = resolve_odometry(log_path, odometry, bag_options)
     if source[0] == "scan_match":
         config = scan_match_filter_config(config)
+    from crlam.lidar_check import check_lidar_of_log
+
+    lidar = check_lidar_of_log(log_path, bag_options, laser_mount, config.body_mask, wheel=source[0] == "wheel")
     map_range = None
     if config.map_range == "readings":
         from dataclasses import replace
 
         from crlam.map_range import map_range_from_readings
 
-        map_range = map_range_from_readings(open_log(log_path, **(bag_options or {})), config.max_range, max_scans=max_scans)
+        map_range = map_range_from_readings(
+            lidar.corrected(open_log(log_path, **(bag_options or {}))), config.max_range, max_scans=max_scans
+        )
         config = replace(config, max_range=map_range.max_range)
     noise_estimate = None
     if config.motion_noise == "estimate" and config.motion_params is None:
@@ -210,7 +224,7 @@ def run_slam_log(
         from crlam.motion_noise import estimate_gmapping_noise
 
         noise_estimate = estimate_gmapping_noise(
-            open_log(log_path, **(bag_options or {})),
+            lidar.corrected(open_log(log_path, **(bag_options or {}))),
             linear_update=config.linear_update,
             angular_update=config.angular_update,
             max_range=config.max_range,
@@ -233,13 +247,13 @@ def run_slam_log(
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
         run_wall = _run_filter(
-            records, config, log_path, max_scans, progress, recorder, t0, prior, verbose, bag_options=bag_options
+            records, config, log_path, max_scans, progress, recorder, t0, prior, verbose, bag_options=bag_options, lidar=lidar
         )
     except BaseException:
         if recorder is not None:
             recorder.close()
         raise
-    odometry_info = {"odometry": source[0], "odometry_choice": source[1]}
+    odometry_info = {"odometry": source[0], "odometry_choice": source[1], "lidar": lidar.record()}
     return _write_outputs(
         run_wall,
         reader,
@@ -277,6 +291,7 @@ def _run_filter(
     verbose: bool = False,
     *,
     bag_options: dict[str, Any] | None = None,
+    lidar: LidarSetup | None = None,
 ) -> tuple[SlamRun, float]:
     """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s).
     ``verbose`` prints a line per processed scan (estimate, N_eff, resampling)."""
@@ -294,9 +309,12 @@ def _run_filter(
         if run is None:
             config = within_sensor_range(config, rec.max_range)
             run = SlamRun(config, prior=prior)
+            readings = ReadingFilter(config.no_return, config.max_range, None if lidar is None else lidar.body_mask_for_scans())
         if max_scans is not None and run.n_scans >= max_scans:
             break
-        angles, ranges = _scan_inputs(rec)
+        if lidar is not None:
+            rec = lidar.correct(rec)
+        angles, ranges = _scan_inputs(rec, readings)
         step = run.step(rec.odom, angles, ranges, rec.laser_offset, rec.timestamp)
         if recorder is not None:
             assert run.filter is not None
@@ -316,6 +334,8 @@ def _run_filter(
     wall = time.perf_counter() - t0
     if run is None or run.n_scans == 0:
         raise DataFormatError("the log holds no laser scans", path=str(log_path))
+    if lidar is not None:
+        lidar.readings = readings.stats
     return run, wall
 
 
@@ -330,7 +350,7 @@ def _write_outputs(
     figures: bool,
     recorder: Any,
     noise_estimate: MotionNoiseEstimate | None = None,
-    odometry_info: dict[str, str] | None = None,
+    odometry_info: dict[str, Any] | None = None,
     front_end: Any = None,
     prior: SlamPrior | None = None,
     map_range: MapRangeChoice | None = None,
