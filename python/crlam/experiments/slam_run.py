@@ -196,8 +196,15 @@ def run_slam_log(
             seed=config.seed,
         )
         config = replace(config, motion_params=noise_estimate.params)
+    from crlam.time_offset import apply_time_offset, report, resolve_time_offset
+
+    offset = resolve_time_offset(
+        config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0]
+    )
+    if progress or (config.time_offset == "auto" and not offset.identified and source[0] != "scan_match"):
+        report(offset)
     reader = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
-    records: Any = reader
+    records: Any = apply_time_offset(reader, offset)
     front_end = None
     if source[0] == "scan_match":
         from crlam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig, scan_match_odometry
@@ -232,6 +239,7 @@ def run_slam_log(
         odometry_info,
         front_end,
         prior,
+        offset.to_dict(),
     )
 
 
@@ -310,6 +318,7 @@ def _write_outputs(
     odometry_info: dict[str, str] | None = None,
     front_end: Any = None,
     prior: SlamPrior | None = None,
+    time_offset: dict[str, Any] | None = None,
 ) -> SlamResult:
     run, wall = run_wall
     input_info = input_description(reader) | (odometry_info or {})
@@ -393,6 +402,7 @@ def _write_outputs(
         "scan_odometry": None if front_end is None else front_end.config.to_dict() | front_end.stats.to_dict(),
         "continued_from": None if prior is None else prior.describe(),
         "map_frame": run.map_frame_record(),
+        "time_offset": time_offset,
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
