@@ -45,13 +45,16 @@ offset of zero, nothing re-interpolated) and says why.
 
 Application (:func:`retime_odometry`)
 ------------------------------------
-Each scan's odometry becomes the log's odometry interpolated at ``t + d`` (linear in x and y,
-shortest arc in heading). It is written as a correction of the pose the log attached to the scan,
-``odom' = odom (+) (o(t) (-) o(t + d))``-style: ``odom' = compose(odom, between(O(t), O(t + d)))``
-with ``O`` the interpolated odometry, so that where the attached pose is the odometry at the scan's
-own stamp (ROS bags; Intel's ODOM lines) the result is exactly ``O(t + d)``, and where a scan's
-stamp is wrong the correction is only the motion over ``d`` seconds. With ``d = 0`` nothing
-changes. The scan's ``pose`` field (the laser pose) keeps its logged relation to ``odom``.
+Each scan's odometry becomes the odometry series (the same one the estimate compared with: the
+log's odometry records, else its scans' odometry fields) interpolated at ``t + d`` (linear in x
+and y, shortest arc in heading); the scan's ``pose`` field (the laser pose) keeps its logged
+relation to ``odom``. A CARMEN logger attaches to each scan the last odometry record before it
+(ACES: up to 0.2 s old), so a log's scans change even at ``d = 0``. A scan whose stamp contradicts
+the three records before or after it in file order (a record before it stamped more than
+``0.05 s + |d|`` later, or one after it stamped that much earlier; Intel's log has such stamps, and the
+poses of its records belong to their place in the file, not to their stamps) keeps its logged
+odometry moved by the series' motion from ``t`` to ``t + d``. ``auto`` applies the estimate only
+when it is identified; a number given is always applied (0 included); ``off`` never.
 """
 
 from __future__ import annotations
@@ -177,7 +180,10 @@ class TimeOffsetEstimate:
         What was asked: ``auto``, ``off`` or a number of seconds.
     applied_s : float
         The offset applied to the odometry (s): the estimate when identified, the number given,
-        else 0 (the log's odometry as attached).
+        else 0.
+    retimed : bool
+        Whether each scan's odometry was re-attached at its corrected stamp (identified or
+        given); False: the odometry as the log attaches it.
     estimate_s : float or None
         The refined minimum (s); None when nothing could be estimated.
     ci95_s : tuple of float or None
@@ -201,10 +207,13 @@ class TimeOffsetEstimate:
         Odometry records left out of the heading series because their stamp is out of order.
     settings : dict
         The :class:`TimeOffsetSettings` used.
+    retime : RetimeStats or None
+        What the re-attachment did (filled while the run reads the log).
     """
 
     setting: str | float
     applied_s: float = 0.0
+    retimed: bool = False
     estimate_s: float | None = None
     ci95_s: tuple[float, float] | None = None
     identified: bool = False
@@ -219,9 +228,11 @@ class TimeOffsetEstimate:
     odometry_source: str = ""
     n_stamps_out_of_order: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
+    retime: RetimeStats | None = None
 
     def to_dict(self) -> dict[str, Any]:
         d = asdict(self)
+        d["retime"] = None if self.retime is None else self.retime.to_dict()
         d["ci95_s"] = None if self.ci95_s is None else [float(v) for v in self.ci95_s]
         return d
 
@@ -482,6 +493,7 @@ def estimate_time_offset(
         est.reason = "not identified: " + "; ".join(why)
         return est
     est.identified = True
+    est.retimed = True
     est.applied_s = d_hat
     est.reason = f"identified: {d_hat:+.3f} s, 95 % interval [{lo:+.3f}, {hi:+.3f}] s, from {est.n_pairs} scan pairs"
     return est
@@ -509,11 +521,28 @@ def interpolate_pose(stamps: Array, poses: Array, t: float) -> Array:
 
 @dataclass
 class RetimeStats:
-    """What :func:`retime_odometry` did."""
+    """What :func:`retime_odometry` did.
+
+    Attributes
+    ----------
+    n_scans : int
+        Scans given odometry.
+    n_interpolated : int
+        Scans given the odometry series interpolated at their corrected stamp.
+    n_suspect_stamps : int
+        Scans whose stamp is out of order with the records around them in file order: given their
+        logged odometry moved by the series' motion over the offset instead.
+    n_odometry_out_of_order : int
+        Odometry records left out of the series (stamp out of order with both neighbours).
+    """
 
     n_scans: int = 0
-    n_from_scan_fields: int = 0
+    n_interpolated: int = 0
+    n_suspect_stamps: int = 0
     n_odometry_out_of_order: int = 0
+
+    def to_dict(self) -> dict[str, int]:
+        return asdict(self)
 
 
 class _History:
@@ -547,8 +576,7 @@ class _History:
         if self._held is not None:
             ht, hp = self._held
             prev = self._prev
-            out_of_order = prev is not None and prev <= t and (ht > t or ht < prev)
-            if out_of_order:
+            if prev is not None and prev <= t and (ht > t or ht < prev):
                 self.dropped += 1
             else:
                 self._insert(ht, hp)
@@ -572,32 +600,76 @@ class _History:
         return interpolate_pose(np.fromiter(self.t, dtype=np.float64), np.array(self.p), t)
 
 
-def retime_odometry(records: Iterable[object], offset: float, stats: RetimeStats | None = None) -> Iterator[object]:
+#: Records on each side of a scan, in file order, whose stamps must not contradict the scan's.
+_NEIGHBOURS = 3
+#: How far (s) a neighbour's stamp may lie on the wrong side of a scan's before the scan's stamp is
+#: suspect: a logger stamps a scan and the odometry record written just before it within a few
+#: milliseconds, in either order; Intel's wrong stamps are 0.1 to 0.9 s off.
+_STAMP_TOLERANCE = 0.05
+
+
+@dataclass
+class _Pending:
+    scan: LaserScan
+    before_max: float
+    after: list[float] = field(default_factory=list)
+
+
+def retime_odometry(
+    records: Iterable[object],
+    offset: float,
+    *,
+    source: str = "odometry records",
+    stats: RetimeStats | None = None,
+) -> Iterator[object]:
     """The records with every scan's odometry re-attached at its stamp plus ``offset`` seconds
     (module documentation, "Application"); other records pass through as they come.
 
-    A scan waits until an odometry record stamped at or after ``t + offset`` has been read (the
-    end of the log releases the rest, at the last odometry pose). A log without odometry records
-    uses the scans' own odometry fields as the series (each scan then waits for the scan after
-    ``t + offset``). Scans come out in file order.
-    """
-    st = stats if stats is not None else RetimeStats()
-    hist = _History()
-    own = _History()  # the scans' attached odometry, for logs without odometry records
-    pending: deque[LaserScan] = deque()
-    seen_odometry = False
+    Parameters
+    ----------
+    records : iterable
+        A log's records in file order.
+    offset : float
+        Seconds (the odometry's stamp minus the laser's for the same instant).
+    source : str
+        The odometry series: ``odometry records`` (the log's odometry records) or ``scan
+        odometry fields`` (the odometry the log attaches to its scans, for logs without odometry
+        records).
+    stats : RetimeStats, optional
+        Filled while the records are read.
 
-    def resolve(scan: LaserScan, final: bool) -> LaserScan | None:
-        src = hist if seen_odometry else own
+    Notes
+    -----
+    A scan waits until three more records have been read and the series reaches ``t + offset``
+    (the end of the log releases the rest, at the series' last pose). Scans come out in file
+    order.
+    """
+    if source not in ("odometry records", "scan odometry fields"):
+        raise ConfigError(f"retime_odometry: unknown odometry source {source!r}")
+    st = stats if stats is not None else RetimeStats()
+    series = _History()
+    from_records = source == "odometry records"
+    pending: deque[_Pending] = deque()
+    recent: deque[float] = deque(maxlen=_NEIGHBOURS)
+    # The stamps are compared as logged; odometry on a clock ``offset`` away may sit that much
+    # further on the wrong side of a scan.
+    tolerance = _STAMP_TOLERANCE + abs(offset)
+
+    def resolve(item: _Pending, final: bool) -> LaserScan | None:
+        scan = item.scan
         target = scan.timestamp + offset
-        if not final and src.last < target:
+        if not final and (len(item.after) < _NEIGHBOURS or series.last < max(target, scan.timestamp)):
             return None
-        if not src.t:
+        if not series.t:
             return scan
-        if not seen_odometry:
-            st.n_from_scan_fields += 1
-        move = between(src.at(scan.timestamp), src.at(target))
-        odom = np.asarray(compose(scan.odom, move), dtype=np.float64)
+        t = scan.timestamp
+        suspect = item.before_max > t + tolerance or any(a < t - tolerance for a in item.after)
+        if suspect:
+            st.n_suspect_stamps += 1
+            odom = np.asarray(compose(scan.odom, between(series.at(t), series.at(target))), dtype=np.float64)
+        else:
+            st.n_interpolated += 1
+            odom = series.at(target)
         pose = np.asarray(compose(odom, between(scan.odom, scan.pose)), dtype=np.float64)
         return replace(scan, odom=odom, pose=pose)
 
@@ -611,22 +683,28 @@ def retime_odometry(records: Iterable[object], offset: float, stats: RetimeStats
             yield out
 
     for rec in records:
+        stamp = getattr(rec, "timestamp", None)
+        if isinstance(stamp, float) and isinstance(rec, (LaserScan, OdometryReading)):
+            for item in pending:
+                if len(item.after) < _NEIGHBOURS:
+                    item.after.append(stamp)
         if isinstance(rec, OdometryReading):
-            seen_odometry = True
-            hist.add(rec.timestamp, np.asarray(rec.pose, dtype=np.float64))
+            if from_records:
+                series.add(rec.timestamp, np.asarray(rec.pose, dtype=np.float64))
+            recent.append(rec.timestamp)
             yield rec
             yield from flush(False)
             continue
         if isinstance(rec, LaserScan):
-            if np.all(np.isfinite(rec.odom)):
-                own.add(rec.timestamp, np.asarray(rec.odom, dtype=np.float64))
-            pending.append(rec)
+            if not from_records and np.all(np.isfinite(rec.odom)):
+                series.add(rec.timestamp, np.asarray(rec.odom, dtype=np.float64))
+            pending.append(_Pending(rec, max(recent, default=-math.inf)))
+            recent.append(rec.timestamp)
             yield from flush(False)
             continue
         yield rec
-    hist.finish()
-    own.finish()
-    st.n_odometry_out_of_order = hist.dropped
+    series.finish()
+    st.n_odometry_out_of_order = series.dropped
     yield from flush(True)
 
 
@@ -657,9 +735,16 @@ def resolve_time_offset(
         return TimeOffsetEstimate(setting=setting, reason="not applicable: the motion input is scan-matching odometry")
     if setting == "off":
         return TimeOffsetEstimate(setting=setting, reason="off: the odometry as the log attaches it to each scan")
-    if not isinstance(setting, str):
-        return TimeOffsetEstimate(setting=setting, applied_s=float(setting), reason="given")
     from crlam.io.logs import count_scans, open_log
+
+    if not isinstance(setting, str):
+        return TimeOffsetEstimate(
+            setting=setting,
+            applied_s=float(setting),
+            retimed=True,
+            reason="given",
+            odometry_source=_odometry_source(open_log(log_path, **(bag_options or {}))),
+        )
 
     n = count_scans(log_path, max_scans, bag_options=bag_options)
     est = estimate_time_offset(open_log(log_path, **(bag_options or {})), settings, n_scans=n)
@@ -667,7 +752,25 @@ def resolve_time_offset(
     return est
 
 
+def _odometry_source(records: Iterable[object], probe_scans: int = 200) -> str:
+    """``odometry records`` when an odometry record comes before the ``probe_scans``-th scan's
+    successor, else ``scan odometry fields``."""
+    n = 0
+    for rec in records:
+        if isinstance(rec, OdometryReading):
+            return "odometry records"
+        if isinstance(rec, LaserScan):
+            n += 1
+            if n > probe_scans:
+                break
+    return "scan odometry fields"
+
+
 def apply_time_offset(records: Iterable[object], estimate: TimeOffsetEstimate) -> Iterable[object]:
-    """``records`` with the odometry re-attached at the corrected stamps (:func:`retime_odometry`),
-    or as they are when the applied offset is zero."""
-    return records if estimate.applied_s == 0.0 else retime_odometry(records, estimate.applied_s)
+    """``records`` with the odometry re-attached at the corrected stamps (:func:`retime_odometry`)
+    when the estimate says so (``retimed``), else as they are; ``estimate.retime`` gets the
+    re-attachment's counts."""
+    if not estimate.retimed:
+        return records
+    estimate.retime = RetimeStats()
+    return retime_odometry(records, estimate.applied_s, source=estimate.odometry_source, stats=estimate.retime)

@@ -233,13 +233,13 @@ def build_variant(records: list[CarmenRecord], variant: str, settings: StressSet
     """The records of stress variant ``variant`` (one of :data:`STRESS_VARIANTS`, or ``none``:
     the scans with one ODOM line each, unchanged otherwise)."""
     s = settings or StressSettings()
+    if variant != "none" and variant not in _BUILDERS:
+        raise ConfigError(f"unknown stress variant {variant!r}: one of none, {', '.join(STRESS_VARIANTS)}")
     scans = _scans(records)
     if not scans:
         raise DataFormatError("the log holds no laser scans")
     if variant == "none":
         return _with_odometry(scans)
-    if variant not in _BUILDERS:
-        raise ConfigError(f"unknown stress variant {variant!r}: one of none, {', '.join(STRESS_VARIANTS)}")
     return _BUILDERS[variant](scans, s)
 
 
