@@ -134,7 +134,9 @@ def test_scans_with_stamps_out_of_order_keep_their_logged_odometry() -> None:
             place = 0.9 if j == 2 else s
             if abs(place - t) < 1e-9:
                 records.append(
-                    LaserScan(np.ones(3), -0.1, 0.1, 10.0, pose=np.array([place, 0, 0]), odom=np.array([place, 0, 0]), timestamp=s)
+                    LaserScan(
+                        np.ones(3), -0.1, 0.1, 10.0, pose=np.array([place, 0, 0]), odom=np.array([place, 0, 0]), timestamp=s
+                    )
                 )
     stats = RetimeStats()
     out = [r for r in retime_odometry(iter(records), 0.0, stats=stats) if isinstance(r, LaserScan)]

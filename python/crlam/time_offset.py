@@ -713,7 +713,6 @@ def report(estimate: TimeOffsetEstimate) -> None:
     print(f"time offset: {estimate.applied_s:+.3f} s applied ({estimate.setting}): {estimate.reason}", file=sys.stderr)
 
 
-
 def resolve_time_offset(
     setting: str | float,
     log_path: str | os.PathLike[str],

@@ -198,9 +198,7 @@ def run_slam_log(
         config = replace(config, motion_params=noise_estimate.params)
     from crlam.time_offset import apply_time_offset, report, resolve_time_offset
 
-    offset = resolve_time_offset(
-        config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0]
-    )
+    offset = resolve_time_offset(config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0])
     if progress or (config.time_offset == "auto" and not offset.identified and source[0] != "scan_match"):
         report(offset)
     reader = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))

@@ -167,7 +167,9 @@ def run_stress(
         for v in all_variants
         for k in range(seeds)
     ]
-    done, errors = run_sweep(specs, root, workers=workers, progress=progress, report_only=report_only, executor=executor, verbose=verbose)
+    done, errors = run_sweep(
+        specs, root, workers=workers, progress=progress, report_only=report_only, executor=executor, verbose=verbose
+    )
     rows = _rows(done, all_variants, seeds, tolerance)
     files = _write_tables(root, rows, fixed, errors, relations is not None, tolerance)
     if not report_only:

@@ -192,9 +192,7 @@ def _turn_heading(scans: list[LaserScan], s: StressSettings) -> list[CarmenRecor
 
 
 def _half_beams(scans: list[LaserScan], s: StressSettings) -> list[CarmenRecord]:
-    return _with_odometry(
-        [replace(sc, ranges=sc.ranges[::2].copy(), angle_increment=2.0 * sc.angle_increment) for sc in scans]
-    )
+    return _with_odometry([replace(sc, ranges=sc.ranges[::2].copy(), angle_increment=2.0 * sc.angle_increment) for sc in scans])
 
 
 def _no_returns(scans: list[LaserScan], s: StressSettings) -> list[CarmenRecord]:
