@@ -36,12 +36,15 @@ Estimate (:func:`estimate_time_offset`)
    ``bootstrap`` times (seeded) and the refined minimum is found for each; the 95 % interval is
    their 2.5 and 97.5 percentiles.
 
-The estimate is **identified**, and applied, only when all hold: the grid minimum lies at least
+The estimate is **identified** only when all hold: the grid minimum lies at least
 two steps inside the search range; the bootstrap interval's half-width is at most
 ``max_halfwidth_s``; the heading scale's magnitude is within [0.5, 2] (the scans turn with the
 odometry, either way round); and the fit explains at least half of the scans' heading changes
-(``1 - C / sum a^2 >= 0.5``). Otherwise the run uses the odometry as the log attaches it (an
-offset of zero, nothing re-interpolated) and says why.
+(``1 - C / sum a^2 >= 0.5``). It is **applied** when identified and at least ``min_apply_s``
+(0.01 s) in magnitude: a smaller shift moves the odometry by less than a centimetre at 1 m/s,
+and re-attaching would only trade the logger's choice of odometry record for the interpolation.
+Otherwise the run uses the odometry as the log attaches it (nothing re-interpolated) and says
+why.
 
 Application (:func:`retime_odometry`)
 ------------------------------------
@@ -143,6 +146,9 @@ class TimeOffsetSettings:
         Bootstrap resamples.
     max_halfwidth_s : float
         The 95 % interval's half-width (s) above which the estimate is not identified.
+    min_apply_s : float
+        An identified estimate smaller than this (s) in magnitude is not applied: the odometry
+        stays as the log attaches it.
     seed : int
         Seed of the bootstrap's draws.
     """
@@ -155,6 +161,7 @@ class TimeOffsetSettings:
     blocks: int = 40
     bootstrap: int = 300
     max_halfwidth_s: float = 0.025
+    min_apply_s: float = 0.01
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -162,6 +169,8 @@ class TimeOffsetSettings:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v > 0):
                 raise ConfigError(f"TimeOffsetSettings.{name}: must be a finite number > 0 (got {v!r})")
+        if not (isinstance(self.min_apply_s, (int, float)) and 0 <= self.min_apply_s < self.search_s):
+            raise ConfigError(f"TimeOffsetSettings.min_apply_s: must be in [0, search_s) (got {self.min_apply_s!r})")
         if self.step_s * 4 > self.search_s:
             raise ConfigError("TimeOffsetSettings: search_s must span at least 4 grid steps")
         for name in ("max_scans", "segments", "blocks", "bootstrap"):
@@ -493,9 +502,13 @@ def estimate_time_offset(
         est.reason = "not identified: " + "; ".join(why)
         return est
     est.identified = True
+    found = f"identified: {d_hat:+.3f} s, 95 % interval [{lo:+.3f}, {hi:+.3f}] s, from {est.n_pairs} scan pairs"
+    if abs(d_hat) < s.min_apply_s:
+        est.reason = f"{found}; smaller than {s.min_apply_s:g} s: not applied, the odometry as the log attaches it"
+        return est
     est.retimed = True
     est.applied_s = d_hat
-    est.reason = f"identified: {d_hat:+.3f} s, 95 % interval [{lo:+.3f}, {hi:+.3f}] s, from {est.n_pairs} scan pairs"
+    est.reason = found
     return est
 
 
