@@ -162,6 +162,9 @@ def run_stress(
             SlamConfig(**{**base.to_dict(), "seed": k}),
             reference=None if reference is None else str(reference),
             relations=None if relations is None else str(relations),
+            # The variant logs hold max_scans scans already; the limit also lets the relations
+            # metric skip the relations of the scans left out.
+            max_scans=max_scans,
             threads=threads,
         )
         for v in all_variants
