@@ -210,3 +210,26 @@ def test_real_log_odometry_stamps_shifted_by_015_s_are_recovered(data_dir: Path,
     assert base.identified and shifted.identified, (base.reason, shifted.reason)
     assert base.estimate_s is not None and shifted.estimate_s is not None
     assert abs((shifted.estimate_s - base.estimate_s) - 0.15) <= 0.02
+
+
+def test_localize_applies_the_offset(tmp_path: Path) -> None:
+    from crlam.experiments.localize_run import run_localize_log
+    from crlam.experiments.stress_variants import write_variant
+    from crlam.io.tum import read_tum
+    from crlam.localize import LocalizeConfig
+    from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
+
+    paths = write_simulation(simulate(SimulationConfig(world="office", n_scans=120, sensor="sick", seed=2)), tmp_path / "sim")
+    records = load_records(paths["carmen"])
+    log = write_variant(build_variant(records, "odom_shift"), tmp_path / "shifted.clf", "odom_shift")
+    start = read_tum(paths["groundtruth"]).poses[0]
+    config = LocalizeConfig(max_beams=45, max_particles=500, min_particles=100, spread_particles=0, seed=1)
+    kwargs = dict(initial_pose=start, initial_cov=np.array([0.01, 0.01, 0.005]), progress=False, figures=False)
+    res = run_localize_log(log, paths["world_yaml"], tmp_path / "loc", config, time_offset=0.15, **kwargs)  # type: ignore[arg-type]
+    assert res.metrics["time_offset"]["retimed"] and res.metrics["time_offset"]["applied_s"] == 0.15
+    original = np.array([r.odom for r in records if isinstance(r, LaserScan)])
+    used = np.array(res.localizer.odometry)
+    assert np.allclose(used[1:-2, :2], original[1:-2, :2], atol=1e-4)
+    off = run_localize_log(log, paths["world_yaml"], tmp_path / "off", config, time_offset="off", **kwargs)  # type: ignore[arg-type]
+    assert not off.metrics["time_offset"]["retimed"]
+    assert not np.allclose(np.array(off.localizer.odometry)[1:-2, :2], original[1:-2, :2], atol=1e-3)
