@@ -53,8 +53,9 @@ log's odometry records, else its scans' odometry fields) interpolated at ``t + d
 and y, shortest arc in heading); the scan's ``pose`` field (the laser pose) keeps its logged
 relation to ``odom``. A CARMEN logger attaches to each scan the last odometry record before it
 (ACES: up to 0.2 s old), so a log's scans change even at ``d = 0``. A scan whose stamp contradicts
-the three records before or after it in file order (a record before it stamped more than
-``0.05 s + |d|`` later, or one after it stamped that much earlier; Intel's log has such stamps, and the
+the three records before or after it in file order (a record before it stamped more than 0.05 s
+later, or one after it stamped more than 0.05 s earlier; an odometry record's stamp counts as
+logged or minus ``d``, whichever contradicts less; Intel's log has such stamps, and the
 poses of its records belong to their place in the file, not to their stamps) keeps its logged
 odometry moved by the series' motion from ``t`` to ``t + d``. ``auto`` applies the estimate only
 when it is identified; a number given is always applied (0 included); ``off`` never.
@@ -617,15 +618,19 @@ class _History:
 _NEIGHBOURS = 3
 #: How far (s) a neighbour's stamp may lie on the wrong side of a scan's before the scan's stamp is
 #: suspect: a logger stamps a scan and the odometry record written just before it within a few
-#: milliseconds, in either order; Intel's wrong stamps are 0.1 to 0.9 s off.
+#: milliseconds, in either order; Intel's wrong stamps are 0.1 to 0.9 s off. An odometry
+#: neighbour's stamp is read both as logged and moved by the offset, and the smaller
+#: contradiction counts (a laser that stamps late is written after odometry of later instants).
 _STAMP_TOLERANCE = 0.05
 
 
 @dataclass
 class _Pending:
+    """A scan waiting for its odometry, with the (stamp, is a scan) of the records around it."""
+
     scan: LaserScan
-    before_max: float
-    after: list[float] = field(default_factory=list)
+    before_records: list[tuple[float, bool]]
+    after_records: list[tuple[float, bool]] = field(default_factory=list)
 
 
 def retime_odometry(
@@ -663,20 +668,32 @@ def retime_odometry(
     series = _History()
     from_records = source == "odometry records"
     pending: deque[_Pending] = deque()
-    recent: deque[float] = deque(maxlen=_NEIGHBOURS)
-    # The stamps are compared as logged; odometry on a clock ``offset`` away may sit that much
-    # further on the wrong side of a scan.
-    tolerance = _STAMP_TOLERANCE + abs(offset)
+    recent: deque[tuple[float, bool]] = deque(maxlen=_NEIGHBOURS)
+
+    def contradiction(stamp: float, is_scan: bool, t: float, before: bool) -> float:
+        """How far (s) a neighbour's stamp lies on the wrong side of the scan's ``t`` (after it for
+        a record before the scan in the file, before it for one after). A scan's stamp is on the
+        scan's clock; an odometry stamp may be on the odometry's (``offset`` away) or, when the
+        logger stamped both, on the same: the smaller of the two readings counts."""
+        sign = 1.0 if before else -1.0
+        if is_scan:
+            return sign * (stamp - t)
+        return min(sign * (stamp - t), sign * (stamp - offset - t))
 
     def resolve(item: _Pending, final: bool) -> LaserScan | None:
         scan = item.scan
         target = scan.timestamp + offset
-        if not final and (len(item.after) < _NEIGHBOURS or series.last < max(target, scan.timestamp)):
+        if not final and (len(item.after_records) < _NEIGHBOURS or series.last < max(target, scan.timestamp)):
             return None
         if not series.t:
             return scan
         t = scan.timestamp
-        suspect = item.before_max > t + tolerance or any(a < t - tolerance for a in item.after)
+        worst = max(
+            [contradiction(u, k, t, True) for u, k in item.before_records]
+            + [contradiction(u, k, t, False) for u, k in item.after_records],
+            default=-math.inf,
+        )
+        suspect = worst > _STAMP_TOLERANCE
         if suspect:
             st.n_suspect_stamps += 1
             odom = np.asarray(compose(scan.odom, between(series.at(t), series.at(target))), dtype=np.float64)
@@ -696,23 +713,23 @@ def retime_odometry(
             yield out
 
     for rec in records:
-        stamp = getattr(rec, "timestamp", None)
-        if isinstance(stamp, float) and isinstance(rec, (LaserScan, OdometryReading)):
+        if isinstance(rec, (LaserScan, OdometryReading)):
+            here = (float(rec.timestamp), isinstance(rec, LaserScan))
             for item in pending:
-                if len(item.after) < _NEIGHBOURS:
-                    item.after.append(stamp)
+                if len(item.after_records) < _NEIGHBOURS:
+                    item.after_records.append(here)
         if isinstance(rec, OdometryReading):
             if from_records:
                 series.add(rec.timestamp, np.asarray(rec.pose, dtype=np.float64))
-            recent.append(rec.timestamp)
+            recent.append(here)
             yield rec
             yield from flush(False)
             continue
         if isinstance(rec, LaserScan):
             if not from_records and np.all(np.isfinite(rec.odom)):
                 series.add(rec.timestamp, np.asarray(rec.odom, dtype=np.float64))
-            pending.append(_Pending(rec, max(recent, default=-math.inf)))
-            recent.append(rec.timestamp)
+            pending.append(_Pending(rec, list(recent)))
+            recent.append(here)
             yield from flush(False)
             continue
         yield rec

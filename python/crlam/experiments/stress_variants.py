@@ -10,7 +10,9 @@ odometry fields agree); the scans' odometry fields are the variant's odometry.
     Odometry stamps shifted later by ``odom_shift_s`` (0.15 s): the ``ODOM`` line of scan ``k``
     is stamped ``t_k + 0.15`` and holds the scan's original odometry pose; the scan's own
     odometry field becomes the original odometry interpolated at ``t_k - 0.15`` (what a logger on
-    the shifted clock attaches). The true offset (:mod:`crlam.time_offset`) is ``+0.15 s``.
+    the shifted clock attaches; a scan whose stamp is out of order with its neighbours gets its
+    own pose moved by the odometry's motion from ``t_k`` to ``t_k - 0.15``). The true offset
+    (:mod:`crlam.time_offset`) is ``+0.15 s``.
 ``turn_heading``
     The odometry's heading error tripled in turns. The reference heading change of each
     scan-to-scan step is scan-matching odometry's (:class:`crlam.scan_odometry.ScanMatchOdometry`,
@@ -150,7 +152,21 @@ def _odom_shift(scans: list[LaserScan], s: StressSettings) -> list[CarmenRecord]
     from crlam.time_offset import interpolate_pose
 
     t, p = odometry_series(scans)
-    shifted = [_set_odom(sc, interpolate_pose(t, p, sc.timestamp - s.odom_shift_s)) for sc in scans]
+    # The scan's own pose moved by the series' motion from t to t - shift: the series at t - shift
+    # where the stamp is in order (the series passes through the scan's pose there), and no jump
+    # from the scan's place where its stamp is out of order (Intel's).
+    shifted = [
+        _set_odom(
+            sc,
+            np.asarray(
+                compose(
+                    sc.odom, between(interpolate_pose(t, p, sc.timestamp), interpolate_pose(t, p, sc.timestamp - s.odom_shift_s))
+                ),
+                dtype=np.float64,
+            ),
+        )
+        for sc in scans
+    ]
     odom_stamps = [sc.timestamp + s.odom_shift_s for sc in scans]
     out: list[CarmenRecord] = []
     for k, sc in enumerate(shifted):
