@@ -55,7 +55,8 @@ relation to ``odom``. A CARMEN logger attaches to each scan the last odometry re
 (ACES: up to 0.2 s old), so a log's scans change even at ``d = 0``. A scan whose stamp contradicts
 the three records before or after it in file order (a record before it stamped more than 0.05 s
 later, or one after it stamped more than 0.05 s earlier; an odometry record's stamp counts as
-logged or minus ``d``, whichever contradicts less; Intel's log has such stamps, and the
+logged or minus ``d``, whichever contradicts less; or whose logged odometry pose is held by
+odometry records only more than 0.25 s from its stamp; Intel's log has such stamps, and the
 poses of its records belong to their place in the file, not to their stamps) keeps its logged
 odometry moved by the series' motion from ``t`` to ``t + d``. ``auto`` applies the estimate only
 when it is identified; a number given is always applied (0 included); ``off`` never.
@@ -613,6 +614,19 @@ class _History:
     def at(self, t: float) -> Array:
         return interpolate_pose(np.fromiter(self.t, dtype=np.float64), np.array(self.p), t)
 
+    def stamps_of(self, pose: Array, t: float, window: float) -> Array:
+        """Stamps within ``window`` s of ``t`` of the records holding ``pose`` (to 1 mm and
+        1e-4 rad)."""
+        ts = np.fromiter(self.t, dtype=np.float64)
+        near = np.flatnonzero(np.abs(ts - t) <= window)
+        if not len(near):
+            return near.astype(np.float64)
+        ps = np.array([self.p[i] for i in near])
+        same = (np.hypot(ps[:, 0] - pose[0], ps[:, 1] - pose[1]) <= 1e-3) & (
+            np.abs(np.remainder(ps[:, 2] - pose[2] + math.pi, 2.0 * math.pi) - math.pi) <= 1e-4
+        )
+        return ts[near[same]]
+
 
 #: Records on each side of a scan, in file order, whose stamps must not contradict the scan's.
 _NEIGHBOURS = 3
@@ -622,6 +636,12 @@ _NEIGHBOURS = 3
 #: neighbour's stamp is read both as logged and moved by the offset, and the smaller
 #: contradiction counts (a laser that stamps late is written after odometry of later instants).
 _STAMP_TOLERANCE = 0.05
+#: A scan whose attached odometry pose is held by odometry records only more than this (s) away
+#: from its stamp (searched within ``_ATTACHED_WINDOW``) has a stamp that is not its time: a
+#: logger attaches the last record before the scan (ACES: up to 0.2 s old), or the record of the
+#: scan's own (offset) stamp.
+_ATTACHED_TOLERANCE = 0.25
+_ATTACHED_WINDOW = 1.5
 
 
 @dataclass
@@ -694,6 +714,11 @@ def retime_odometry(
             default=-math.inf,
         )
         suspect = worst > _STAMP_TOLERANCE
+        if not suspect and from_records:
+            # A logger attaches an odometry record to the scan: when that record is in the series
+            # but only far from the scan's stamp, the stamp is not the scan's time.
+            held = series.stamps_of(scan.odom, t, _ATTACHED_WINDOW)
+            suspect = bool(len(held)) and float(np.min(np.abs(held - t))) > _ATTACHED_TOLERANCE
         if suspect:
             st.n_suspect_stamps += 1
             odom = np.asarray(compose(scan.odom, between(series.at(t), series.at(target))), dtype=np.float64)
