@@ -119,11 +119,11 @@ def _scans(records: list[CarmenRecord]) -> list[LaserScan]:
 def odometry_series(scans: list[LaserScan]) -> tuple[Array, Array]:
     """(stamps, poses) of the scans' odometry, sorted by stamp, stamps out of order with both
     file-order neighbours left out (:mod:`crlam.time_offset`)."""
-    from crlam.time_offset import _locally_ordered
+    from crlam.odometry_retime import locally_ordered
 
     t = np.array([s.timestamp for s in scans], dtype=np.float64)
     p = np.array([s.odom for s in scans], dtype=np.float64).reshape(-1, 3)
-    ok = _locally_ordered(t)
+    ok = locally_ordered(t)
     t, p = t[ok], p[ok]
     order = np.argsort(t, kind="stable")
     t, p = t[order], p[order]
