@@ -21,6 +21,7 @@ from crlam.map_range import MAP_RANGES
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
 from crlam.pose import number_pair
 from crlam.slam_continue import SlamPrior
+from crlam.time_offset import MAX_TIME_OFFSET, valid_time_offset
 
 __all__ = [
     "SlamConfig",
@@ -227,6 +228,13 @@ class SlamConfig:
     body_mask : str
         ``"auto"``: beams that read the robot's own body are found in the first scans and left
         out (:mod:`crlam.body_mask`); ``"off"`` (paper): every beam is used.
+    time_offset : str or float
+        The offset (s) between the log's laser and odometry stamps, read by ``crlam slam`` and
+        :func:`crlam.experiments.slam_run.run_slam_log` (:mod:`crlam.time_offset`): ``auto``
+        (default) estimates it from the log's scans and odometry and re-attaches the odometry at
+        each scan's corrected stamp when the estimate is identified (else leaves it as logged);
+        ``off`` leaves the odometry as the log attaches it; a number applies that offset. Input
+        handling only: :meth:`SlamRun.step` takes the odometry it is given.
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
         ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
@@ -277,6 +285,7 @@ class SlamConfig:
     ogm_weight_smoothing: float = 3.0
     no_return: str = "z_max"
     body_mask: str = "off"
+    time_offset: str | float = "auto"
     preset: str | None = field(default=None, compare=False)
 
     @classmethod
@@ -369,6 +378,8 @@ class SlamConfig:
             raise bad("proposal_pose", "'match' needs an improved proposal: proposal='likelihood_mode' (RBPF-CLAM)")
         if self.scan_match_weight not in ("crm", "endpoint"):
             raise bad("scan_match_weight", "must be 'crm' or 'endpoint'")
+        if not valid_time_offset(self.time_offset):
+            raise bad("time_offset", f"must be 'auto', 'off' or seconds within +-{MAX_TIME_OFFSET:g}")
         if not _valid_match_range(self.match_range):
             raise bad("match_range", f"must be 'z_max', 'full' or a range in metres in (0, {MAX_MATCH_RANGE:g}]")
         if self.ogm_map not in ("log_odds", "hit_rate", "gmapping"):

@@ -29,6 +29,7 @@ __all__ = ["COMMANDS", "build_parser", "main", "slam_config_of"]
 COMMANDS = (
     "demo",
     "simulate",
+    "semireal",
     "map",
     "slam",
     "localize",

@@ -1,4 +1,4 @@
-"""``crlam experiment``: the paper's experiments as resumable sweeps (table1, real-logs, iig, explore)."""
+"""``crlam experiment``: the paper's experiments as resumable sweeps (table1, real-logs, iig, explore, stress)."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ from crlam.cli.conventions import (
     add_output_options,
     deprecated_alias,
     group,
+    input_file,
     list_choices,
     map_file,
     print_settings,
@@ -124,6 +125,8 @@ def cmd_experiment(args: argparse.Namespace) -> int:
         )
         print(f"{len(sweep.rows)} runs finished, {len(sweep.errors)} failed; report: {sweep.files['report']}")
         return 0 if not sweep.errors else 1
+    if args.experiment == "stress":
+        return _cmd_stress(args, out, sweep_options)
     if args.experiment == "table1":
         from crlam.experiments.table1 import PROTOCOL_MAX_RANGE, run_table1
 
@@ -371,7 +374,7 @@ def _add_explore(exp: argparse._SubParsersAction) -> None:  # type: ignore[type-
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
-    """Add ``experiment`` (``table1``, ``real-logs``, ``iig``, ``explore``) to ``sub``."""
+    """Add ``experiment`` (``table1``, ``real-logs``, ``iig``, ``explore``, ``stress``) to ``sub``."""
     p: argparse.ArgumentParser = sub.add_parser(
         "experiment",
         help="run a paper experiment (resumable) and write its table and figures",
@@ -385,4 +388,99 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     _add_real_logs(exp)
     _add_iig(exp)
     _add_explore(exp)
+    _add_stress(exp)
     return p
+
+
+def _cmd_stress(args: argparse.Namespace, out: Path, sweep_options: dict[str, Any]) -> int:
+    from crlam.experiments.stress import run_stress
+    from crlam.experiments.stress_variants import StressSettings
+    from crlam.presets import load_config_file, resolve
+
+    if args.config is not None:
+        stored = load_config_file(args.config)
+        base = resolve(stored.preset, stored.settings | slam_overrides(args))
+    else:
+        base = resolve(args.preset or DEFAULT_PRESET, slam_overrides(args))
+    settings = StressSettings(
+        odom_shift_s=args.odom_shift,
+        heading_error_factor=args.heading_error_factor,
+        turn_rate=args.turn_rate,
+        no_return_fraction=args.no_return_fraction,
+        seed=args.stress_seed,
+    )
+    print_settings(args, base_settings=base, executor=sweep_options["executor"].describe())
+    res = run_stress(
+        args.log,
+        out,
+        relations=args.relations,
+        reference=args.reference,
+        variants=args.variants,
+        seeds=args.runs,
+        base=base,
+        settings=settings,
+        max_scans=args.max_scans,
+        tolerance=args.tolerance,
+        threads=args.threads,
+        report_only=args.report_only,
+        **sweep_options,
+    )
+    print(res.files["table"].read_text())
+    return 0 if not res.errors else 1
+
+
+def _add_stress(exp: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    from crlam.experiments.stress_variants import STRESS_VARIANTS
+
+    st = exp.add_parser(
+        "stress",
+        help="the default SLAM on stress variants of a CARMEN log, against the unstressed run",
+        description="Writes stress variants of a CARMEN log (odometry stamps shifted, the odometry's heading error "
+        "tripled in turns, every second beam, 10 %% of the readings made no-returns, a laser turned 180 deg or "
+        "mounted upside down without the log saying so; exact definitions in the documentation, "
+        "docs/results/stress.md), runs the SLAM settings on each and on the log itself with several seeds, and "
+        "writes table.md: every seed's error, the worst seed against the unstressed mean, pass when within "
+        "--tolerance.",
+    )
+    inp = group(st, "input")
+    inp.add_argument("log", type=input_file, help="CARMEN log (plain, .gz or .bz2) or a dataset name (intel, aces)")
+    ev = inp.add_mutually_exclusive_group(required=True)
+    ev.add_argument("--relations", type=input_file, help="Kuemmerle relations file or dataset name (intel-relations)")
+    ev.add_argument("--reference", type=input_file, help="ground-truth TUM trajectory (position RMSE)")
+    inp.add_argument("--max-scans", type=positive_int, default=None, help="only the first N scans of the log")
+    _sweep_output(st, report_only=True)
+    grid = group(st, "run control", "the grid of runs")
+    grid.add_argument(
+        "--variants",
+        action=ListAction,
+        choices=list_choices(STRESS_VARIANTS),
+        default=list(STRESS_VARIANTS),
+        help=f"stress variants (default: all: {' '.join(STRESS_VARIANTS)}); the unstressed run is always added",
+    )
+    grid.add_argument("--runs", type=positive_int, default=3, help="seeds per variant (default: 3)")
+    grid.add_argument(
+        "--tolerance", type=positive_float, default=1.5, help="pass: every seed within this factor of the unstressed mean"
+    )
+    sizes = group(st, "stresses", "the sizes of the stresses")
+    sizes.add_argument("--odom-shift", type=finite_float, default=0.15, metavar="S", help="odom_shift: seconds (default: 0.15)")
+    sizes.add_argument(
+        "--heading-error-factor",
+        type=nonnegative_float,
+        default=3.0,
+        help="turn_heading: factor on the odometry's heading error in turns (default: 3)",
+    )
+    sizes.add_argument(
+        "--turn-rate", type=nonnegative_float, default=0.2, help="turn_heading: a turn is faster than this, rad/s (default: 0.2)"
+    )
+    sizes.add_argument(
+        "--no-return-fraction", type=nonnegative_float, default=0.1, help="no_returns: fraction of readings (default: 0.1)"
+    )
+    sizes.add_argument("--stress-seed", type=int, default=0, help="seed of the no-returns' draw (default: 0)")
+    _workers(st, threads=True)
+    settings = group(st, "settings", "a preset or a stored configuration; every flag of the groups below overrides it")
+    source = settings.add_mutually_exclusive_group()
+    add_preset_option(source, DEFAULT_PRESET)
+    source.add_argument("--config", metavar="FILE", help="the [slam] settings of FILE, a run folder's config.toml")
+    add_slam_flags(st, (*_SWEEP_FLAGS, *_REAL_LOG_FLAGS, "--particles", "--max-range", "--time-offset"))
+    add_executor_options(st)
+    st.set_defaults(func=cmd_experiment)

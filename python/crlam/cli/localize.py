@@ -15,6 +15,7 @@ from crlam.cli.options import (
     positive_float,
     positive_int,
     staged_output,
+    time_offset,
 )
 
 __all__ = ["add_parser", "cmd_localize", "localize_config_of"]
@@ -144,6 +145,7 @@ def cmd_localize(args: argparse.Namespace) -> int:
             max_scans=args.max_scans,
             progress=not args.quiet,
             bag_options=bag_options(args),
+            time_offset=args.time_offset,
         )
     m = res.metrics
     print(
@@ -316,6 +318,15 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         help="process after this travel in m (default 0.005: every scan while moving)",
     )
     m.add_argument("--angular-update", type=nonnegative_float, default=None, help="... or this rotation in rad (default 0.005)")
+    m.add_argument(
+        "--time-offset",
+        type=time_offset,
+        default="auto",
+        metavar="auto|off|S",
+        help="offset in s of the odometry's stamps against the laser's: auto estimates it from the log and re-attaches "
+        "each scan's odometry at its corrected stamp when clearly identified; off leaves the odometry as logged; a "
+        "number applies it (default: auto; metrics.json records it)",
+    )
     n = group(p, "Nav2 map as a CRM prior", "for a .yaml map")
     n.add_argument("--nav2-occupied", type=positive_float, default=0.9, help="expected occupancy of an occupied cell (0.9)")
     n.add_argument("--nav2-free", type=positive_float, default=0.01, help="expected occupancy of a free cell (0.01)")

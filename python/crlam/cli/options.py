@@ -38,6 +38,7 @@ __all__ = [
     "staged_output",
     "finite_float",
     "match_range",
+    "time_offset",
     "nonnegative_float",
     "nonnegative_int",
     "positive_float",
@@ -89,6 +90,13 @@ def nonnegative_int(text: str) -> int:
     if v < 0:
         raise argparse.ArgumentTypeError(f"must be >= 0, got {text}")
     return v
+
+
+def time_offset(text: str) -> str | float:
+    """``--time-offset``: ``auto``, ``off`` or seconds (:func:`crlam.time_offset.parse_time_offset`)."""
+    from crlam.time_offset import parse_time_offset
+
+    return parse_time_offset(text)
 
 
 def match_range(text: str) -> str | float:
@@ -341,6 +349,18 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             "smoothing)",
         ),
     ),
+    "--time-offset": (
+        "motion input",
+        dict(
+            type=time_offset,
+            metavar="auto|off|S",
+            help="offset in seconds of the odometry's stamps against the laser's (positive: the odometry is stamped "
+            "later): auto estimates it from the scans' turns against the odometry's and re-attaches each scan's "
+            "odometry at its corrected stamp when the estimate is clearly identified (else the odometry stays as "
+            "logged, and the run says why); off leaves the odometry as logged; a number applies it; metrics.json "
+            f"records the estimate (default: auto; {FROM_PRESET})",
+        ),
+    ),
     "--fill": (
         "estimates",
         dict(
@@ -442,7 +462,9 @@ _BAG_OPTION_NAMES = ("scan_topic", "odom_topic", "base_frame", "odom_frame", "la
 
 def add_odometry_options(p: argparse.ArgumentParser) -> None:
     """``--odometry`` and ``--imu-topic`` of ``crlam slam``: the motion input."""
-    g = p.add_argument_group("motion input")
+    from crlam.cli.conventions import group
+
+    g = group(p, "motion input")
     g.add_argument(
         "--odometry",
         choices=("auto", "wheel", "scan_match"),

@@ -190,9 +190,12 @@ def run_localize_log(
     progress: bool = True,
     figures: bool = True,
     bag_options: dict[str, Any] | None = None,
+    time_offset: str | float = "auto",
 ) -> LocalizeResult:
     """Localizes the log's scans on the map and writes the run folder (module docstring).
 
+    ``time_offset`` (``auto``, ``off`` or seconds) re-attaches the odometry at each scan's
+    corrected stamp (:mod:`crlam.time_offset`); ``metrics.json`` records it (``time_offset``).
     Without ``initial_pose`` the localization is global. ``relations`` (a Kuemmerle relations
     file) and ``reference`` (a TUM trajectory in the map's frame) add their errors to
     ``metrics.json``.
@@ -201,7 +204,13 @@ def run_localize_log(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     loc_map = load_localization_map(map_path, nav2_prior=nav2_prior)
+    from crlam.time_offset import apply_time_offset, report, resolve_time_offset
+
+    offset = resolve_time_offset(time_offset, log_path, bag_options=bag_options, max_scans=max_scans)
+    if progress or (time_offset == "auto" and not offset.identified):
+        report(offset)
     reader = open_log(log_path, **(bag_options or {}))
+    records = apply_time_offset(reader, offset)
     t0, c0 = time.perf_counter(), time.process_time()
     loc: Localizer | None = None
     endpoints: EndpointCounter | None = None
@@ -210,7 +219,7 @@ def run_localize_log(
     bar = scan_progress_bar(
         log_path, desc=f"localize {Path(log_path).name}", progress=progress, max_scans=max_scans, bag_options=bag_options
     )
-    for rec in reader:
+    for rec in records:
         if not isinstance(rec, LaserScan):
             continue
         if loc is None:
@@ -231,6 +240,7 @@ def run_localize_log(
         raise DataFormatError("the log holds no laser scans", path=str(log_path))
     near_a, total_a = np.asarray(near, dtype=np.int64), np.asarray(total, dtype=np.int64)
     metrics = _metrics(loc, loc_map, log_path, wall, cpu, near_a, total_a, initial_pose, initial_cov, reader)
+    metrics["time_offset"] = offset.to_dict()
     stamps, poses = loc.trajectory()
     mode = "global" if initial_pose is None else "initial pose"
     write_tum(

@@ -232,8 +232,13 @@ def run_slam_log(
             seed=config.seed,
         )
         config = replace(config, motion_params=noise_estimate.params)
+    from crlam.time_offset import apply_time_offset, report, resolve_time_offset
+
+    offset = resolve_time_offset(config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0])
+    if progress or (config.time_offset == "auto" and not offset.identified and source[0] != "scan_match"):
+        report(offset)
     reader = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
-    records: Any = reader
+    records: Any = apply_time_offset(reader, offset)
     front_end = None
     if source[0] == "scan_match":
         from crlam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig, scan_match_odometry
@@ -268,6 +273,7 @@ def run_slam_log(
         odometry_info,
         front_end,
         prior,
+        offset.to_dict(),
         map_range=map_range,
     )
 
@@ -353,6 +359,7 @@ def _write_outputs(
     odometry_info: dict[str, Any] | None = None,
     front_end: Any = None,
     prior: SlamPrior | None = None,
+    time_offset: dict[str, Any] | None = None,
     map_range: MapRangeChoice | None = None,
 ) -> SlamResult:
     run, wall = run_wall
@@ -439,6 +446,7 @@ def _write_outputs(
         "map_frame": run.map_frame_record(),
         "correlative_front_end": correlative_front_end_record(run),
         "map_range": None if map_range is None else map_range.to_dict(),
+        "time_offset": time_offset,
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
