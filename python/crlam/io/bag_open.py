@@ -178,6 +178,7 @@ def library_errors() -> tuple[type[BaseException], ...]:
         ("rosbags.rosbag2", "ReaderError"),
         ("rosbags.serde", "SerdeError"),
         ("rosbags.typesys", "TypesysError"),
+        ("apsw", "Error"),  # rosbags' sqlite3 storage reads through apsw
         ("backports.zstd", "ZstdError"),
         ("compression.zstd", "ZstdError"),
         ("zstandard", "ZstdError"),
@@ -206,7 +207,7 @@ def _cause(exc: BaseException) -> str:
         return f"a zstd-compressed part does not decompress ({reason})"
     if isinstance(exc, UnicodeDecodeError):
         return f"text that is not UTF-8 where the format has names ({reason})"
-    if type(exc).__module__.startswith("sqlite3"):
+    if type(exc).__module__.startswith(("sqlite3", "apsw")):
         return f"the sqlite3 database is damaged or not a database ({reason})"
     return f"{name}: {reason}" if reason else name
 
