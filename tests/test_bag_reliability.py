@@ -231,12 +231,40 @@ def test_scan_header_geometry_is_checked(field: str, value: float, tmp_path: Pat
         list(open_log(bag, odometry=False))
 
 
-def test_beam_counts_are_checked_before_allocating(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+@pytest.fixture
+def default_limits() -> Any:
+    """The default limits before and after the test (``--max-readings`` sets them for the process)."""
+    from dataclasses import fields
+
+    from crlam.limits import DEFAULTS, Limits, set_limits
+
+    set_limits(**{f.name: getattr(DEFAULTS, f.name) for f in fields(Limits)})
+    yield
+    set_limits(**{f.name: getattr(DEFAULTS, f.name) for f in fields(Limits)})
+
+
+def test_beam_counts_are_checked_before_allocating(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str], default_limits: None
+) -> None:
     bag = write_mutated(tmp_path / "wide.mcap", BagSpec(n_scans=2, n_beams=5000, angle_increment=1e-4), until=100.5)
     status, err = _run(["map", str(bag), "--out", str(tmp_path / "o"), "--quiet", "--max-readings", "4000"], capsys)
     assert status == 2
     line = _one_error_line(err, "map")
     assert "5,000 beams" in line and "--max-readings" in line
+    # 100,000 beams: more than any 2D laser has (localize weighed every beam for every particle).
+    from dataclasses import fields
+
+    from crlam.limits import DEFAULTS, Limits, set_limits
+
+    set_limits(**{f.name: getattr(DEFAULTS, f.name) for f in fields(Limits)})
+    wide = write_mutated(tmp_path / "w.mcap", BagSpec(n_scans=1, n_beams=100_000, angle_increment=6e-5), until=100.2)
+    for command in ("localize", "map"):
+        argv = [command, str(wide), "--out", str(tmp_path / f"o-{command}"), "--quiet"]
+        if command == "localize":
+            argv += ["--map", str(_room_map(tmp_path))]
+        status, err = _run(argv, capsys)
+        assert status == 2
+        assert "100,000 beams, more than any laser has" in _one_error_line(err, command)
 
 
 def test_scans_stamped_backwards_or_repeated_are_skipped_and_counted(tmp_path: Path) -> None:

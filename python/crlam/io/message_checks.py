@@ -14,7 +14,7 @@ LaserScan header (``sensor_msgs/msg/LaserScan``, ``MultiEchoLaserScan``)
 Beam count
     The number of beams is checked against the ``readings`` resource limit
     (:mod:`crlam.limits`, ``--max-readings``) and against :data:`MAX_BEAMS_PER_SCAN` before any
-    array is made from it: no laser has more than a million beams a turn, and a scan of more is a
+    array is made from it: no 2D laser has that many beams a turn, and a scan of more is a
     damaged or foreign message.
 Quaternions (odometry orientation, ``/tf`` and ``/tf_static`` rotations)
     All four components finite and a length within :data:`QUATERNION_TOLERANCE` of 1: such a
@@ -54,8 +54,11 @@ QUATERNION_TOLERANCE = 1e-2
 #: Length error below which a quaternion is used as it is (its heading moves by less than this
 #: in radians): a quaternion written from float64 sines and cosines reads back bit for bit.
 _EXACT = 1e-9
-#: Most beams a scan message may have (a million: ten times the densest 2D laser's per turn).
-MAX_BEAMS_PER_SCAN = 1_000_000
+#: Most beams a scan message may have: 65,536, several times the densest 2D laser's per turn
+#: (0.036 deg is 10,000 a turn). A scan of more is a damaged or foreign message; every beam of a
+#: scan is weighed for every particle, so 100,000-beam scans would keep ``crlam localize`` busy
+#: for hours per scan.
+MAX_BEAMS_PER_SCAN = 65_536
 
 
 class MessagePlace:

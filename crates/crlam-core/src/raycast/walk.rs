@@ -82,7 +82,10 @@ impl GridWalk {
             iy,
             // Wrapping: a ray far outside the window (cells near i64::MAX) has no meaningful
             // index, and must not overflow computing one.
-            index: iy.wrapping_sub(iy0).wrapping_mul(nx).wrapping_add(ix.wrapping_sub(ix0)),
+            index: iy
+                .wrapping_sub(iy0)
+                .wrapping_mul(nx)
+                .wrapping_add(ix.wrapping_sub(ix0)),
             step_x,
             step_y,
             index_step_x: step_x,
