@@ -292,7 +292,8 @@ class RosbagReader:
         self._scan_span = (math.nan, math.nan)
         self._odom_span: tuple[float, float] | None = None
         self._static: TransformTree | None = None
-        self._last_scan_t = None
+        # The stamp of the last scan yielded: later scans at or before it are skipped.
+        self._last_scan_t: float | None = None
 
     # -- opening and detection ---------------------------------------------------------------
 
@@ -409,7 +410,7 @@ class RosbagReader:
         return tree
 
     def _first(self, reader: Any, conns: Sequence[Any], limit: int = 1) -> list[Any]:
-        out = []
+        out: list[Any] = []
         for conn, _, raw in reader.messages(connections=conns):
             out.append(self._decode(reader, conn, raw, len(out) + 1))
             if len(out) >= limit:
@@ -451,7 +452,7 @@ class RosbagReader:
     def _read_records(self) -> Iterator[LogRecord]:
         self.stats = stats = BagStats()
         self._scan_span, self._odom_span = (math.nan, math.nan), None
-        self._last_scan_t: float | None = None
+        self._last_scan_t = None
         with self._open() as reader:
             conns = reader.connections
             scan_conns = self._pick_scan(conns)
