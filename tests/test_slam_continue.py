@@ -56,6 +56,7 @@ def _rewrite(src: Path, dst: Path, **changes: object) -> None:
 def test_version_1_reads_without_an_estimate_and_cannot_be_continued(tmp_path: Path) -> None:
     save_belief(tmp_path / "v2.npz", _archive())
     _rewrite(tmp_path / "v2.npz", tmp_path / "belief.npz", format_version=np.array(1, dtype=np.int64))
+    (tmp_path / "COMPLETE").write_text("")
     a = load_belief(tmp_path / "belief.npz")
     assert a.estimate is None and a.estimate_cov is None
     with pytest.raises(DataFormatError, match="version 1") as e:

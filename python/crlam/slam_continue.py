@@ -21,6 +21,7 @@ from numpy.typing import NDArray
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import load_belief
 from crlam.mapping import ConfidenceRichMap
+from crlam.run_folder import COMPLETE, INCOMPLETE, is_complete
 
 __all__ = ["SlamPrior", "load_slam_prior", "pose_covariance"]
 
@@ -62,20 +63,40 @@ def pose_covariance(poses: NDArray[np.float64], weights: NDArray[np.float64], me
     return np.asarray(0.5 * (cov + cov.T))
 
 
+def check_complete_run(folder: Path, require_marker: bool = True) -> None:
+    """Refuse a run folder that is not whole: one holding ``INCOMPLETE`` (a run still writing,
+    stopped or crashed) or, with ``require_marker``, lacking the ``COMPLETE`` marker a run
+    writes last."""
+    if (folder / INCOMPLETE).exists():
+        raise DataFormatError(
+            "the run folder is marked INCOMPLETE (its run was interrupted or is still writing): --continue takes a "
+            "complete crlam slam run folder",
+            path=str(folder),
+        )
+    if require_marker and not is_complete(folder):
+        raise DataFormatError(
+            f"no {COMPLETE} marker: not a complete crlam slam run folder (a run writes the marker last)", path=str(folder)
+        )
+
+
 def load_slam_prior(path: str | os.PathLike[str]) -> SlamPrior:
     """The prior of a ``crlam slam`` run folder (or its ``belief.npz``).
 
     Raises
     ------
     DataFormatError
-        When the archive carries no estimate (format version 1, written before runs saved one)
-        or is invalid.
+        When the run folder is not complete (:func:`check_complete_run`), when the archive
+        carries no estimate (format version 1, written before runs saved one) or is invalid.
     """
     p = Path(path)
-    if p.is_dir():
+    folder_given = p.is_dir()
+    if folder_given:
         p = p / "belief.npz"
     if not p.is_file():
         raise FileNotFoundError(f"no belief.npz to continue from: {p} (a crlam slam run folder holds one)")
+    # A run folder must be whole; a belief.npz named alone may sit anywhere, but not in a
+    # folder whose run did not finish.
+    check_complete_run(p.parent, require_marker=folder_given)
     archive = load_belief(p)
     if archive.estimate is None or archive.estimate_cov is None:
         raise DataFormatError(

@@ -60,4 +60,7 @@ def executor_from_args(args: argparse.Namespace) -> Executor:
         return LocalExecutor(args.workers, retries=args.retries)
     from crlam.experiments.dask_executor import DaskExecutor
 
-    return DaskExecutor(args.scheduler, workers=args.workers, keep_maps=args.keep_maps, retries=args.retries)
+    executor = DaskExecutor(args.scheduler, workers=args.workers, keep_maps=args.keep_maps, retries=args.retries)
+    # Before the experiment folder is made: a sweep that cannot start leaves nothing behind.
+    executor.check_scheduler()
+    return executor

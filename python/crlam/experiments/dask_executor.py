@@ -95,6 +95,40 @@ class DaskExecutor:
         self.keep_maps = keep_maps
         self.retries = retries
 
+    def check_scheduler(self, timeout: float = 10.0) -> None:
+        """Connect to the scheduler once and disconnect, so that a sweep that cannot start (no
+        scheduler there, a malformed address, Dask not installed) fails before it makes its
+        experiment folder (``crlam experiment --executor dask`` calls this first). Without a
+        scheduler address only Dask's presence is checked.
+
+        Raises
+        ------
+        ConfigError
+            Naming the address and the reason.
+        """
+        distributed = _distributed()
+        if not self.scheduler:
+            return
+        from distributed.comm import parse_address
+        from distributed.comm.addressing import parse_host_port
+
+        try:
+            # The address first, without a client (a client made on a malformed address fails
+            # late and complains again when it is collected).
+            scheme, location = parse_address(self.scheduler)
+            if scheme in ("tcp", "tls", "ws", "wss"):
+                parse_host_port(location)
+        except (ValueError, TypeError) as e:
+            raise ConfigError(f"--scheduler {self.scheduler!r} is not a Dask address such as tcp://HOST:8786 ({e})") from e
+        try:
+            with distributed.Client(self.scheduler, timeout=timeout, set_as_default=False):
+                pass
+        except (OSError, ValueError, TypeError) as e:  # TimeoutError is an OSError
+            reason = " ".join(str(e).split())[:200] or type(e).__name__
+            raise ConfigError(
+                f"cannot reach the Dask scheduler at {self.scheduler!r} ({reason}); nothing was started or written"
+            ) from e
+
     def describe(self) -> str:
         if self.scheduler:
             return f"the Dask cluster at {self.scheduler}"

@@ -242,6 +242,10 @@ def run_localize_log(
     metrics = _metrics(loc, loc_map, log_path, wall, cpu, near_a, total_a, initial_pose, initial_cov, reader)
     metrics["time_offset"] = offset.to_dict()
     stamps, poses = loc.trajectory()
+    # Sorted by time like slam's (a CARMEN log's file order need not be; evo and the TUM
+    # readers expect increasing stamps). A stable sort keeps the file order of equal stamps.
+    order = np.argsort(stamps, kind="stable")
+    stamps, poses = np.asarray(stamps)[order], np.asarray(poses)[order]
     mode = "global" if initial_pose is None else "initial pose"
     write_tum(
         out / "trajectory.tum", stamps, poses, header=f"crlam localize ({mode}) of {Path(log_path).name} on {loc_map.source}"

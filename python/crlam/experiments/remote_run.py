@@ -76,11 +76,11 @@ def _companions(path: Path) -> list[Path]:
     """Files read together with a map file: a Nav2 YAML's image, an image's YAML of the same stem."""
     suffix = path.suffix.lower()
     if suffix in (".yaml", ".yml"):
-        import yaml
+        from crlam.io.structured import load_yaml_text
 
         try:
-            doc = yaml.safe_load(path.read_text())
-        except (OSError, yaml.YAMLError):
+            doc = load_yaml_text(path.read_text(), str(path))
+        except (OSError, ValueError):
             return []
         image = doc.get("image") if isinstance(doc, dict) else None
         if isinstance(image, str) and not Path(image).is_absolute() and ".." not in Path(image).parts:

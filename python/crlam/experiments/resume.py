@@ -54,15 +54,14 @@ def input_digest(path: str | os.PathLike[str]) -> str:
     p = Path(path)
     h = hashlib.sha256(file_digest(p).encode())
     if p.suffix.lower() in (".yaml", ".yml"):
-        import yaml
-
         from crlam.io.lines import read_small_text
+        from crlam.io.structured import load_yaml_text
 
         try:
-            doc = yaml.safe_load(read_small_text(p, "map YAML"))
+            doc = load_yaml_text(read_small_text(p, "map YAML"), str(p))
             image = p.parent / str(doc["image"])
             h.update(file_digest(image).encode())
-        except (OSError, ValueError, KeyError, TypeError, yaml.YAMLError):
+        except (OSError, ValueError, KeyError, TypeError):
             pass  # the map itself will fail to load with a clear error
     return h.hexdigest()
 

@@ -11,22 +11,17 @@ context, because a forked child of a process whose rayon pool has started hangs.
 from __future__ import annotations
 
 import re
-import sys
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 from crlam.errors import ConfigError, CrlamError
 from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs
 from crlam.experiments.resume import load_json_dict
 from crlam.io.npz_check import check_npz
+from crlam.io.structured import load_toml_text
 from crlam.io.tum import read_tum
 from crlam.run_folder import staged_folder
 from crlam.slam import SlamConfig
@@ -63,12 +58,12 @@ def run_is_finished(folder: Path) -> bool:
         return False
     try:
         if (folder / "config.toml").is_file():
-            tomllib.loads((folder / "config.toml").read_text())
+            load_toml_text((folder / "config.toml").read_text(), str(folder / "config.toml"))
         if (folder / "trajectory.tum").is_file():
             read_tum(folder / "trajectory.tum")
         if (folder / "belief.npz").is_file():
             check_npz(folder / "belief.npz", "belief archive")
-    except (CrlamError, OSError, ValueError, tomllib.TOMLDecodeError):
+    except (CrlamError, OSError, ValueError):
         return False
     return True
 
@@ -95,10 +90,7 @@ def stored_setting_differences(spec: RunSpec, folder: Path) -> list[str]:
     if not path.is_file():
         return []
     text = path.read_text()
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML ({e})") from e
+    doc = load_toml_text(text, str(path), lambda message: ConfigError(f"{path}: {message}"))
     unset = set(_UNSET_LINE.findall(text))
     stored_slam = doc.get("slam", {})
     default = SlamConfig().to_dict()

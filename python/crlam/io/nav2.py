@@ -25,6 +25,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import ConfigError, DataFormatError, ResourceLimitError
 from crlam.io.lines import read_small_text
+from crlam.io.structured import load_yaml_text
 from crlam.limits import check_limit
 
 __all__ = ["Nav2Map", "read_image", "read_nav2_map", "read_pgm", "write_nav2_map", "write_pgm"]
@@ -332,12 +333,7 @@ def read_nav2_map(yaml_path: str | os.PathLike[str], *, free_thresh: float | Non
         On invalid YAML (with its line), a missing or invalid key (named), or a bad image.
     """
     path = Path(yaml_path)
-    try:
-        doc = yaml.safe_load(read_small_text(path, "Nav2 map YAML"))
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        reason = " ".join(str(exc).split())
-        raise DataFormatError(f"invalid YAML ({reason})", path=str(path), line=None if mark is None else mark.line + 1) from exc
+    doc = load_yaml_text(read_small_text(path, "Nav2 map YAML"), str(path))
     if not isinstance(doc, dict):
         raise DataFormatError("not a YAML mapping", path=str(path))
     if not isinstance(doc.get("image"), str) or not doc["image"]:

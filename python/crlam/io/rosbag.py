@@ -76,8 +76,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from crlam.errors import ConfigError, CrlamError, DataFormatError
+from crlam.errors import ConfigError, DataFormatError
+from crlam.io.bag_open import bag_errors, check_bag_input, library_errors, open_any_reader
 from crlam.io.carmen_types import CarmenStats, ImuReading, LaserScan, LogRecord, OdometryReading
+from crlam.io.message_checks import MessagePlace, check_scan_header, check_translation
 from crlam.io.rosbag_tf import FixedTransforms, TransformTree, planar, transform_matrix, wrap, yaw_of
 from crlam.pose import compose
 
@@ -145,6 +147,10 @@ class BagStats(CarmenStats):
         Readings made no-returns, per cause (``n_nonpositive_ranges`` counts 0 and negative ones).
     skipped_before_odometry, skipped_after_odometry : int
         Scans skipped because no odometry reading was close enough before/after them.
+    skipped_stamp_backwards, skipped_stamp_repeated : int
+        Scans skipped because they were stamped before, or at, the previous scan of the topic.
+    skipped_odom_repeated : int
+        Odometry readings skipped because they repeat the stamp of one already read.
     """
 
     scan_topic: str = ""
@@ -163,6 +169,9 @@ class BagStats(CarmenStats):
     n_below_min_ranges: int = 0
     skipped_before_odometry: int = 0
     skipped_after_odometry: int = 0
+    skipped_stamp_backwards: int = 0
+    skipped_stamp_repeated: int = 0
+    skipped_odom_repeated: int = 0
 
     def describe(self) -> dict[str, Any]:
         """The topics, frames and mount used, for a run's ``config.toml``."""
@@ -194,23 +203,8 @@ def _topics_text(connections: Sequence[Any]) -> str:
 
 
 def _library_errors() -> tuple[type[BaseException], ...]:
-    """What reading a damaged bag raises in the bag library (and the standard library under it)."""
-    import struct
-
-    # MemoryError: a damaged length field makes the library ask for an absurd buffer at once.
-    errors: list[type[BaseException]] = [KeyError, IndexError, ValueError, EOFError, OSError, struct.error, AssertionError]
-    # TypeError: the MCAP parser on a truncated record; AttributeError: a ROS 1 bag whose damaged
-    # message definition gives a known type name other fields.
-    errors += [MemoryError, TypeError, ArithmeticError, AttributeError]
-    try:
-        from rosbags.highlevel import AnyReaderError
-        from rosbags.rosbag1 import ReaderError as Ros1Error
-        from rosbags.rosbag2 import ReaderError as Ros2Error
-
-        errors += [AnyReaderError, Ros1Error, Ros2Error]
-    except ImportError:  # pragma: no cover - rosbags is a dependency
-        pass
-    return tuple(errors)
+    """What reading a damaged bag raises in the bag library (see :mod:`crlam.io.bag_open`)."""
+    return library_errors()
 
 
 class RosbagReader:
@@ -274,9 +268,9 @@ class RosbagReader:
         imu: bool = False,
         imu_topic: str | None = None,
     ) -> None:
-        self.path = Path(path)
-        if not self.path.exists():
-            raise FileNotFoundError(f"ROS bag not found: {self.path}")
+        # A FIFO, a device or a socket, and a folder whose metadata.yaml names files outside it,
+        # are refused before the bag library opens anything (crlam.io.bag_open).
+        self.path = check_bag_input(path)
         if laser_mount is not None and len(laser_mount) != 3:
             raise ConfigError(f"laser_mount needs 3 values (x, y, yaw), got {list(laser_mount)}")
         if not (math.isfinite(odom_tolerance) and odom_tolerance >= 0):
@@ -298,16 +292,21 @@ class RosbagReader:
         self._scan_span = (math.nan, math.nan)
         self._odom_span: tuple[float, float] | None = None
         self._static: TransformTree | None = None
+        # The stamp of the last scan yielded: later scans at or before it are skipped.
+        self._last_scan_t: float | None = None
 
     # -- opening and detection ---------------------------------------------------------------
 
     def _open(self) -> Any:
-        try:
-            from rosbags.highlevel import AnyReader
-            from rosbags.typesys import Stores, get_typestore
-        except ImportError as exc:  # pragma: no cover - rosbags is a dependency
-            raise ConfigError("reading ROS bags needs the 'rosbags' package (pip install rosbags)") from exc
-        return AnyReader([self.path], default_typestore=get_typestore(Stores.ROS2_HUMBLE))
+        return open_any_reader(self.path)
+
+    def _decode(self, reader: Any, conn: Any, raw: bytes, index: int) -> Any:
+        """A message deserialized; a damaged one is a DataFormatError naming its topic and index."""
+        with bag_errors(self.path, f"{conn.topic} message {index}"):
+            return reader.deserialize(raw, conn.msgtype)
+
+    def _place(self, conn: Any, index: int) -> MessagePlace:
+        return MessagePlace(str(self.path), conn.topic, index)
 
     def _error(self, message: str, connections: Sequence[Any]) -> DataFormatError:
         return DataFormatError(f"{message}; the bag's topics: {_topics_text(connections)}", path=str(self.path))
@@ -373,14 +372,8 @@ class RosbagReader:
         """The scan messages the bag's index lists on the scan topic this reader would pick (read
         from the index, no message is decoded): a progress bar's total, an upper bound of the
         scans a run yields. A damaged bag raises :class:`~crlam.errors.DataFormatError`."""
-        try:
-            with self._open() as reader:
-                return sum(int(c.msgcount) for c in self._pick_scan(reader.connections))
-        except CrlamError:
-            raise
-        except _library_errors() as exc:
-            reason = " ".join(str(exc).split())[:300]
-            raise DataFormatError(f"damaged or unreadable ROS bag ({type(exc).__name__}: {reason})", path=str(self.path)) from exc
+        with bag_errors(self.path), self._open() as reader:
+            return sum(int(c.msgcount) for c in self._pick_scan(reader.connections))
 
     def has_odometry(self) -> bool:
         """Whether the bag has odometry to read: a ``nav_msgs/msg/Odometry`` topic, or
@@ -388,7 +381,7 @@ class RosbagReader:
         counts as odometry; it is checked when the bag is read)."""
         if self.odom_topic is not None:
             return True
-        with self._open() as reader:
+        with bag_errors(self.path), self._open() as reader:
             conns = reader.connections
             if any(c.msgtype == ODOMETRY_TYPE for c in conns):
                 return True
@@ -400,24 +393,26 @@ class RosbagReader:
         the map's left out (a fixed mount published on /tf rather than /tf_static)."""
         fixed = FixedTransforms(skip_parents=(self.odom_frame, "odom", "map", "world"))
         conns = [c for c in reader.connections if c.topic in ("/tf", "tf") and c.msgtype == TF_TYPE]
-        for msg in self._first(reader, conns, limit=_TF_MOUNT_PROBE) if conns else []:
+        for i, msg in enumerate(self._first(reader, conns, limit=_TF_MOUNT_PROBE) if conns else [], 1):
             for tr in msg.transforms:
-                fixed.add(tr.header.frame_id, tr.child_frame_id, transform_matrix(tr.transform))
+                m = transform_matrix(tr.transform, self._place(conns[0], i), tr.child_frame_id)
+                fixed.add(tr.header.frame_id, tr.child_frame_id, m)
         return fixed.tree()
 
     def _static_tree(self, reader: Any) -> TransformTree:
         tree = TransformTree()
         conns = [c for c in reader.connections if c.topic in ("/tf_static", "tf_static") and c.msgtype == TF_TYPE]
         if conns:  # an empty list would read every message
-            for conn, _, raw in reader.messages(connections=conns):
-                for tr in reader.deserialize(raw, conn.msgtype).transforms:
-                    tree.add(tr.header.frame_id, tr.child_frame_id, transform_matrix(tr.transform))
+            for i, (conn, _, raw) in enumerate(reader.messages(connections=conns), 1):
+                for tr in self._decode(reader, conn, raw, i).transforms:
+                    m = transform_matrix(tr.transform, self._place(conn, i), tr.child_frame_id)
+                    tree.add(tr.header.frame_id, tr.child_frame_id, m)
         return tree
 
     def _first(self, reader: Any, conns: Sequence[Any], limit: int = 1) -> list[Any]:
-        out = []
+        out: list[Any] = []
         for conn, _, raw in reader.messages(connections=conns):
-            out.append(reader.deserialize(raw, conn.msgtype))
+            out.append(self._decode(reader, conn, raw, len(out) + 1))
             if len(out) >= limit:
                 break
         return out
@@ -451,17 +446,13 @@ class RosbagReader:
     def _records(self) -> Iterator[LogRecord]:
         """The records; what the bag library cannot read (a damaged, truncated or foreign file)
         is a :class:`DataFormatError` naming the bag."""
-        try:
+        with bag_errors(self.path):
             yield from self._read_records()
-        except CrlamError:
-            raise
-        except _library_errors() as exc:
-            reason = " ".join(str(exc).split())[:300]
-            raise DataFormatError(f"damaged or unreadable ROS bag ({type(exc).__name__}: {reason})", path=str(self.path)) from exc
 
     def _read_records(self) -> Iterator[LogRecord]:
         self.stats = stats = BagStats()
         self._scan_span, self._odom_span = (math.nan, math.nan), None
+        self._last_scan_t = None
         with self._open() as reader:
             conns = reader.connections
             scan_conns = self._pick_scan(conns)
@@ -593,9 +584,22 @@ class RosbagReader:
             yaw_rate=yaw_rate, timestamp=_stamp(msg.header) or recv, host=self.stats.imu_topic, logger_timestamp=recv
         )
 
-    def _scan_record(self, conn: Any, msg: Any, recv: float, line: int, offset: NDArray[np.float64], mirrored: bool) -> LaserScan:
-        """A scan message as a LaserScan record without odometry (``odom``, ``pose`` NaN)."""
+    def _scan_record(
+        self, conn: Any, msg: Any, recv: float, line: int, offset: NDArray[np.float64], mirrored: bool
+    ) -> LaserScan | None:
+        """A scan message as a LaserScan record without odometry (``odom``, ``pose`` NaN); None
+        for a scan stamped at or before the previous one (skipped and counted). A header that
+        breaks the rules of :mod:`crlam.io.message_checks` is refused."""
+        check_scan_header(msg, len(msg.ranges), self._place(conn, line))
         t = _stamp(msg.header) or recv
+        last = self._last_scan_t
+        if last is not None and t <= last:
+            if t == last:
+                self.stats.skipped_stamp_repeated += 1
+            else:
+                self.stats.skipped_stamp_backwards += 1
+            return None
+        self._last_scan_t = t
         lo, hi = self._scan_span
         self._scan_span = (t, t) if line == 1 else (min(lo, t), max(hi, t))
         ranges = self._scan_ranges(msg)
@@ -632,16 +636,19 @@ class RosbagReader:
         """Every scan at once, with no odometry (``odometry=False``), and the IMU readings."""
         st = self.stats
         scan_ids = {c.id for c in scan_conns}
-        n_scan_msgs = 0
+        n_scan_msgs = n_other = 0
         for conn, bag_t, raw in reader.messages(connections=[*scan_conns, *imu_conns]):
             recv = bag_t * 1e-9
-            msg = reader.deserialize(raw, conn.msgtype)
             if conn.id in scan_ids:
                 n_scan_msgs += 1
+                msg = self._decode(reader, conn, raw, n_scan_msgs)
                 scan = self._scan_record(conn, msg, recv, n_scan_msgs, offset, mirrored)
-                st.records[scan.kind] = st.records.get(scan.kind, 0) + 1
-                yield scan
+                if scan is not None:
+                    st.records[scan.kind] = st.records.get(scan.kind, 0) + 1
+                    yield scan
             else:
+                n_other += 1
+                msg = self._decode(reader, conn, raw, n_other)
                 yield self._imu_reading(msg, imu_rotation, recv)
         if st.n_scans == 0:
             raise self._error(f"scan topic {st.scan_topic} holds no messages", reader.connections)
@@ -717,11 +724,15 @@ class RosbagReader:
                     st.records[scan.kind] = st.records.get(scan.kind, 0) + 1
                     yield scan
 
-        def add_odom(t: float, pose: NDArray[np.float64], tv: float, rv: float, recv: float) -> OdometryReading:
-            if hist_t and t < hist_t[-1]:
-                # Out-of-order odometry: insert in place (rare; keeps the history sorted).
+        def add_odom(t: float, pose: NDArray[np.float64], tv: float, rv: float, recv: float) -> OdometryReading | None:
+            if hist_t and t <= hist_t[-1]:
+                # Out-of-order odometry: insert in place (rare; keeps the history sorted). A
+                # reading that repeats a held stamp is skipped and counted.
                 ts = list(hist_t)
                 k = bisect_left(ts, t)
+                if k < len(ts) and ts[k] == t:
+                    st.skipped_odom_repeated += 1
+                    return None
                 if len(hist_t) == hist_t.maxlen:  # a full bounded deque refuses insert()
                     hist_t.popleft()
                     hist_p.popleft()
@@ -736,14 +747,20 @@ class RosbagReader:
             self._odom_span = (t, t) if span is None else (min(span[0], t), max(span[1], t))
             return OdometryReading(pose=pose, tv=tv, rv=rv, timestamp=t, host=st.odom_topic, logger_timestamp=recv)
 
+        n_other: dict[str, int] = {}
         for conn, bag_t, raw in reader.messages(connections=[*scan_conns, *odom_conns, *imu_conns]):
             recv = bag_t * 1e-9
-            msg = reader.deserialize(raw, conn.msgtype)
             if conn.id in scan_ids:
                 n_scan_msgs += 1
-                pending.append(self._scan_record(conn, msg, recv, n_scan_msgs, offset, mirrored))
+                msg = self._decode(reader, conn, raw, n_scan_msgs)
+                scan = self._scan_record(conn, msg, recv, n_scan_msgs, offset, mirrored)
+                if scan is not None:
+                    pending.append(scan)
                 yield from flush(final=False, now=recv)
                 continue
+            index = n_other[conn.topic] = n_other.get(conn.topic, 0) + 1
+            msg = self._decode(reader, conn, raw, index)
+            place = self._place(conn, index)
             if conn.id in imu_ids:
                 yield self._imu_reading(msg, np.eye(3) if imu_rotation is None else imu_rotation, recv)
                 continue
@@ -751,14 +768,20 @@ class RosbagReader:
                 for tr in msg.transforms:
                     if tr.header.frame_id.lstrip("/") != self.odom_frame or tr.child_frame_id.lstrip("/") != base:
                         continue
-                    m = transform_matrix(tr.transform)
+                    m = transform_matrix(tr.transform, place, tr.child_frame_id)
                     pose, _ = planar(m)
-                    yield add_odom(_stamp(tr.header) or recv, pose, 0.0, 0.0, recv)
+                    if (reading := add_odom(_stamp(tr.header) or recv, pose, 0.0, 0.0, recv)) is not None:
+                        yield reading
             else:
                 p = msg.pose.pose
-                pose = np.array([float(p.position.x), float(p.position.y), _yaw_of(p.orientation)])
+                x, y, _ = check_translation(p.position, place, "pose.pose.position")
+                pose = np.array([x, y, _yaw_of(p.orientation, place, "pose.pose.orientation")])
                 tw = msg.twist.twist
-                yield add_odom(_stamp(msg.header) or recv, pose, float(tw.linear.x), float(tw.angular.z), recv)
+                tv, rv = float(tw.linear.x), float(tw.angular.z)
+                if not (math.isfinite(tv) and math.isfinite(rv)):
+                    raise place.error(f"twist ({tv}, {rv}) is not finite", "twist.twist")
+                if (reading := add_odom(_stamp(msg.header) or recv, pose, tv, rv, recv)) is not None:
+                    yield reading
                 if not st.odom_frame or st.odom_frame == self.odom_frame:
                     st.odom_frame = msg.header.frame_id.lstrip("/") or self.odom_frame
             yield from flush(final=False, now=recv)

@@ -12,17 +12,21 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from crlam.io.message_checks import MessagePlace, check_translation, unit_quaternion
+
 __all__ = ["FixedTransforms", "TransformTree", "planar", "quat_matrix", "transform_matrix", "wrap", "yaw_of"]
 
 #: Two readings of one transform that differ by more than this (m, or rad per matrix entry) are
 #: not the same fixed transform.
 _FIXED_TOLERANCE = 1e-6
+#: The place named when a caller gives none.
+_NOWHERE = MessagePlace("(a ROS bag)", "a message", 0)
 
 
-def quat_matrix(q: Any) -> NDArray[np.float64]:
-    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
-    n = math.sqrt(x * x + y * y + z * z + w * w) or 1.0
-    x, y, z, w = x / n, y / n, z / n, w / n
+def quat_matrix(q: Any, place: MessagePlace | None = None, field: str = "rotation") -> NDArray[np.float64]:
+    """The rotation matrix of a ROS quaternion, checked and normalised by the rule of
+    :func:`crlam.io.message_checks.unit_quaternion` (``place`` names the message in errors)."""
+    x, y, z, w = unit_quaternion(q, place or _NOWHERE, field)
     return np.array(
         [
             [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
@@ -32,13 +36,18 @@ def quat_matrix(q: Any) -> NDArray[np.float64]:
     )
 
 
-def transform_matrix(t: Any) -> NDArray[np.float64]:
-    """A ``geometry_msgs/Transform`` or ``Pose`` as a 4x4 matrix."""
+def transform_matrix(t: Any, place: MessagePlace | None = None, child: str = "") -> NDArray[np.float64]:
+    """A ``geometry_msgs/Transform`` or ``Pose`` as a 4x4 matrix; a rotation that is not a unit
+    quaternion (within the tolerance) or a translation that is not finite is refused, naming
+    ``place`` and the transform's ``child`` frame."""
     m = np.eye(4)
-    rot = getattr(t, "rotation", None) or t.orientation
-    tr = getattr(t, "translation", None) or t.position
-    m[:3, :3] = quat_matrix(rot)
-    m[:3, 3] = [float(tr.x), float(tr.y), float(tr.z)]
+    rotation = getattr(t, "rotation", None)
+    rot = rotation if rotation is not None else t.orientation
+    translation = getattr(t, "translation", None)
+    tr = translation if translation is not None else t.position
+    where = f"transform to {child}" if child else "transform"
+    m[:3, :3] = quat_matrix(rot, place, f"{where}: rotation")
+    m[:3, 3] = check_translation(tr, place or _NOWHERE, f"{where}: translation")
     return m
 
 
@@ -48,8 +57,9 @@ def planar(m: NDArray[np.float64]) -> tuple[NDArray[np.float64], bool]:
     return np.array([m[0, 3], m[1, 3], yaw]), bool(m[2, 2] < 0.0)
 
 
-def yaw_of(q: Any) -> float:
-    x, y, z, w = float(q.x), float(q.y), float(q.z), float(q.w)
+def yaw_of(q: Any, place: MessagePlace | None = None, field: str = "orientation") -> float:
+    """The yaw (rad) of a ROS quaternion, checked and normalised as :func:`quat_matrix` does."""
+    x, y, z, w = unit_quaternion(q, place or _NOWHERE, field)
     return math.atan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
 
 

@@ -17,18 +17,12 @@ and the derived ``sigma_hit_resolved``), so :func:`load_config_file` reads eithe
 from __future__ import annotations
 
 import re
-import sys
 import types
 import typing
 from dataclasses import dataclass, field, fields
 from functools import cache
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
-
-if sys.version_info >= (3, 11):
-    import tomllib
-else:  # pragma: no cover - Python 3.10
-    import tomli as tomllib
 
 from crlam.errors import ConfigError
 
@@ -85,10 +79,9 @@ def _parse(path: Path) -> tuple[dict[str, Any], dict[str, set[str]]]:
         text = read_small_text(path, "config file")
     except OSError as e:
         raise ConfigError(f"{path}: cannot read ({e.strerror or e})") from e
-    try:
-        doc = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as e:
-        raise ConfigError(f"{path}: not valid TOML ({e})") from e
+    from crlam.io.structured import load_toml_text
+
+    doc = load_toml_text(text, str(path), lambda message: ConfigError(f"{path}: {message}"))
     unset: dict[str, set[str]] = {}
     section = ""
     for line in text.splitlines():

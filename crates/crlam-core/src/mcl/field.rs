@@ -155,10 +155,17 @@ impl MeanField {
         if reach.is_nan() || reach >= 1e15 {
             return false;
         }
-        // One cell of slack each side.
-        let k = reach as i64 + 2;
+        // One cell of slack each side. In i128: a sensor far off the map (a particle spread by a
+        // huge initial covariance) has a cell index near i64::MAX, where `cx + k` in i64 would
+        // wrap to a negative index that passes the test and then reads out of bounds.
+        let k = reach as i128 + 2;
         let s = self.store;
-        cx - k >= s.ix0 && cy - k >= s.iy0 && cx + k < s.ix0 + s.nx && cy + k < s.iy0 + s.ny
+        let (cx, cy) = (i128::from(cx), i128::from(cy));
+        let (ix0, iy0) = (i128::from(s.ix0), i128::from(s.iy0));
+        cx - k >= ix0
+            && cy - k >= iy0
+            && cx + k < ix0 + i128::from(s.nx)
+            && cy + k < iy0 + i128::from(s.ny)
     }
 
     /// m̂ of every cell outside the rectangle.

@@ -635,4 +635,60 @@ mod tests {
         .validate()
         .is_err());
     }
+
+    /// Any sensor pose (huge, tiny, non-finite) and any scan (any length, any readings, any
+    /// beam list) give a result or an error, never a panic: a particle drawn from a huge initial
+    /// covariance sits at cells near i64::MAX, where the window test once wrapped around and
+    /// let the walk index the stored values out of bounds.
+    #[test]
+    fn any_pose_and_scan_gives_a_result_or_an_error() {
+        use proptest::prelude::*;
+        use proptest::test_runner::{Config, TestRunner};
+        let (_, field, mix, _) = room();
+        let coord = prop_oneof![
+            -10.0f64..20.0,
+            -1e300f64..1e300,
+            Just(f64::MAX),
+            Just(f64::MIN),
+            Just(9.3e18),
+            Just(-9.3e18),
+            Just(f64::NAN),
+            Just(f64::INFINITY),
+        ];
+        let reading = prop_oneof![0.0f64..10.0, proptest::num::f64::ANY];
+        let scan = (0usize..400).prop_flat_map(move |n| {
+            (
+                proptest::collection::vec(-4.0f64..4.0, n),
+                proptest::collection::vec(reading.clone(), n),
+                proptest::collection::vec(0usize..n.max(1) + 3, 0..n + 2),
+            )
+        });
+        let mut runner = TestRunner::new(Config {
+            cases: 300,
+            failure_persistence: None,
+            ..Config::default()
+        });
+        for kernel in [CauseKernel::Midpoint, CauseKernel::Chord] {
+            let mut model = mix;
+            model.kernel = kernel;
+            let s = LikelihoodSettings {
+                model,
+                tail_tolerance: 1e-6,
+                skip_no_returns: false,
+            };
+            runner
+                .run(
+                    &(coord.clone(), coord.clone(), -1e300f64..1e300, scan.clone()),
+                    |(x, y, yaw, (angles, ranges, beams))| {
+                        if let Ok(fit) =
+                            scan_log_likelihood(&field, &s, [x, y, yaw], &angles, &ranges, &beams)
+                        {
+                            prop_assert!(fit.n_beams <= beams.len());
+                        }
+                        Ok(())
+                    },
+                )
+                .unwrap();
+        }
+    }
 }

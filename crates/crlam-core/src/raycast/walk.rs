@@ -80,7 +80,12 @@ impl GridWalk {
         let mut w = Self {
             ix,
             iy,
-            index: (iy - iy0) * nx + (ix - ix0),
+            // Wrapping: a ray far outside the window (cells near i64::MAX) has no meaningful
+            // index, and must not overflow computing one.
+            index: iy
+                .wrapping_sub(iy0)
+                .wrapping_mul(nx)
+                .wrapping_add(ix.wrapping_sub(ix0)),
             step_x,
             step_y,
             index_step_x: step_x,
@@ -157,13 +162,13 @@ impl Iterator for GridWalk {
             };
             self.done = t_out >= self.t_end;
             if self.tx <= self.ty {
-                self.ix += self.step_x;
+                self.ix = self.ix.wrapping_add(self.step_x);
                 self.tx = self.next_x(self.ix);
-                self.index += self.index_step_x;
+                self.index = self.index.wrapping_add(self.index_step_x);
             } else {
-                self.iy += self.step_y;
+                self.iy = self.iy.wrapping_add(self.step_y);
                 self.ty = self.next_y(self.iy);
-                self.index += self.index_step_y;
+                self.index = self.index.wrapping_add(self.index_step_y);
             }
             self.t_in = t_out;
             if t_out - t_in >= MIN_CHORD {
@@ -346,13 +351,13 @@ impl Iterator for FastWalk {
             };
             self.done = t_out >= self.t_end;
             if along_x {
-                self.ix += self.step_x;
+                self.ix = self.ix.wrapping_add(self.step_x);
                 self.tx += self.dtx;
-                self.index += self.index_step_x;
+                self.index = self.index.wrapping_add(self.index_step_x);
             } else {
-                self.iy += self.step_y;
+                self.iy = self.iy.wrapping_add(self.step_y);
                 self.ty += self.dty;
-                self.index += self.index_step_y;
+                self.index = self.index.wrapping_add(self.index_step_y);
             }
             self.t_in = t_out;
             if t_out - t_in >= MIN_CHORD {
