@@ -57,7 +57,8 @@ class MapProducts:
     nav2 : ndarray, shape (ny, nx), uint8
         Pixels of ``map.pgm`` (:func:`crlam.io.nav2.nav2_pixels`; row 0 at the minimum y).
     figure_mean : MapLayer
-        The occupancy for figures, reduced by the rule of the module docstring (float32 values).
+        The occupancy for figures, reduced by the rule of the module docstring; at most
+        :data:`FIGURE_CELLS` cells a side.
     figure_unknown : ndarray of bool, shape of ``figure_mean``
         Never-observed cells (blocks) of ``figure_mean``.
     figure_variance : MapLayer or None
@@ -130,16 +131,16 @@ def write_belief_archive(
     return Path(path)
 
 
-def _block_max(values: NDArray[np.floating], known: NDArray[np.bool_], s: int) -> NDArray[np.float32]:
+def _block_max(values: NDArray[np.floating], known: NDArray[np.bool_], s: int) -> NDArray[np.float64]:
     """The largest known value of every ``s x s`` block of a band (rows a multiple of ``s`` or the
     map's last band), NaN where a block has no known cell."""
     h, nx = values.shape
     hb, wb = -(-h // s), -(-nx // s)
-    padded = np.full((hb * s, wb * s), np.nan, dtype=np.float32)
+    padded = np.full((hb * s, wb * s), np.nan, dtype=np.float64)
     padded[:h, :nx] = np.where(known, values, np.nan)
     blocks = padded.reshape(hb, s, wb, s)
     # fmax skips NaN unless both are: a block is NaN only when none of its cells is known.
-    out: NDArray[np.float32] = np.fmax.reduce(np.fmax.reduce(blocks, axis=3), axis=1)
+    out: NDArray[np.float64] = np.fmax.reduce(np.fmax.reduce(blocks, axis=3), axis=1)
     return out
 
 
@@ -163,8 +164,8 @@ def map_products(best: ConfidenceRichMap | LogOddsOccupancyMap, *, grids: bool =
     rows = _band_rows(nx, 48 if crm else 24, stride)
     nav2 = np.empty((ny, nx), dtype=np.uint8)
     fy, fx = -(-ny // stride), -(-nx // stride)
-    fig_mean = np.empty((fy, fx), dtype=np.float32)
-    fig_var = np.empty((fy, fx), dtype=np.float32) if crm else None
+    fig_mean = np.empty((fy, fx), dtype=np.float64)
+    fig_var = np.empty((fy, fx), dtype=np.float64) if crm else None
     grid = np.empty(ny * nx, dtype=np.int8) if grids else None
     confidence = np.empty(ny * nx, dtype=np.int8) if grids and crm else None
     h_prior = 0.0
@@ -200,17 +201,18 @@ def map_products(best: ConfidenceRichMap | LogOddsOccupancyMap, *, grids: bool =
             confidence[r * nx : (r + h) * nx] = occupancy_grid_values(np.sqrt(np.maximum(var, 0.0)), unknown, scale=200.0)
     fig_unknown = np.isnan(fig_mean)
     fig_res = res * stride
+    # Unknown cells are drawn from the mask; their value is 0 (in place: the figure's layers are
+    # the largest arrays kept besides the one-byte-per-cell pixels).
+    fig_mean[fig_unknown] = 0.0
+    if fig_var is not None:
+        fig_var[fig_unknown] = 0.0
     return MapProducts(
         origin=origin,
         resolution=res,
         nav2=nav2,
-        figure_mean=MapLayer(
-            np.nan_to_num(fig_mean, nan=0.0).astype(np.float64), origin, fig_res, "expected occupancy" if crm else "occupancy"
-        ),
+        figure_mean=MapLayer(fig_mean, origin, fig_res, "expected occupancy" if crm else "occupancy"),
         figure_unknown=fig_unknown,
-        figure_variance=None
-        if fig_var is None
-        else MapLayer(np.nan_to_num(fig_var, nan=0.0).astype(np.float64), origin, fig_res, "variance"),
+        figure_variance=None if fig_var is None else MapLayer(fig_var, origin, fig_res, "variance"),
         grid=grid,
         confidence_grid=confidence,
         n_known=n_known,
