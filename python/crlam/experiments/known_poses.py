@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from crlam.errors import ConfigError, DataFormatError
-from crlam.experiments.map_outputs import UNKNOWN_ENTROPY_TOL, map_products, write_belief_archive
+from crlam.experiments.map_outputs import PANEL_CELLS, UNKNOWN_ENTROPY_TOL, map_products, write_belief_archive
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import count_scans, input_description, open_log
 from crlam.io.nav2 import write_nav2_image
@@ -163,12 +163,12 @@ def write_map_folder(
     mapping_peak_mb = peak_rss_mb()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    crm = map_products(run.crm)
+    crm = map_products(run.crm, figure_cells=PANEL_CELLS)
     write_nav2_image(out / "map.pgm", crm.nav2, resolution=crm.resolution, origin=(*crm.origin, 0.0))
     files = {"map.pgm": out / "map.pgm", "map.yaml": out / "map.yaml"}
     write_belief_archive(out / "belief.npz", run.crm)
     files["belief.npz"] = out / "belief.npz"
-    ogm = map_products(run.ogm)
+    ogm = map_products(run.ogm, figure_cells=PANEL_CELLS)
     write_nav2_image(out / "ogm.pgm", ogm.nav2, resolution=ogm.resolution, origin=(*ogm.origin, 0.0))
     del ogm
     files["ogm.pgm"], files["ogm.yaml"] = out / "ogm.pgm", out / "ogm.yaml"

@@ -8,11 +8,13 @@ than one band of rows of them at a time. What is kept whole is one byte per cell
 pixels; the MCAP grids when asked for) and a figure's map reduced to at most
 :data:`FIGURE_CELLS` cells along a side.
 
-Figure rule: when the map is more than :data:`FIGURE_CELLS` cells along its longer side, the
-figure draws blocks of ``s x s`` cells, ``s = ceil(max(ny, nx) / FIGURE_CELLS)``: a block shows
-the largest value (occupancy, variance) among its observed cells, and is unknown only when all
-its cells are, so that a wall one cell thick still shows. The map files themselves are always at
-full resolution.
+Figure rule: when the map is more than ``n`` cells along its longer side, the figure draws
+blocks of ``s x s`` cells, ``s = ceil(max(ny, nx) / n)``: a block shows the largest value
+(occupancy, variance) among its observed cells, and is unknown only when all its cells are, so
+that a wall one cell thick still shows. ``n`` is :data:`FIGURE_CELLS` (1,200) for
+``trajectory.png`` and :data:`PANEL_CELLS` (600) for each of the two panels of ``crlam map``'s
+``map.png``: about the pixels a panel has, since matplotlib takes several bytes per cell of
+an image it has to shrink. The map files themselves are always at full resolution.
 """
 
 from __future__ import annotations
@@ -30,13 +32,16 @@ from crlam.io.belief import BAND_BYTES, save_belief_bands
 from crlam.io.nav2 import nav2_pixels
 from crlam.mapping import ConfidenceRichMap, LogOddsOccupancyMap, MapLayer
 
-__all__ = ["FIGURE_CELLS", "MapProducts", "UNKNOWN_ENTROPY_TOL", "map_products", "write_belief_archive"]
+__all__ = ["FIGURE_CELLS", "PANEL_CELLS", "MapProducts", "UNKNOWN_ENTROPY_TOL", "map_products", "write_belief_archive"]
 
 #: A cell whose entropy is within this of the prior's was never informed by any beam.
 UNKNOWN_ENTROPY_TOL = 1e-6
 
 FIGURE_CELLS = 1200
 """Most cells along a side of a figure's map: a 150 dpi figure 8 inches wide has 1,200 pixels."""
+
+PANEL_CELLS = 600
+"""Most cells along a side of a map in one of two panels side by side (13 inches at 150 dpi)."""
 
 #: Thresholds of the map's cell classes (Nav2's defaults, as map.yaml states them).
 OCCUPIED_THRESH, FREE_THRESH = 0.65, 0.196
@@ -144,12 +149,15 @@ def _block_max(values: NDArray[np.floating], known: NDArray[np.bool_], s: int) -
     return out
 
 
-def map_products(best: ConfidenceRichMap | LogOddsOccupancyMap, *, grids: bool = False) -> MapProducts:
+def map_products(
+    best: ConfidenceRichMap | LogOddsOccupancyMap, *, grids: bool = False, figure_cells: int = FIGURE_CELLS
+) -> MapProducts:
     """The map files' content of ``best`` over its written area, band by band (module docstring).
 
     A CRM gives its expected occupancy and variance (unknown: entropy within
     :data:`UNKNOWN_ENTROPY_TOL` of the prior's); a log-odds map its occupancy probability (unknown:
     log-odds exactly 0). ``grids`` also fills the MCAP grids (``/map_confidence`` for a CRM only).
+    ``figure_cells``: ``n`` of the figure rule.
     """
     from crlam.experiments.slam_mcap import occupancy_grid_values
 
@@ -159,7 +167,7 @@ def map_products(best: ConfidenceRichMap | LogOddsOccupancyMap, *, grids: bool =
     res = float(best.config.resolution)
     ox, oy = best.config.origin
     origin = (ox + ix0 * res, oy + iy0 * res)
-    stride = max(1, math.ceil(max(nx, ny) / FIGURE_CELLS))
+    stride = max(1, math.ceil(max(nx, ny) / max(1, figure_cells)))
     # derived_maps gives three float64 layers; the masks and products add about as much again.
     rows = _band_rows(nx, 48 if crm else 24, stride)
     nav2 = np.empty((ny, nx), dtype=np.uint8)
