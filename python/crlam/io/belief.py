@@ -21,9 +21,12 @@ Version 2 added the estimate: what ``crlam slam --continue`` starts from. A vers
 reads as before, without it; an archive of a later version than this crlam knows is refused
 with the version found and the versions read.
 
-Arrays round-trip bit for bit. Both :func:`save_belief` and :func:`load_belief` validate the
-content (shapes, ``K`` matches ``levels``, finite, non-negative pmfs summing to 1 within
-:data:`PMF_TOLERANCE`), so an invalid archive is never written nor accepted.
+:func:`save_belief_bands` writes the same file from bands of rows (the pmfs of a large map are
+never all in memory: ``crlam slam`` streams them from the filter's tiles), validating each band
+as it comes and removing a partial file on error. Arrays round-trip bit for bit. Both
+:func:`save_belief` and :func:`load_belief` validate the content (shapes, ``K`` matches
+``levels``, finite, non-negative pmfs summing to 1 within :data:`PMF_TOLERANCE`), so an invalid
+archive is never written nor accepted.
 """
 
 from __future__ import annotations
