@@ -115,6 +115,10 @@ def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.Capture
     assert default["settings"] == {"preset": "robust"} and ogm["settings"]["ogm_map"] == "gmapping"
     assert figures["slam_default_peak_rss_mb_sick"] == pytest.approx(default["peak_rss_mb"], abs=0.1)
     assert figures["slam_ogm_gmapping_peak_rss_mb_sick"] == pytest.approx(ogm["peak_rss_mb"], abs=0.1)
+    assert default["peak_rss_mb"] >= default["filter_peak_rss_mb"] > 0
+    assert figures["slam_default_command_over_filter_rss_sick"] == pytest.approx(
+        default["peak_rss_mb"] / default["filter_peak_rss_mb"], abs=0.01
+    )
     assert figures["slam_default_over_ogm_gmapping_sick"] == pytest.approx(
         figures["slam_default_scans_per_s_sick"] / figures["slam_ogm_gmapping_scans_per_s_sick"], rel=0.02
     )

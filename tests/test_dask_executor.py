@@ -27,7 +27,7 @@ from crlam.experiments.pool import run_jobs  # noqa: E402
 from crlam.experiments.remote_run import input_files  # noqa: E402
 
 #: Metrics that measure the machine, not the run.
-TIMING = ("wall_time_s", "scans_per_s", "peak_rss_mb")
+TIMING = ("wall_time_s", "scans_per_s", "peak_rss_mb", "filter_peak_rss_mb", "command_peak_rss_mb")
 
 
 @pytest.fixture(scope="module")

@@ -460,21 +460,30 @@ class ConfidenceRichMap:
         return new
 
     def to_archive(self, bounds: tuple[float, float, float, float] | None = None) -> BeliefArchive:
-        """Lossless snapshot of the beliefs over a region, with the full configuration."""
+        """Lossless snapshot of the beliefs over a region, with the full configuration.
+
+        It holds the region's pmfs in memory, ``ny x nx x K`` float32;
+        :func:`crlam.experiments.map_outputs.write_belief_archive` writes the same file band by band."""
         rect = self.region(bounds)
+        origin, meta = self.archive_header(rect)
+        return BeliefArchive(
+            beliefs=self.native.beliefs(rect),
+            levels=self.levels.copy(),
+            origin=origin,
+            resolution=self.config.resolution,
+            metadata=meta,
+        )
+
+    def archive_header(self, rect: CellRect) -> tuple[NDArray[np.float64], dict[str, str | int | float]]:
+        """The ``origin`` (2,) and ``metadata`` of the archive of cell rectangle ``rect``
+        (``(ix0, iy0, nx, ny)``, as :meth:`region` gives)."""
         meta: dict[str, str | int | float] = {
             k: (v if isinstance(v, (str, int, float)) else repr(v)) for k, v in self.config.to_dict().items() if v is not None
         }
         meta["cell_ix0"], meta["cell_iy0"] = rect[0], rect[1]
         meta["config_json"] = _json(self.config.to_dict())
         res, (ox, oy) = self.config.resolution, self.config.origin
-        return BeliefArchive(
-            beliefs=self.native.beliefs(rect),
-            levels=self.levels.copy(),
-            origin=np.array([ox + rect[0] * res, oy + rect[1] * res]),
-            resolution=res,
-            metadata=meta,
-        )
+        return np.array([ox + rect[0] * res, oy + rect[1] * res]), meta
 
     @classmethod
     def from_archive(cls, archive: BeliefArchive, config: MappingConfig | None = None) -> ConfidenceRichMap:

@@ -231,9 +231,9 @@ class SlamConfig:
     time_offset : str or float
         The offset (s) between the log's laser and odometry stamps, read by ``crlam slam`` and
         :func:`crlam.experiments.slam_run.run_slam_log` (:mod:`crlam.time_offset`): ``auto``
-        (default) estimates it from the log's scans and odometry and re-attaches the odometry at
+        (the ``robust`` preset's) estimates it from the log's scans and odometry and re-attaches the odometry at
         each scan's corrected stamp when the estimate is identified (else leaves it as logged);
-        ``off`` leaves the odometry as the log attaches it; a number applies that offset. Input
+        ``off`` (paper) leaves the odometry as the log attaches it; a number applies that offset. Input
         handling only: :meth:`SlamRun.step` takes the odometry it is given.
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
@@ -285,7 +285,7 @@ class SlamConfig:
     ogm_weight_smoothing: float = 3.0
     no_return: str = "z_max"
     body_mask: str = "off"
-    time_offset: str | float = "auto"
+    time_offset: str | float = "off"
     preset: str | None = field(default=None, compare=False)
 
     @classmethod

@@ -112,7 +112,8 @@ def cmd_slam(args: argparse.Namespace) -> int:
     print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
-        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['peak_rss_mb']:.0f} MB -> {args.out}"
+        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['filter_peak_rss_mb']:.0f} MB filtering, "
+        f"{m['command_peak_rss_mb']:.0f} MB with the outputs -> {args.out}"
     )
     for key in _EVALUATIONS:
         if key in m:

@@ -22,10 +22,10 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from crlam.errors import ConfigError, DataFormatError
-from crlam.io.belief import save_belief
+from crlam.experiments.map_outputs import PANEL_CELLS, UNKNOWN_ENTROPY_TOL, map_products, write_belief_archive
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import count_scans, input_description, open_log
-from crlam.io.nav2 import write_nav2_map
+from crlam.io.nav2 import write_nav2_image
 from crlam.io.readings import ReadingFilter
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MapLayer, MappingConfig, ScanUpdateStats
 from crlam.pose import compose
@@ -43,9 +43,6 @@ __all__ = [
 ]
 
 PoseSource = Literal["log", "odometry"]
-
-#: A cell whose entropy is within this of the prior's was never informed by any beam.
-UNKNOWN_ENTROPY_TOL = 1e-6
 
 
 def sensor_pose(scan: LaserScan, source: PoseSource) -> NDArray[np.float64]:
@@ -164,24 +161,30 @@ def unknown_mask(crm: ConfidenceRichMap, entropy: MapLayer) -> NDArray[np.bool_]
 def write_map_folder(
     run: MappingRun, out_dir: str | os.PathLike[str], *, title: str, extra: dict[str, object] | None = None
 ) -> dict[str, Path]:
-    """Writes map.pgm/yaml, belief.npz, ogm.pgm/yaml, map.png and mapping.json."""
+    """Writes map.pgm/yaml, belief.npz, ogm.pgm/yaml, map.png and mapping.json.
+
+    The maps are read from the native maps in bands of rows (:mod:`crlam.experiments.map_outputs`),
+    so that writing takes little more memory than mapping did; ``mapping.json`` records both
+    high-water marks (``mapping_peak_rss_mb`` before the files, ``command_peak_rss_mb`` after)."""
+    from crlam.experiments.slam_run import peak_rss_mb
     from crlam.viz.maps import save_crm_figure
 
+    mapping_peak_mb = peak_rss_mb()
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    mean, var, ent = run.crm.layers()
-    unknown = unknown_mask(run.crm, ent)
-    occ = np.where(unknown, np.nan, mean.values)
-    write_nav2_map(out / "map.pgm", occ, resolution=mean.resolution, origin=(*mean.origin, 0.0))
+    crm = map_products(run.crm, figure_cells=PANEL_CELLS)
+    write_nav2_image(out / "map.pgm", crm.nav2, resolution=crm.resolution, origin=(*crm.origin, 0.0))
     files = {"map.pgm": out / "map.pgm", "map.yaml": out / "map.yaml"}
-    save_belief(out / "belief.npz", run.crm.to_archive())
+    write_belief_archive(out / "belief.npz", run.crm)
     files["belief.npz"] = out / "belief.npz"
-    og = run.ogm.probability()
-    lo = run.ogm.native.log_odds(run.ogm.region())
-    write_nav2_map(out / "ogm.pgm", np.where(lo == 0.0, np.nan, og.values), resolution=og.resolution, origin=(*og.origin, 0.0))
+    ogm = map_products(run.ogm, figure_cells=PANEL_CELLS)
+    write_nav2_image(out / "ogm.pgm", ogm.nav2, resolution=ogm.resolution, origin=(*ogm.origin, 0.0))
+    del ogm
     files["ogm.pgm"], files["ogm.yaml"] = out / "ogm.pgm", out / "ogm.yaml"
-    files["map.png"] = save_crm_figure(out / "map.png", mean, var, unknown=unknown, title=title, trajectory=run.poses)
-    known = ~unknown
+    assert crm.figure_variance is not None
+    files["map.png"] = save_crm_figure(
+        out / "map.png", crm.figure_mean, crm.figure_variance, unknown=crm.figure_unknown, title=title, trajectory=run.poses
+    )
     summary: dict[str, object] = {
         "title": title,
         "config": run.crm.config.to_dict(),
@@ -190,16 +193,19 @@ def write_map_folder(
         "scans_per_s": run.n_scans / max(run.wall_time_s, 1e-9),
         "update_stats": run.stats.as_dict(),
         "map_cells": {
-            "shape_yx": list(mean.shape),
-            "origin": list(mean.origin),
-            "n_known": int(known.sum()),
-            "n_occupied": int((known & (mean.values > 0.65)).sum()),
-            "n_free": int((known & (mean.values < 0.196)).sum()),
+            "shape_yx": list(crm.shape),
+            "origin": list(crm.origin),
+            "n_known": crm.n_known,
+            "n_occupied": crm.n_occupied,
+            "n_free": crm.n_free,
         },
+        "figure_map_stride": crm.figure_stride,
+        "mapping_peak_rss_mb": mapping_peak_mb,
         "tiles": run.crm.native.tile_stats(),
     }
     if extra:
         summary.update(extra)
+    summary["command_peak_rss_mb"] = peak_rss_mb()
     (out / "mapping.json").write_text(json.dumps(summary, indent=2, sort_keys=True, default=_jsonable) + "\n")
     files["mapping.json"] = out / "mapping.json"
     return files

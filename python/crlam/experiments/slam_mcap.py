@@ -31,7 +31,7 @@ received when that one was).
 from __future__ import annotations
 
 import os
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -49,12 +49,21 @@ from crlam.io.rosbag_writer import (
 from crlam.mapping import MapLayer
 from crlam.pose import compose, inverse
 
-__all__ = ["SlamMcapRecorder", "occupancy_grid_values"]
+__all__ = ["GridInfo", "SlamMcapRecorder", "occupancy_grid_values"]
 
 MAP_FRAME = "map"
 ODOM_FRAME = "odom"
 BASE_FRAME = "base_link"
 LASER_FRAME = "laser"
+
+
+class GridInfo(NamedTuple):
+    """Where an OccupancyGrid lies: ``shape`` (ny, nx), ``origin`` world (x, y) of the lower-left
+    corner of cell [0, 0] (m), ``resolution`` cell size (m)."""
+
+    shape: tuple[int, int]
+    origin: tuple[float, float]
+    resolution: float
 
 
 def occupancy_grid_values(values: NDArray[np.float64], unknown: NDArray[np.bool_], scale: float = 100.0) -> NDArray[np.int8]:
@@ -109,7 +118,7 @@ class SlamMcapRecorder:
             pa = bag.types[POSE_ARRAY](header=bag.header(t, MAP_FRAME), poses=[bag.pose(p) for p in particles])
             bag.write("/particles", POSE_ARRAY, t_ns, pa)
 
-    def _grid(self, t: float, layer: MapLayer, data: NDArray[np.int8]) -> Any:
+    def _grid(self, t: float, layer: GridInfo, data: NDArray[np.int8]) -> Any:
         T = self.bag.types
         sec, nsec = ros_time(max(t, 0.0))
         ny, nx = layer.shape
@@ -132,6 +141,21 @@ class SlamMcapRecorder:
     ) -> dict[str, int]:
         """Write ``/path``, ``/map`` and (with ``std``) ``/map_confidence`` at the last scan's
         time and close the file; returns the message count of every topic."""
+        grid = GridInfo(occupancy.shape, occupancy.origin, occupancy.resolution)
+        data = occupancy_grid_values(occupancy.values, unknown)
+        confidence = None if std is None else occupancy_grid_values(std.values, unknown, scale=200.0)
+        return self.finish_grids(stamps, poses, grid, data, confidence)
+
+    def finish_grids(
+        self,
+        stamps: NDArray[np.float64],
+        poses: NDArray[np.float64],
+        grid: GridInfo,
+        data: NDArray[np.int8],
+        confidence: NDArray[np.int8] | None,
+    ) -> dict[str, int]:
+        """:meth:`finish` with the grids' data already made (:func:`occupancy_grid_values`,
+        ``(ny * nx,)`` int8 each; e.g. band by band by :func:`crlam.experiments.map_outputs.map_products`)."""
         bag = self.bag
         t = self._last_t
         t_ns = self._last_ns
@@ -141,12 +165,9 @@ class SlamMcapRecorder:
             for s, p in zip(stamps, poses)
         ]
         bag.write("/path", PATH, t_ns, T[PATH](header=bag.header(t, MAP_FRAME), poses=stamped))
-        bag.write(
-            "/map", OCCUPANCY_GRID, t_ns, self._grid(t, occupancy, occupancy_grid_values(occupancy.values, unknown)), latched=True
-        )
-        if std is not None:
-            data = occupancy_grid_values(std.values, unknown, scale=200.0)
-            bag.write("/map_confidence", OCCUPANCY_GRID, t_ns, self._grid(t, std, data), latched=True)
+        bag.write("/map", OCCUPANCY_GRID, t_ns, self._grid(t, grid, data), latched=True)
+        if confidence is not None:
+            bag.write("/map_confidence", OCCUPANCY_GRID, t_ns, self._grid(t, grid, confidence), latched=True)
         counts = dict(bag.counts)
         bag.close()
         return counts

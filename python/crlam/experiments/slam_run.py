@@ -43,10 +43,8 @@ from crlam.eval.trajectory import ReferenceErrors, RelationsErrors, reference_er
 from crlam.experiments.progress import scan_progress_bar
 from crlam.fill import fill_rule
 from crlam.grid_alignment import into_map_frame
-from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import input_description, open_log
-from crlam.io.nav2 import write_nav2_map
 from crlam.io.readings import ReadingFilter
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
@@ -363,6 +361,8 @@ def _write_outputs(
     map_range: MapRangeChoice | None = None,
 ) -> SlamResult:
     run, wall = run_wall
+    # The filter's own high-water mark: taken when filtering has finished, before any output.
+    filter_peak_mb = peak_rss_mb()
     input_info = input_description(reader) | (odometry_info or {})
     config = run.config
     stamps, poses = run.trajectory()
@@ -427,7 +427,7 @@ def _write_outputs(
         "seed": config.seed,
         "wall_time_s": wall,
         "scans_per_s": run.n_scans / max(wall, 1e-9),
-        "peak_rss_mb": peak_rss_mb(),
+        "filter_peak_rss_mb": filter_peak_mb,
         "map_memory_mb": mem_bytes / 2**20,
         "map_tiles": {"distinct": n_tiles, "references": n_refs},
         "n_scans": run.n_scans,
@@ -493,32 +493,35 @@ def _write_outputs(
             rel_means = relations_error(stamps, means_poses, rels, on_missing=on_missing)
             metrics["relations_best_path_means"] = rel_means.summary()
             rel_figure["best path's proposal means"] = rel_means
-    from crlam.experiments.known_poses import unknown_mask
-    from crlam.mapping import ConfidenceRichMap, MapLayer
+    from crlam.experiments.map_outputs import map_products, write_belief_archive
+    from crlam.experiments.slam_mcap import GridInfo
+    from crlam.io.nav2 import write_nav2_image
+    from crlam.mapping import ConfidenceRichMap
 
+    # The map's files are read from the native map in bands of rows (crlam.experiments.map_outputs):
+    # arrays over the whole bounding box of a campus-scale map would take several times the
+    # filter's own memory.
     best = run.best_map()
-    std = None
     if isinstance(best, ConfidenceRichMap):
-        mean, var, ent = best.layers()
-        archive = best.to_archive()
         # The final estimate and the spread of the last weighed set: what --continue starts from.
-        archive.estimate = np.array(poses[-1], dtype=np.float64)
-        archive.estimate_cov = pose_covariance(*run.filter.weighed_set(), archive.estimate)
-        save_belief(out / "belief.npz", archive)
-        unknown = unknown_mask(best, ent)
-        std = MapLayer(np.sqrt(np.maximum(var.values, 0.0)), var.origin, var.resolution, "standard deviation")
-    else:
-        mean = best.probability()
-        unknown = best.native.log_odds(best.region()) == 0.0
+        estimate = np.array(poses[-1], dtype=np.float64)
+        write_belief_archive(
+            out / "belief.npz", best, estimate=estimate, estimate_cov=pose_covariance(*run.filter.weighed_set(), estimate)
+        )
+    products = map_products(best, grids=recorder is not None)
+    del best
     if recorder is not None:
         try:
-            metrics["mcap"] = {"path": str(recorder.path), "topics": recorder.finish(stamps, poses, mean, unknown, std)}
+            assert products.grid is not None
+            grid = GridInfo(products.shape, products.origin, products.resolution)
+            topics = recorder.finish_grids(stamps, poses, grid, products.grid, products.confidence_grid)
+            metrics["mcap"] = {"path": str(recorder.path), "topics": topics}
         except BaseException:
             recorder.close()
             raise
-    write_nav2_map(
-        out / "map.pgm", np.where(unknown, np.nan, mean.values), resolution=mean.resolution, origin=(*mean.origin, 0.0)
-    )
+        products.grid = products.confidence_grid = None
+    write_nav2_image(out / "map.pgm", products.nav2, resolution=products.resolution, origin=(*products.origin, 0.0))
+    metrics["figure_map_stride"] = products.figure_stride
     write_toml(
         out / "config.toml",
         {
@@ -541,8 +544,8 @@ def _write_outputs(
 
         save_trajectory_figure(
             out / "trajectory.png",
-            mean,
-            unknown,
+            products.figure_mean,
+            products.figure_unknown,
             poses,
             reference=None if ref_poses is None else ref_poses[1],
             title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, {config.particles} particles",
@@ -558,6 +561,8 @@ def _write_outputs(
                 title=f"{Path(log_path).name}: RBPF-{config.method.upper()}, relations metric",
             )
     write_run_readme(out, written, figures=figures, reference=ref_poses is not None, relations=rel_figure is not None)
+    # The whole command's high-water mark, outputs included (what /usr/bin/time -v reports).
+    metrics["command_peak_rss_mb"] = metrics["peak_rss_mb"] = peak_rss_mb()
     # metrics.json is written last and atomically: its presence marks a finished run (sweeps resume).
     tmp = out / "metrics.json.tmp"
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")

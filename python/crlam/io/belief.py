@@ -21,9 +21,12 @@ Version 2 added the estimate: what ``crlam slam --continue`` starts from. A vers
 reads as before, without it; an archive of a later version than this crlam knows is refused
 with the version found and the versions read.
 
-Arrays round-trip bit for bit. Both :func:`save_belief` and :func:`load_belief` validate the
-content (shapes, ``K`` matches ``levels``, finite, non-negative pmfs summing to 1 within
-:data:`PMF_TOLERANCE`), so an invalid archive is never written nor accepted.
+:func:`save_belief_bands` writes the same file from bands of rows (the pmfs of a large map are
+never all in memory: ``crlam slam`` streams them from the filter's tiles), validating each band
+as it comes and removing a partial file on error. Arrays round-trip bit for bit. Both
+:func:`save_belief` and :func:`load_belief` validate the content (shapes, ``K`` matches
+``levels``, finite, non-negative pmfs summing to 1 within :data:`PMF_TOLERANCE`), so an invalid
+archive is never written nor accepted.
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ import math
 import os
 import zipfile
 import zlib
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -45,7 +48,7 @@ from crlam.errors import DataFormatError
 from crlam.io.npz_check import check_npz
 from crlam.limits import check_limit
 
-__all__ = ["FORMAT_VERSION", "PMF_TOLERANCE", "BeliefArchive", "load_belief", "save_belief"]
+__all__ = ["FORMAT_VERSION", "PMF_TOLERANCE", "BeliefArchive", "load_belief", "save_belief", "save_belief_bands"]
 
 FORMAT_NAME = "crlam-belief"
 FORMAT_VERSION = 2
@@ -113,32 +116,51 @@ class BeliefArchive:
         def fail(message: str, name: str) -> DataFormatError:
             return DataFormatError(message, path=where, field=name)
 
-        b, lv = self.beliefs, self.levels
+        b = self.beliefs
         if b.ndim != 3 or min(b.shape) == 0:
             raise fail(f"must have shape (ny, nx, K) with no empty axis, got {b.shape}", "beliefs")
-        if lv.shape != (b.shape[2],):
-            raise fail(f"shape {lv.shape} does not match K = {b.shape[2]} of beliefs", "levels")
-        if not np.all(np.isfinite(lv)):
-            raise fail("non-finite level", "levels")
-        if self.origin.shape != (2,) or not np.all(np.isfinite(self.origin)):
-            raise fail(f"must be 2 finite numbers, got {self.origin!r}", "origin")
-        if not (math.isfinite(self.resolution) and self.resolution > 0):
-            raise fail(f"must be positive, got {self.resolution}", "resolution")
-        bad = ~np.isfinite(b).all(axis=2) | (b < 0).any(axis=2)
-        sums = b.sum(axis=2, dtype=np.float64)
-        bad |= np.abs(sums - 1.0) > PMF_TOLERANCE
-        if bad.any():
-            iy, ix = (int(v) for v in np.argwhere(bad)[0])
-            raise fail(
-                f"{int(bad.sum())} cells are not pmfs (first: sum {sums[iy, ix]!r}, min {float(b[iy, ix].min())!r})",
-                f"beliefs[{iy},{ix}]",
-            )
+        _validate_header(self.levels, self.origin, self.resolution, self.metadata, b.shape[2], fail)
+        _validate_pmfs(b, 0, fail)
         _validate_estimate(self.estimate, self.estimate_cov, fail)
-        for key, value in self.metadata.items():
-            if not isinstance(key, str) or not isinstance(value, (str, int, float)):
-                raise fail(f"entry {key!r}: {value!r} is not str/int/float", "metadata")
-            if isinstance(value, float) and not math.isfinite(value):
-                raise fail(f"entry {key!r} is not finite", "metadata")
+
+
+def _validate_header(
+    levels: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    resolution: float,
+    metadata: dict[str, MetaValue],
+    n_levels: int,
+    fail: Callable[[str, str], DataFormatError],
+) -> None:
+    """Everything of an archive but its pmfs and estimate: ``levels`` (K,), ``origin`` (2,),
+    ``resolution`` and ``metadata``."""
+    if levels.shape != (n_levels,):
+        raise fail(f"shape {levels.shape} does not match K = {n_levels} of beliefs", "levels")
+    if not np.all(np.isfinite(levels)):
+        raise fail("non-finite level", "levels")
+    if origin.shape != (2,) or not np.all(np.isfinite(origin)):
+        raise fail(f"must be 2 finite numbers, got {origin!r}", "origin")
+    if not (math.isfinite(resolution) and resolution > 0):
+        raise fail(f"must be positive, got {resolution}", "resolution")
+    for key, value in metadata.items():
+        if not isinstance(key, str) or not isinstance(value, (str, int, float)):
+            raise fail(f"entry {key!r}: {value!r} is not str/int/float", "metadata")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise fail(f"entry {key!r} is not finite", "metadata")
+
+
+def _validate_pmfs(band: NDArray[np.float32], iy0: int, fail: Callable[[str, str], DataFormatError]) -> None:
+    """Every cell of ``band`` (h, nx, K), rows ``iy0..iy0+h`` of the grid, a finite, non-negative
+    pmf summing to 1 within :data:`PMF_TOLERANCE` (the error names the first bad cell)."""
+    bad = ~np.isfinite(band).all(axis=2) | (band < 0).any(axis=2)
+    sums = band.sum(axis=2, dtype=np.float64)
+    bad |= np.abs(sums - 1.0) > PMF_TOLERANCE
+    if bad.any():
+        iy, ix = (int(v) for v in np.argwhere(bad)[0])
+        raise fail(
+            f"{int(bad.sum())} cells are not pmfs (first: sum {sums[iy, ix]!r}, min {float(band[iy, ix].min())!r})",
+            f"beliefs[{iy0 + iy},{ix}]",
+        )
 
 
 def _validate_estimate(
@@ -157,24 +179,124 @@ def _validate_estimate(
 
 
 def save_belief(path: str | os.PathLike[str], archive: BeliefArchive) -> None:
-    """Validate ``archive`` and write it to ``path`` (exactly that name; no suffix added)."""
-    archive.validate(path)
-    # Any: numpy's stub would match these keywords against savez_compressed's allow_pickle.
-    estimate: dict[str, Any] = {}
-    if archive.estimate is not None and archive.estimate_cov is not None:
-        estimate = {"estimate": archive.estimate, "estimate_cov": archive.estimate_cov}
-    with open(path, "wb") as fh:
-        np.savez_compressed(
-            fh,
-            format=np.array(FORMAT_NAME),
-            format_version=np.array(FORMAT_VERSION, dtype=np.int64),
-            beliefs=archive.beliefs,
-            levels=archive.levels,
-            origin=archive.origin,
-            resolution=np.array(archive.resolution, dtype=np.float64),
-            metadata=np.array(json.dumps(archive.metadata, sort_keys=True, allow_nan=False)),
-            **estimate,
+    """Validate ``archive`` and write it to ``path`` (exactly that name; no suffix added), in
+    bands of rows as :func:`save_belief_bands` (each band validated as it is written)."""
+    b = archive.beliefs
+    if b.ndim != 3 or min(b.shape) == 0:
+        raise DataFormatError(f"must have shape (ny, nx, K) with no empty axis, got {b.shape}", path=str(path), field="beliefs")
+    if archive.levels.shape != (b.shape[2],):
+        raise DataFormatError(
+            f"shape {archive.levels.shape} does not match K = {b.shape[2]} of beliefs", path=str(path), field="levels"
         )
+    ny, nx = archive.shape
+    rows = max(1, BAND_BYTES // max(1, archive.beliefs[0].nbytes))
+    save_belief_bands(
+        path,
+        shape=(ny, nx),
+        levels=archive.levels,
+        origin=archive.origin,
+        resolution=archive.resolution,
+        metadata=archive.metadata,
+        bands=(archive.beliefs[i : i + rows] for i in range(0, ny, rows)),
+        estimate=archive.estimate,
+        estimate_cov=archive.estimate_cov,
+    )
+
+
+BAND_BYTES = 4 * 2**20
+"""Bytes of pmfs a band of rows holds at most (at least one row) when an archive is written."""
+
+
+def save_belief_bands(
+    path: str | os.PathLike[str],
+    *,
+    shape: tuple[int, int],
+    levels: NDArray[np.float64],
+    origin: NDArray[np.float64],
+    resolution: float,
+    metadata: dict[str, MetaValue],
+    bands: Iterable[NDArray[np.float32]],
+    estimate: NDArray[np.float64] | None = None,
+    estimate_cov: NDArray[np.float64] | None = None,
+) -> None:
+    """Writes a belief archive whose pmfs arrive as bands of rows, never all in memory at once.
+
+    The file is the one :func:`save_belief` writes (the same members, dtypes and format version;
+    :func:`load_belief` reads it): ``beliefs`` is streamed into its compressed ``.npy`` member band
+    by band, and each band is validated as it comes. Memory: one band, whatever the grid's size.
+
+    Parameters
+    ----------
+    shape : (int, int)
+        ``(ny, nx)`` of the whole grid.
+    levels, origin, resolution, metadata, estimate, estimate_cov
+        As the fields of :class:`BeliefArchive`.
+    bands : iterable of ndarray, shape (h, nx, K)
+        The pmfs, rows ``0..ny`` in order (row 0 at the minimum y), in bands of any height;
+        converted to float32.
+
+    Raises
+    ------
+    DataFormatError
+        If the header or a band is invalid or the bands do not add up to ``ny`` rows; the
+        partial file is removed.
+    """
+    where = str(path)
+
+    def fail(message: str, name: str) -> DataFormatError:
+        return DataFormatError(message, path=where, field=name)
+
+    lv = np.asarray(levels, dtype=np.float64)
+    org = np.asarray(origin, dtype=np.float64)
+    est = None if estimate is None else np.asarray(estimate, dtype=np.float64)
+    cov = None if estimate_cov is None else np.asarray(estimate_cov, dtype=np.float64)
+    ny, nx = (int(v) for v in shape)
+    k = int(lv.shape[0]) if lv.ndim == 1 else -1
+    if ny <= 0 or nx <= 0 or k <= 0:
+        raise fail(f"must have shape (ny, nx, K) with no empty axis, got {(ny, nx, k)}", "beliefs")
+    _validate_header(lv, org, float(resolution), dict(metadata), k, fail)
+    _validate_estimate(est, cov, fail)
+    small: dict[str, NDArray[Any]] = {
+        "format": np.array(FORMAT_NAME),
+        "format_version": np.array(FORMAT_VERSION, dtype=np.int64),
+    }
+    after: dict[str, NDArray[Any]] = {
+        "levels": lv,
+        "origin": org,
+        "resolution": np.array(float(resolution), dtype=np.float64),
+        "metadata": np.array(json.dumps(dict(metadata), sort_keys=True, allow_nan=False)),
+    }
+    if est is not None and cov is not None:
+        after |= {"estimate": est, "estimate_cov": cov}
+    try:
+        # The members and their order are np.savez_compressed's (deflate, zip64 entries).
+        with open(path, "wb") as fh, zipfile.ZipFile(fh, mode="w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
+            for name, value in small.items():
+                with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array(member, value, allow_pickle=False)
+            with zf.open("beliefs.npy", "w", force_zip64=True) as member:
+                header = {
+                    "descr": np.lib.format.dtype_to_descr(np.dtype(np.float32)),
+                    "fortran_order": False,
+                    "shape": (ny, nx, k),
+                }
+                np.lib.format.write_array_header_1_0(member, header)
+                row = 0
+                for band in bands:
+                    b = np.ascontiguousarray(band, dtype=np.float32)
+                    if b.ndim != 3 or b.shape[1:] != (nx, k) or row + b.shape[0] > ny:
+                        raise fail(f"band of shape {b.shape} at row {row} does not fit the grid {(ny, nx, k)}", "beliefs")
+                    _validate_pmfs(b, row, fail)
+                    member.write(b.data)
+                    row += b.shape[0]
+                if row != ny:
+                    raise fail(f"the bands hold {row} rows, the grid {ny}", "beliefs")
+            for name, value in after.items():
+                with zf.open(f"{name}.npy", "w", force_zip64=True) as member:
+                    np.lib.format.write_array(member, value, allow_pickle=False)
+    except BaseException:
+        Path(path).unlink(missing_ok=True)
+        raise
 
 
 def _check_before_loading(path: str | os.PathLike[str]) -> None:

@@ -28,7 +28,7 @@ from crlam.io.lines import read_small_text
 from crlam.io.structured import load_yaml_text
 from crlam.limits import check_limit
 
-__all__ = ["Nav2Map", "read_image", "read_nav2_map", "read_pgm", "write_nav2_map", "write_pgm"]
+__all__ = ["Nav2Map", "nav2_pixels", "read_image", "read_nav2_map", "read_pgm", "write_nav2_image", "write_nav2_map", "write_pgm"]
 
 FloatArray = NDArray[np.float64]
 
@@ -266,9 +266,74 @@ def write_nav2_map(
     occ = np.asarray(occupancy, dtype=np.float64)
     if occ.ndim != 2 or occ.size == 0:
         raise DataFormatError(f"occupancy must be a non-empty 2-D array, got shape {occ.shape}", path=str(pgm), field="occupancy")
+    image = nav2_pixels(occ, occupied_thresh=occupied_thresh, free_thresh=free_thresh, negate=negate, path=pgm)
+    return write_nav2_image(
+        pgm, image, resolution=resolution, origin=origin, occupied_thresh=occupied_thresh, free_thresh=free_thresh, negate=negate
+    )
+
+
+def _check_thresholds(occupied_thresh: float, free_thresh: float, negate: int) -> None:
+    if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
+        raise ConfigError(f"need 0 <= free_thresh < occupied_thresh <= 1, got {free_thresh}, {occupied_thresh}")
+    if negate not in (0, 1):
+        raise ConfigError(f"negate must be 0 or 1, got {negate!r}")
+
+
+def nav2_pixels(
+    occupancy: ArrayLike,
+    *,
+    occupied_thresh: float = 0.65,
+    free_thresh: float = 0.196,
+    negate: int = 0,
+    path: str | os.PathLike[str] | None = None,
+) -> NDArray[np.uint8]:
+    """The 8-bit pixels of a Nav2 trinary map for occupancy probabilities, row for row.
+
+    ``occupancy`` (h, nx) in [0, 1], NaN unknown, may be any band of rows of a map: the pixels
+    of a whole map are the pixels of its bands stacked, so a large map is classified band by band
+    and written with :func:`write_nav2_image`. ``path`` names the map in errors.
+
+    Returns
+    -------
+    ndarray, shape (h, nx), uint8
+        0 occupied, 254 free, 205 unknown (``map_saver``'s values; mirrored with ``negate``),
+        rows in the array's order (not flipped).
+    """
+    where = None if path is None else str(path)
+    occ = np.asarray(occupancy, dtype=np.float64)
+    if occ.ndim != 2:
+        raise DataFormatError(f"occupancy must be a 2-D array, got shape {occ.shape}", path=where, field="occupancy")
     finite = occ[np.isfinite(occ)]
     if np.isinf(occ).any() or (finite.size and (finite.min() < 0.0 or finite.max() > 1.0)):
-        raise DataFormatError("occupancy must lie in [0, 1] or be NaN", path=str(pgm), field="occupancy")
+        raise DataFormatError("occupancy must lie in [0, 1] or be NaN", path=where, field="occupancy")
+    _check_thresholds(occupied_thresh, free_thresh, negate)
+    lut = _class_pixels(occupied_thresh, free_thresh, int(negate))
+    classes = _classify(occ, occupied_thresh, free_thresh)
+    image = np.empty(occ.shape, dtype=np.uint8)
+    for cls, px in lut.items():
+        image[classes == cls] = px
+    return image
+
+
+def write_nav2_image(
+    pgm_path: str | os.PathLike[str],
+    image: ArrayLike,
+    *,
+    resolution: float,
+    origin: ArrayLike,
+    occupied_thresh: float = 0.65,
+    free_thresh: float = 0.196,
+    negate: int = 0,
+) -> Path:
+    """Writes :func:`nav2_pixels` of a whole map (``(ny, nx)`` uint8, row 0 at the minimum y) as
+    a Nav2 map: the P5 PGM and the YAML beside it; the arguments as :func:`write_nav2_map`'s.
+    Returns the YAML path."""
+    pgm = Path(pgm_path)
+    pixels = np.asarray(image)
+    if pixels.ndim != 2 or pixels.size == 0 or pixels.dtype != np.uint8:
+        raise DataFormatError(
+            f"image must be a non-empty 2-D uint8 array, got {pixels.dtype} {pixels.shape}", path=str(pgm), field="image"
+        )
     if not (math.isfinite(resolution) and resolution > 0):
         raise ConfigError(f"resolution must be positive, got {resolution}")
     org = np.asarray(origin, dtype=np.float64).reshape(-1)
@@ -276,24 +341,15 @@ def write_nav2_map(
         org = np.append(org, 0.0)
     if org.shape != (3,) or not np.all(np.isfinite(org)):
         raise ConfigError(f"origin must be 2 or 3 finite numbers, got {origin!r}")
-    if not 0.0 <= free_thresh < occupied_thresh <= 1.0:
-        raise ConfigError(f"need 0 <= free_thresh < occupied_thresh <= 1, got {free_thresh}, {occupied_thresh}")
-    if negate not in (0, 1):
-        raise ConfigError(f"negate must be 0 or 1, got {negate!r}")
-    negate = int(negate)
-    lut = _class_pixels(occupied_thresh, free_thresh, negate)
-    classes = _classify(occ, occupied_thresh, free_thresh)
-    image = np.empty(occ.shape, dtype=np.uint8)
-    for cls, px in lut.items():
-        image[classes == cls] = px
-    write_pgm(pgm, image[::-1])
+    _check_thresholds(occupied_thresh, free_thresh, negate)
+    write_pgm(pgm, pixels[::-1])
     yaml_path = pgm.with_suffix(".yaml")
     doc = {
         "image": pgm.name,
         "mode": "trinary",
         "resolution": float(resolution),
         "origin": [float(v) for v in org.tolist()],
-        "negate": negate,
+        "negate": int(negate),
         "occupied_thresh": float(occupied_thresh),
         "free_thresh": float(free_thresh),
     }
