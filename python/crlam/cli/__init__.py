@@ -40,6 +40,7 @@ COMMANDS = (
     "convert",
     "experiment",
     "bench",
+    "ros",
 )
 
 

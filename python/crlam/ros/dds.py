@@ -153,7 +153,14 @@ class DdsNode:
         return r
 
     def close(self) -> None:
-        """Deletes the participant (and with it every reader and writer)."""
+        """Deletes the participant (and with it every reader and writer). Listeners are removed
+        first: deleting a reader whose listener is set crashes the binding (a use after free in
+        Cyclone DDS Python 11) when another participant of the process uses the same type."""
+        from cyclonedds.sub import DataReader
+
+        for e in self._entities:
+            if isinstance(e, DataReader):
+                e.set_listener(None)
         self._entities.clear()
         self._topics.clear()
         self.participant = None

@@ -12,7 +12,8 @@ type store), and a sample is serialised as plain CDR (XCDR1, the representation 
 
 # No `from __future__ import annotations`: cyclonedds reads the field annotations as objects.
 
-from dataclasses import dataclass, field
+import typing
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 from cyclonedds.idl import IdlStruct
@@ -56,6 +57,7 @@ __all__ = [
     "Clock",
     "dds_type_name",
     "from_cdr",
+    "from_object",
     "to_cdr",
 ]
 
@@ -384,7 +386,33 @@ def from_cdr(cls: type[IdlStruct], data: bytes) -> Any:
     return cls.deserialize(data)
 
 
-def from_rosbags(msg: Any, ros_type: str) -> Any:
-    """A ``rosbags`` message object (from a bag reader's ``deserialize``) as this module's type,
-    through its CDR bytes: the one conversion every bag message takes on its way to DDS."""
-    return from_cdr(ROS_TYPES[ros_type], msg)
+def _element_class(annotation: Any) -> type[IdlStruct] | None:
+    """The message class of a sequence or array field's items (None for numbers and strings)."""
+    outer = typing.get_args(annotation)
+    inner = typing.get_args(outer[0]) if outer else ()
+    item = inner[0] if inner else None
+    return item if isinstance(item, type) and issubclass(item, IdlStruct) else None
+
+
+def from_object(obj: Any, cls: type[IdlStruct]) -> Any:
+    """A message of ``cls`` with the fields of ``obj`` (a ``rosbags`` message of a ROS 1 or ROS 2
+    bag, or anything with those attributes), copied field by field. Fields ``obj`` lacks keep
+    their defaults; fields only ``obj`` has (a ROS 1 header's ``seq``) are left out."""
+    values: dict[str, Any] = {}
+    hints = cls.__annotations__
+    for f in fields(cls):
+        if not hasattr(obj, f.name):
+            continue
+        v = getattr(obj, f.name)
+        default = cls.__dataclass_fields__[f.name].default_factory  # type: ignore[attr-defined]
+        if callable(default) and isinstance(sample := default(), IdlStruct):
+            v = from_object(v, type(sample))
+        elif (item := _element_class(hints[f.name])) is not None:
+            v = [from_object(x, item) for x in v]
+        elif hasattr(v, "tolist"):
+            v = v.tolist()
+        elif isinstance(v, (bytes, bytearray, memoryview)):
+            v = list(bytes(v))
+        values[f.name] = v
+    # ROS 1 stores Header.stamp as Time with secs/nsecs: rosbags names them sec/nanosec already.
+    return cls(**values)

@@ -1,0 +1,158 @@
+"""``crlam ros play`` into ``crlam ros slam`` over DDS, on the loopback interface only.
+
+Every participant here uses :data:`crlam.ros.dds.LOOPBACK_CONFIG` (interface ``lo``, unicast
+peers on 127.0.0.1, no multicast) on a domain of this process's own. The player runs in
+lock-step with the node (it waits for the node's progress on /diagnostics before each scan and
+the node waits for the odometry after each scan without a wall-clock limit), so the node sees
+every scan with the offline reader's odometry whatever the machine's speed: its trajectory must
+equal ``crlam slam``'s on the same bag to 1e-9 (same seed, same scans, same order).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("cyclonedds", reason="crlam[ros] (cyclonedds) is not installed")
+
+from crlam.io.tum import read_tum  # noqa: E402
+from crlam.ros import messages as m  # noqa: E402
+from crlam.ros import qos  # noqa: E402
+from crlam.ros.dds import LOOPBACK_CONFIG, DdsNode  # noqa: E402
+from crlam.ros.params import NodeParameters, load_params_file, split_parameters  # noqa: E402
+from crlam.ros.play import play_bag  # noqa: E402
+from crlam.ros.slam_node import SlamNode  # noqa: E402
+from crlam.run_folder import is_complete  # noqa: E402
+
+#: One domain per test process (pid-based), so parallel runs on one machine do not meet.
+DOMAIN = 100 + os.getpid() % 100
+SLAM = {"particles": 8, "seed": 3}
+
+
+class Collector:
+    """A test subscriber: every sample of the topics it reads, and an event per topic."""
+
+    def __init__(self, node: DdsNode) -> None:
+        self.samples: dict[str, list[Any]] = {}
+        self.events: dict[str, threading.Event] = {}
+        self.node = node
+
+    def read(self, topic: str, cls: type, profile: Any) -> None:
+        self.samples[topic] = []
+        self.events[topic] = threading.Event()
+
+        def got(sample: Any) -> None:
+            self.samples[topic].append(sample)
+            self.events[topic].set()
+
+        self.node.reader(topic, cls, profile, got)
+
+
+def test_participants_are_loopback_only() -> None:
+    assert '<NetworkInterface name="lo"/>' in LOOPBACK_CONFIG
+    assert "<AllowMulticast>false</AllowMulticast>" in LOOPBACK_CONFIG
+    assert '<Peer address="127.0.0.1"/>' in LOOPBACK_CONFIG
+    node = DdsNode("crlam_test_config", domain=DOMAIN)
+    try:
+        assert os.environ["CYCLONEDDS_URI"] == LOOPBACK_CONFIG
+    finally:
+        node.close()
+
+
+def test_params_file(tmp_path: Path) -> None:
+    f = tmp_path / "p.yaml"
+    f.write_text("crlam_slam:\n  ros__parameters:\n    max_laser_range: 6.0\n    particles: 12\n    map_frame: world\n")
+    node, slam = split_parameters(load_params_file(f, "crlam_slam"), str(f))
+    assert node.map_frame == "world" and slam == {"max_range": 6.0, "particles": 12}
+    f.write_text("crlam_slam:\n  ros__parameters:\n    no_such_thing: 1\n")
+    from crlam.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="no_such_thing"):
+        split_parameters(load_params_file(f, "crlam_slam"), str(f))
+
+
+def _run_live(bag: Path, out: Path, **node_changes: Any) -> tuple[SlamNode, Collector]:
+    params = NodeParameters(max_scan_wait=float("inf"), map_update_interval=2.0, process_every_scan=True, **node_changes)
+    node = SlamNode(params, dict(SLAM), domain=DOMAIN)
+    node.start()
+    test = DdsNode("crlam_test_subscriber", domain=DOMAIN)
+    col = Collector(test)
+    col.read("/map", m.OccupancyGrid, qos.latched())
+    col.read("/tf", m.TFMessage, qos.reliable(100))
+    col.read("/pose", m.PoseWithCovarianceStamped, qos.reliable())
+    try:
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=DOMAIN, timeout=120)
+        node.request_save(str(out))
+        node.wait_idle()
+    finally:
+        node.stop(save=False)
+    assert col.events["/map"].wait(30) and col.events["/tf"].wait(30)
+    test.close()
+    return node, col
+
+
+@pytest.mark.realdata
+def test_turtlebot4_live_equals_offline(data_dir: Path, tmp_path: Path) -> None:
+    from crlam.experiments.slam_run import run_slam_log
+    from crlam.presets import resolve
+
+    bag = data_dir / "bags" / "turtlebot4-mac-floor"
+    if not bag.exists():
+        pytest.skip(f"{bag} not found")
+    node, col = _run_live(bag, tmp_path / "live")
+    assert is_complete(tmp_path / "live")
+    assert node.counters["scans_dropped"] == 0
+    offline = run_slam_log(bag, tmp_path / "offline", resolve("robust", dict(SLAM)), progress=False, figures=False)
+    live_t = read_tum(tmp_path / "live" / "trajectory.tum")
+    off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
+    assert offline.metrics["n_scans"] == len(live_t.timestamps)
+    np.testing.assert_allclose(live_t.timestamps, off_t.timestamps, atol=1e-9)
+    np.testing.assert_allclose(live_t.poses, off_t.poses, atol=1e-9)
+    assert (tmp_path / "live" / "map.pgm").is_file() and (tmp_path / "live" / "map.yaml").is_file()
+    grid = col.samples["/map"][-1]
+    assert grid.header.frame_id == "map" and len(grid.data) == grid.info.width * grid.info.height > 0
+    assert any(tr.header.frame_id == "map" and tr.child_frame_id == "odom" for s in col.samples["/tf"] for tr in s.transforms)
+    assert len(col.samples["/pose"]) > 0
+
+
+def _synthetic_bag(path: Path) -> Path:
+    """A small MCAP bag: a robot driving 1 m along a corridor, 40 scans, odometry at 2x the scan rate."""
+    from crlam.io.rosbag_writer import LASER_SCAN, ODOMETRY, TF_MESSAGE, McapBagWriter
+
+    angles = np.linspace(-np.pi / 2, np.pi / 2, 181)
+    with McapBagWriter(path) as w:
+        w.write("/tf_static", TF_MESSAGE, 0, w.tf([w.transform(0.0, "base_link", "laser", (0.1, 0.0, 0.0))]), latched=True)
+        for k in range(80):
+            t = 1.0 + 0.05 * k
+            x = 0.0125 * k
+            w.write("/odom", ODOMETRY, int(t * 1e9), w.odometry(t, "odom", "base_link", (x, 0.0, 0.0), tv=0.25))
+            if k % 2 == 1:
+                ts = t + 0.01
+                lx = x + 0.1
+                # Walls at y = +-1.5 and x = 4: the range along each bearing.
+                with np.errstate(divide="ignore"):
+                    side = np.where(np.abs(np.sin(angles)) > 1e-9, 1.5 / np.abs(np.sin(angles)), np.inf)
+                    front = np.where(np.cos(angles) > 1e-9, (4.0 - lx) / np.cos(angles), np.inf)
+                ranges = np.minimum(np.minimum(side, front), 8.0)
+                w.write("/scan", LASER_SCAN, int(ts * 1e9), w.laser_scan(ts, "laser", ranges, angles[0], angles[1] - angles[0], 8.0))
+    return path
+
+
+def test_synthetic_bag_live_equals_offline(tmp_path: Path) -> None:
+    from crlam.experiments.slam_run import run_slam_log
+    from crlam.presets import resolve
+
+    bag = _synthetic_bag(tmp_path / "corridor.mcap")
+    node, col = _run_live(bag, tmp_path / "live")
+    assert is_complete(tmp_path / "live")
+    offline = run_slam_log(bag, tmp_path / "offline", resolve("robust", dict(SLAM)), progress=False, figures=False)
+    live_t = read_tum(tmp_path / "live" / "trajectory.tum")
+    off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
+    assert len(live_t.timestamps) == offline.metrics["n_scans"] == 40
+    np.testing.assert_allclose(live_t.poses, off_t.poses, atol=1e-9)
+    assert node.counters["scans_processed"] >= 1
