@@ -9,8 +9,9 @@ nodes with ``use_sim_time``.
 
 **Lock-step** (``lockstep=True``): before each laser scan, the player waits until the node
 under test reports (``/diagnostics``, :data:`crlam.ros.slam_node.DIAGNOSTIC_NAME`) that it has
-handled every scan but the one before, and at the end that it has received every scan and
-odometry message: the node then sees each scan with the same odometry as an offline run, at
+settled (filtered, or dropped for want of odometry) every scan it could match with the odometry
+sent so far (those stamped at or before the newest odometry), and at the end that it has
+received every scan and odometry message: the node then sees each scan with the same odometry as an offline run, at
 whatever speed the machine has, so a test's outcome does not depend on timing.
 """
 
@@ -75,6 +76,10 @@ class _NodeProgress:
                 if left <= 0:
                     raise CrlamError(f"lock-step: the node did not report {need} within {timeout:.0f} s (has {self.values})")
                 self.cond.wait(left)
+
+
+def _stamp(t: Any) -> float:
+    return float(t.sec) + float(t.nanosec) * 1e-9
 
 
 def _wait_matched(writers: dict[str, Any], topics: list[str], timeout: float) -> None:
@@ -166,6 +171,8 @@ def play_bag(
                 progress.wait({"ready": 1}, timeout)
             first_t: int | None = None
             n_scans = n_odom = 0
+            scan_stamps: list[float] = []
+            odom_until = -math.inf
             for conn, t_ns, raw in reader.messages(connections=conns):
                 if first_t is None:
                     first_t = t_ns
@@ -174,9 +181,13 @@ def play_bag(
                     delay = due - time.monotonic()
                     if delay > 0:
                         time.sleep(delay)  # pacing the playback; never deciding an outcome
-                if lockstep and conn.msgtype in SCAN_TYPES and n_scans > 0:
-                    progress.wait({"scans_handled": n_scans - 1}, timeout)
                 msg = messages.from_object(reader.deserialize(raw, conn.msgtype), messages.ROS_TYPES[conn.msgtype])
+                if lockstep and conn.msgtype in SCAN_TYPES:
+                    # Every scan the node can match by now (stamped before the newest odometry sent) is settled.
+                    progress.wait({"scans_settled": sum(t <= odom_until for t in scan_stamps)}, timeout)
+                    scan_stamps.append(_stamp(msg.header.stamp))
+                elif conn.msgtype == "nav_msgs/msg/Odometry":
+                    odom_until = max(odom_until, _stamp(msg.header.stamp))
                 if clock_writer is not None:
                     sec, nsec = divmod(int(t_ns), 1_000_000_000)
                     clock_writer.write(messages.Clock(clock=messages.Time(sec=sec, nanosec=nsec)))
@@ -188,7 +199,8 @@ def play_bag(
                 if on_message is not None:
                     on_message(conn.topic, t_ns)
             if lockstep:
-                progress.wait({"scans_received": n_scans, "odometry_received": n_odom, "scans_handled": n_scans - 1}, timeout)
+                settled = sum(t <= odom_until for t in scan_stamps)
+                progress.wait({"scans_received": n_scans, "odometry_received": n_odom, "scans_settled": settled}, timeout)
     except CrlamError:
         raise
     except Exception as exc:

@@ -390,7 +390,9 @@ class SlamNode:
         from crlam.ros import messages as m
 
         with self.lock:
-            values = [m.KeyValue(key=k, value=str(v)) for k, v in self.counters.items()]
+            c = self.counters
+            settled = c["scans_handled"] + c["scans_dropped"] + c["scans_without_odometry"]
+            values = [m.KeyValue(key=k, value=str(v)) for k, v in (*c.items(), ("scans_settled", settled))]
         values += [m.KeyValue(key=k, value=f"{v:.2f}") for k, v in self.latency_summary().items()]
         values.append(m.KeyValue(key="particles", value=str(self.config.particles)))
         status = m.DiagnosticStatus(level=0, name=DIAGNOSTIC_NAME, message="running", hardware_id="crlam", values=values)
