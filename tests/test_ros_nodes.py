@@ -156,3 +156,115 @@ def test_synthetic_bag_live_equals_offline(tmp_path: Path) -> None:
     assert len(live_t.timestamps) == offline.metrics["n_scans"] == 40
     np.testing.assert_allclose(live_t.poses, off_t.poses, atol=1e-9)
     assert node.counters["scans_processed"] >= 1
+
+
+def _start_node_process(tmp_path: Path, out: Path) -> Any:
+    """``crlam ros slam`` as a child process on this test's domain; returns once it reports ready."""
+    import subprocess
+    import sys
+
+    params = tmp_path / "params.yaml"
+    params.write_text(
+        "crlam_slam:\n  ros__parameters:\n    particles: 8\n    seed: 3\n    max_scan_wait: .inf\n    process_every_scan: true\n"
+    )
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "crlam", "ros", "slam", "--params-file", str(params), "-o", str(out), "--domain", str(DOMAIN)],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+        env=env,
+    )
+    assert proc.stdout is not None
+    line = proc.stdout.readline()  # "running on DDS domain ..." once its readers exist
+    assert "running on DDS domain" in line, line
+    return proc
+
+
+def test_node_process_saves_whole_on_sigterm_and_nothing_when_killed(tmp_path: Path) -> None:
+    import signal
+
+    bag = _synthetic_bag(tmp_path / "corridor.mcap")
+    # SIGTERM: the node saves its run folder whole, then exits.
+    out = tmp_path / "run"
+    proc = _start_node_process(tmp_path, out)
+    try:
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=DOMAIN, timeout=120)
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(120) == 0
+    finally:
+        proc.kill()
+    assert is_complete(out)
+    assert len(read_tum(out / "trajectory.tum").timestamps) == 40
+    # SIGKILL mid-run: no run folder, or a whole one; never a partial one.
+    out2 = tmp_path / "killed"
+    proc = _start_node_process(tmp_path, out2)
+    try:
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=DOMAIN, timeout=120)
+        save = DdsNode("crlam_test_save", domain=DOMAIN)
+        w = save.writer("/crlam/save_map", m.String, qos.reliable())
+        from crlam.ros.play import _wait_matched
+
+        _wait_matched({"/crlam/save_map": w}, ["/crlam/save_map"], 60)
+        w.write(m.String(data=""))
+        proc.kill()
+        proc.wait(60)
+        save.close()
+    finally:
+        proc.kill()
+    assert not out2.exists() or is_complete(out2)
+    from crlam.run_folder import INCOMPLETE, staging_path
+
+    stage = staging_path(out2)
+    assert not stage.exists() or (stage / INCOMPLETE).is_file()  # a staging folder says it is incomplete
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_turtlebot4_localize_live_equals_offline_and_converges(data_dir: Path, tmp_path: Path) -> None:
+    """``crlam ros localize`` on the bag's floor map, started by an /initialpose as RViz sends
+    it: the same trajectory as ``crlam localize`` with that initial pose, and it converges."""
+    from crlam.cli import main
+    from crlam.ros.localize_node import LocalizeNode
+
+    bag = data_dir / "bags" / "turtlebot4-mac-floor"
+    if not bag.exists():
+        pytest.skip(f"{bag} not found")
+    floor = bag / "mac_1st_floor_final.yaml"
+    pose, cov = (6.54, -8.86, 1.705), (0.25, 0.25, 0.03)
+    args = ["localize", str(bag), "--map", str(floor), "--out", str(tmp_path / "offline"), "--quiet"]
+    args += ["--initial-pose", *map(str, pose), "--initial-cov", *map(str, cov)]
+    args += ["--nav2-free-thresh", "0.196", "--skip-no-returns", "--max-beams", "90"]
+    assert main(args) == 0
+
+    params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True)
+    node = LocalizeNode(params, {"skip_no_returns": True, "max_beams": 90}, str(floor), map_options={"nav2_free_thresh": 0.196}, domain=DOMAIN)
+    node.start()
+    rviz = DdsNode("crlam_test_rviz", domain=DOMAIN)
+    col = Collector(rviz)
+    col.read("/map", m.OccupancyGrid, qos.latched())
+    try:
+        w = rviz.writer("/initialpose", m.PoseWithCovarianceStamped, qos.reliable())
+        from crlam.ros.play import _wait_matched
+        from crlam.ros.slam_node import pose_msg
+
+        _wait_matched({"/initialpose": w}, ["/initialpose"], 60)
+        c = [0.0] * 36
+        c[0], c[7], c[35] = cov
+        w.write(m.PoseWithCovarianceStamped(header=m.Header(frame_id="map"), pose=m.PoseWithCovariance(pose=pose_msg(np.array(pose)), covariance=c)))
+        with node.wake:
+            while node.counters.get("initial_poses", 0) < 1:
+                node.wake.wait()
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=DOMAIN, timeout=120)
+        node.request_save(str(tmp_path / "live"))
+        node.wait_idle()
+    finally:
+        node.stop(save=False)
+    assert col.events["/map"].wait(30)
+    rviz.close()
+    assert is_complete(tmp_path / "live")
+    live = read_tum(tmp_path / "live" / "trajectory.tum")
+    offline = read_tum(tmp_path / "offline" / "trajectory.tum")
+    np.testing.assert_allclose(live.timestamps, offline.timestamps, atol=1e-9)
+    np.testing.assert_allclose(live.poses, offline.poses, atol=1e-9)
+    assert node.localizer.convergence is not None

@@ -55,7 +55,7 @@ class _NodeProgress:
         from crlam.ros.slam_node import DIAGNOSTIC_NAME
 
         for status in sample.status:
-            if status.name != DIAGNOSTIC_NAME:
+            if status.hardware_id != "crlam" or not status.name.endswith(DIAGNOSTIC_NAME):
                 continue
             with self.cond:
                 for kv in status.values:

@@ -38,8 +38,9 @@ from crlam.ros.params import NodeParameters
 
 __all__ = ["DIAGNOSTIC_NAME", "SlamNode"]
 
-#: The DiagnosticStatus name of the node's counters (``/diagnostics``).
-DIAGNOSTIC_NAME = "crlam_slam: scans"
+#: The DiagnosticStatus name of a node's counters (``/diagnostics``) ends with this; the
+#: status's hardware_id is ``crlam``.
+DIAGNOSTIC_NAME = ": scans"
 
 
 def stamp_seconds(t: Any) -> float:
@@ -95,10 +96,8 @@ class SlamNode:
     def __init__(
         self, node: NodeParameters, slam_overrides: dict[str, Any], *, domain: int | None = None, dds_config: str = "loopback"
     ) -> None:
-        from crlam.presets import resolve
-
         self.params = node
-        self.config = resolve(node.preset, slam_overrides)
+        self.config = self._make_config(slam_overrides)
         self.domain, self.dds_config = domain, dds_config
         self.lock = threading.Lock()
         self.write_lock = threading.Lock()
@@ -133,6 +132,14 @@ class SlamNode:
         self.threads: list[threading.Thread] = []
         self.t_first_wall: float | None = None
 
+    #: The node's name (DDS participant, parameter file section, diagnostics).
+    NODE_NAME = "crlam_slam"
+
+    def _make_config(self, overrides: dict[str, Any]) -> Any:
+        from crlam.presets import resolve
+
+        return resolve(self.params.preset, overrides)
+
     # --- DDS ----------------------------------------------------------------------------------
 
     def start(self) -> None:
@@ -141,7 +148,7 @@ class SlamNode:
         from crlam.ros.dds import DdsNode
 
         p = self.params
-        self.dds = DdsNode("crlam_slam", domain=self.domain, dds_config=self.dds_config)
+        self.dds = DdsNode(self.NODE_NAME, domain=self.domain, dds_config=self.dds_config)
         d = self.dds
         self.w_map = d.writer("/map", m.OccupancyGrid, qos.latched())
         self.w_conf = d.writer("/map_confidence", m.OccupancyGrid, qos.latched())
@@ -264,13 +271,11 @@ class SlamNode:
                     self.wake.notify_all()
             self._publish_diagnostics()
 
-    def _step(self, scan: PendingScan) -> None:
-        from crlam.experiments.slam_run import within_sensor_range
-        from crlam.pose import compose
-        from crlam.slam import SlamRun
+    def _scan_inputs(self, msg: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+        """(bearings rad, ranges m with no-returns as inf, the sensor's range_max) of a scan
+        message, turned as the offline bag reader turns it (mirrored mount, decreasing angles)."""
+        from crlam.io.rosbag_tf import wrap
 
-        msg: Any = scan.payload
-        assert scan.odom is not None and self.mount is not None
         ranges = scan_ranges(msg)
         amin, inc = float(np.float32(msg.angle_min)), float(np.float32(msg.angle_increment))
         if self.mirrored:
@@ -278,17 +283,39 @@ class SlamNode:
         if inc < 0:
             amin, inc = amin + inc * (len(ranges) - 1), -inc
             ranges = ranges[::-1].copy()
-        from crlam.io.rosbag_tf import wrap
-
         amin = wrap(amin)
         rmax = float(np.float32(msg.range_max))
         angles = amin + inc * np.arange(len(ranges))
-        ranges = np.where(ranges >= rmax, np.inf, ranges)
+        return angles, np.where(ranges >= rmax, np.inf, ranges), rmax
+
+    def _filter_step(
+        self, scan: PendingScan, angles: NDArray[np.float64], ranges: NDArray[np.float64], rmax: float
+    ) -> tuple[bool, NDArray[np.float64], NDArray[np.float64] | None, tuple[float, float]]:
+        """Feeds one matched scan to the filter: (processed, estimate, particle poses or None,
+        (position spread m, heading spread rad))."""
+        from crlam.experiments.slam_run import within_sensor_range
+        from crlam.slam import SlamRun
+
+        assert scan.odom is not None and self.mount is not None
         if self.run is None:
             self.run = SlamRun(within_sensor_range(self.config, rmax))
-            self.t_first_wall = time.perf_counter()
         step = self.run.step(scan.odom, angles, ranges, self.mount, scan.stamp)
-        est = np.asarray(step.estimate, dtype=np.float64)
+        particles = None
+        spread = (0.0, 0.0)
+        if step.processed:
+            particles = np.asarray(self.run.filter.particle_poses(), dtype=np.float64)
+            rec = self.run.particle_sets[-1]
+            spread = (rec.spread_xy, rec.spread_theta)
+        return bool(step.processed), np.asarray(step.estimate, dtype=np.float64), particles, spread
+
+    def _step(self, scan: PendingScan) -> None:
+        from crlam.pose import compose
+
+        assert scan.odom is not None
+        if self.t_first_wall is None:
+            self.t_first_wall = time.perf_counter()
+        angles, ranges, rmax = self._scan_inputs(scan.payload)
+        processed, est, particles, spread = self._filter_step(scan, angles, ranges, rmax)
         # map -> odom = estimate (map) composed with the inverse odometry pose (odom).
         c, s = math.cos(scan.odom[2]), math.sin(scan.odom[2])
         inv = np.array([-(c * scan.odom[0] + s * scan.odom[1]), s * scan.odom[0] - c * scan.odom[1], -scan.odom[2]])
@@ -296,15 +323,17 @@ class SlamNode:
         with self.lock:
             self.map_to_odom = m2o
             self.counters["scans_handled"] += 1
-            self.counters["scans_processed"] += int(step.processed)
+            self.counters["scans_processed"] += int(processed)
         self._publish_tf(self.now())
         self.latencies.append(time.monotonic() - scan.arrival)
-        self._publish_estimate(scan.stamp, est, step.processed)
-        if step.processed and scan.stamp - self.last_map_t >= self.params.map_update_interval:
+        self._publish_estimate(scan.stamp, est, particles, spread)
+        if processed and scan.stamp - self.last_map_t >= self.params.map_update_interval:
             self.last_map_t = scan.stamp
             self._publish_map(scan.stamp)
 
-    def _publish_estimate(self, t: float, est: NDArray[np.float64], processed: bool) -> None:
+    def _publish_estimate(
+        self, t: float, est: NDArray[np.float64], particles: NDArray[np.float64] | None, spread: tuple[float, float]
+    ) -> None:
         from crlam.ros import messages as m
 
         p = self.params
@@ -312,15 +341,13 @@ class SlamNode:
         ps = m.PoseStamped(header=header, pose=pose_msg(est))
         self.path_poses.append(ps)
         cov = [0.0] * 36
-        if processed and self.run.particle_sets:
-            rec = self.run.particle_sets[-1]
-            cov[0] = cov[7] = rec.spread_xy**2 / 2
-            cov[35] = rec.spread_theta**2
+        # The particle set's spread: RMS position spread shared by x and y, heading spread.
+        cov[0] = cov[7] = spread[0] ** 2 / 2
+        cov[35] = spread[1] ** 2
         self._write(self.w_pose, m.PoseWithCovarianceStamped(header=header, pose=m.PoseWithCovariance(pose=pose_msg(est), covariance=cov)))
         self._write(self.w_path, m.Path(header=header, poses=list(self.path_poses)))
-        if processed:
-            poses = np.asarray(self.run.filter.particle_poses(), dtype=np.float64)
-            self._write(self.w_particles, m.PoseArray(header=header, poses=[pose_msg(q) for q in poses]))
+        if particles is not None:
+            self._write(self.w_particles, m.PoseArray(header=header, poses=[pose_msg(q) for q in particles]))
 
     def _map_layers(self) -> tuple[Any, NDArray[np.bool_], Any]:
         from crlam.experiments.known_poses import unknown_mask
@@ -375,7 +402,7 @@ class SlamNode:
     def _publish_tf_loop(self) -> None:
         period = max(self.params.transform_publish_period, 1e-3)
         while not self.stop_event.wait(period):
-            if self.run is not None:
+            if self.t_first_wall is not None:
                 self._publish_tf(self.now())
             self._publish_diagnostics()
 
@@ -394,9 +421,12 @@ class SlamNode:
             settled = c["scans_handled"] + c["scans_dropped"] + c["scans_without_odometry"]
             values = [m.KeyValue(key=k, value=str(v)) for k, v in (*c.items(), ("scans_settled", settled))]
         values += [m.KeyValue(key=k, value=f"{v:.2f}") for k, v in self.latency_summary().items()]
-        values.append(m.KeyValue(key="particles", value=str(self.config.particles)))
-        status = m.DiagnosticStatus(level=0, name=DIAGNOSTIC_NAME, message="running", hardware_id="crlam", values=values)
+        values += [m.KeyValue(key=k, value=str(v)) for k, v in self._extra_diagnostics().items()]
+        status = m.DiagnosticStatus(level=0, name=f"{self.NODE_NAME}: scans", message="running", hardware_id="crlam", values=values)
         self._write(self.w_diag, m.DiagnosticArray(header=m.Header(stamp=ros_stamp(self.now())), status=[status]))
+
+    def _extra_diagnostics(self) -> dict[str, object]:
+        return {"particles": self.config.particles}
 
     # --- saving -------------------------------------------------------------------------------
 
