@@ -102,7 +102,11 @@ def to_cyclone(msg: Any, ros_type: str) -> Any:
             v = to_cyclone(v, spec)
         elif node in (Nodetype.ARRAY, Nodetype.SEQUENCE):
             sub = spec[0]
-            v = [to_cyclone(x, sub[1]) for x in v] if sub[0] == Nodetype.NAME else [x.item() if hasattr(x, "item") else x for x in v]
+            v = (
+                [to_cyclone(x, sub[1]) for x in v]
+                if sub[0] == Nodetype.NAME
+                else [x.item() if hasattr(x, "item") else x for x in v]
+            )
         values[name] = v
     return messages.ROS_TYPES[ros_type](**values)
 

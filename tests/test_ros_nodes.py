@@ -139,7 +139,9 @@ def _synthetic_bag(path: Path) -> Path:
                     side = np.where(np.abs(np.sin(angles)) > 1e-9, 1.5 / np.abs(np.sin(angles)), np.inf)
                     front = np.where(np.cos(angles) > 1e-9, (4.0 - lx) / np.cos(angles), np.inf)
                 ranges = np.minimum(np.minimum(side, front), 8.0)
-                w.write("/scan", LASER_SCAN, int(ts * 1e9), w.laser_scan(ts, "laser", ranges, angles[0], angles[1] - angles[0], 8.0))
+                w.write(
+                    "/scan", LASER_SCAN, int(ts * 1e9), w.laser_scan(ts, "laser", ranges, angles[0], angles[1] - angles[0], 8.0)
+                )
     return path
 
 
@@ -238,7 +240,9 @@ def test_turtlebot4_localize_live_equals_offline_and_converges(data_dir: Path, t
     assert main(args) == 0
 
     params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True)
-    node = LocalizeNode(params, {"skip_no_returns": True, "max_beams": 90}, str(floor), map_options={"nav2_free_thresh": 0.196}, domain=DOMAIN)
+    node = LocalizeNode(
+        params, {"skip_no_returns": True, "max_beams": 90}, str(floor), map_options={"nav2_free_thresh": 0.196}, domain=DOMAIN
+    )
     node.start()
     rviz = DdsNode("crlam_test_rviz", domain=DOMAIN)
     col = Collector(rviz)
@@ -251,7 +255,11 @@ def test_turtlebot4_localize_live_equals_offline_and_converges(data_dir: Path, t
         _wait_matched({"/initialpose": w}, ["/initialpose"], 60)
         c = [0.0] * 36
         c[0], c[7], c[35] = cov
-        w.write(m.PoseWithCovarianceStamped(header=m.Header(frame_id="map"), pose=m.PoseWithCovariance(pose=pose_msg(np.array(pose)), covariance=c)))
+        w.write(
+            m.PoseWithCovarianceStamped(
+                header=m.Header(frame_id="map"), pose=m.PoseWithCovariance(pose=pose_msg(np.array(pose)), covariance=c)
+            )
+        )
         with node.wake:
             while node.counters.get("initial_poses", 0) < 1:
                 node.wake.wait()

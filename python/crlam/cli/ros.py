@@ -11,10 +11,11 @@ import argparse
 import math
 import signal
 import threading
+from typing import Any
 
 from crlam.cli.conventions import group, input_file, say
 
-__all__ = ["add_parser", "cmd_ros_play", "cmd_ros_slam"]
+__all__ = ["add_parser", "cmd_ros_localize", "cmd_ros_play", "cmd_ros_slam"]
 
 
 def _dds_options(p: argparse.ArgumentParser) -> None:
@@ -73,6 +74,28 @@ def cmd_ros_slam(args: argparse.Namespace) -> int:
         params["use_sim_time"] = True
     node_params, overrides = split_parameters(params, args.params_file or "parameters")
     node = SlamNode(node_params, overrides, domain=args.domain, dds_config=args.dds_config)
+    return _spin(args, node)
+
+
+def cmd_ros_localize(args: argparse.Namespace) -> int:
+    _need_cyclonedds()
+    from crlam.ros.localize_node import LocalizeNode, split_localize_parameters
+    from crlam.ros.params import load_params_file
+
+    params = load_params_file(args.params_file, "crlam_localize") if args.params_file else {}
+    if args.output_folder:
+        params["output_folder"] = args.output_folder
+    if args.use_sim_time:
+        params["use_sim_time"] = True
+    if args.initial_pose is not None:
+        params["initial_pose"] = list(args.initial_pose)
+    node_params, overrides, map_options = split_localize_parameters(params, args.params_file or "parameters")
+    node = LocalizeNode(node_params, overrides, args.map, map_options=map_options, domain=args.domain, dds_config=args.dds_config)
+    return _spin(args, node)
+
+
+def _spin(args: argparse.Namespace, node: Any) -> int:
+    """Runs ``node`` until SIGINT or SIGTERM, then stops it (saving to its output folder, if any)."""
     done = threading.Event()
 
     def on_signal(signum: int, frame: object) -> None:
@@ -81,10 +104,11 @@ def cmd_ros_slam(args: argparse.Namespace) -> int:
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
     node.start()
-    say(args, f"crlam ros slam: running on DDS domain {node.dds.domain} ({node.dds.config_description}); Ctrl-C to stop")
+    name = f"crlam ros {args.ros_command}"
+    say(args, f"{name}: running on DDS domain {node.dds.domain} ({node.dds.config_description}); Ctrl-C to stop")
     done.wait()
     node.stop(save=True)
-    say(args, f"crlam ros slam: stopped; {node.counters}")
+    say(args, f"{name}: stopped; {node.counters}")
     return 0
 
 
@@ -108,7 +132,9 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         action="store_true",
         help="before each scan wait until crlam ros slam reports it handled the scans before (deterministic runs)",
     )
-    rc.add_argument("--wait-for-subscribers", nargs="+", default=None, metavar="TOPIC", help="wait until these topics have a subscriber")
+    rc.add_argument(
+        "--wait-for-subscribers", nargs="+", default=None, metavar="TOPIC", help="wait until these topics have a subscriber"
+    )
     out = group(play, "output")
     out.add_argument("-q", "--quiet", action="store_true", help="no summary")
     _dds_options(play)
@@ -119,8 +145,25 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     g.add_argument("--params-file", metavar="YAML", help="ROS 2 parameter file (crlam_slam: ros__parameters: ...)")
     g.add_argument("--use-sim-time", action="store_true", help="stamp output with /clock")
     out = group(slam, "output")
-    out.add_argument("-o", "--output-folder", metavar="DIR", help="run folder written on a save request without a folder and on exit")
+    out.add_argument(
+        "-o", "--output-folder", metavar="DIR", help="run folder written on a save request without a folder and on exit"
+    )
     out.add_argument("-q", "--quiet", action="store_true", help="no messages")
     _dds_options(slam)
     slam.set_defaults(func=cmd_ros_slam)
+
+    loc = rs.add_parser("localize", help="Monte Carlo localization on a known map, /initialpose from RViz")
+    g = group(loc, "input")
+    g.add_argument("--map", required=True, type=input_file, help="Nav2 map .yaml, crlam run folder or belief.npz")
+    g = group(loc, "settings")
+    g.add_argument("--params-file", metavar="YAML", help="ROS 2 parameter file (crlam_localize: ros__parameters: ...)")
+    g.add_argument("--use-sim-time", action="store_true", help="stamp output with /clock")
+    g.add_argument(
+        "--initial-pose", nargs=3, type=float, metavar=("X", "Y", "THETA"), help="start around this pose (else global)"
+    )
+    out = group(loc, "output")
+    out.add_argument("-o", "--output-folder", metavar="DIR", help="folder written on a save request without a folder and on exit")
+    out.add_argument("-q", "--quiet", action="store_true", help="no messages")
+    _dds_options(loc)
+    loc.set_defaults(func=cmd_ros_localize)
     return p

@@ -30,7 +30,7 @@ __all__ = ["LOOPBACK_CONFIG", "DdsNode", "configure_dds", "dds_topic_name", "dom
 #: (participant indices 0..MaxAutoParticipantIndex give each participant its own port).
 LOOPBACK_CONFIG = (
     '<CycloneDDS><Domain Id="any">'
-    "<General><Interfaces><NetworkInterface name=\"lo\"/></Interfaces>"
+    '<General><Interfaces><NetworkInterface name="lo"/></Interfaces>'
     "<AllowMulticast>false</AllowMulticast></General>"
     "<Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>60</MaxAutoParticipantIndex>"
     '<Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
@@ -108,7 +108,7 @@ class DdsNode:
 
         self.name = name
         self.domain = domain_id(domain)
-        self.participant = DomainParticipant(self.domain, qos=Qos(Policy.EntityName(name)))
+        self.participant: Any = DomainParticipant(self.domain, qos=Qos(Policy.EntityName(name)))
         self._topics: dict[str, Any] = {}
         self._entities: list[Any] = []
 

@@ -23,7 +23,7 @@ from numpy.typing import NDArray
 
 from crlam.ros.odometry_buffer import PendingScan
 from crlam.ros.params import NodeParameters
-from crlam.ros.slam_node import SlamNode, stamp_seconds
+from crlam.ros.slam_node import SlamNode, ros_messages
 
 __all__ = ["AMCL_NAMES", "LocalizeNode", "split_localize_parameters"]
 
@@ -88,7 +88,7 @@ class LocalizeNode(SlamNode):
         from crlam.localize_map import Nav2Prior, load_localization_map
 
         opts = dict(map_options or {})
-        prior_args = {
+        prior_args: dict[str, Any] = {
             k: float(opts[f"nav2_{k2}"])
             for k, k2 in (("free_thresh", "free_thresh"), ("occupied_mean", "occupied"), ("free_mean", "free"))
             if f"nav2_{k2}" in opts
@@ -111,7 +111,7 @@ class LocalizeNode(SlamNode):
             raise ConfigError(f"localization parameters: {exc}") from exc
 
     def start(self) -> None:
-        from crlam.ros import messages as m
+        m = ros_messages()
         from crlam.ros import qos
 
         super().start()
@@ -142,7 +142,9 @@ class LocalizeNode(SlamNode):
             initial, self.pending_initial = self.pending_initial, None
         if initial is not None:
             # RViz's pose is of the robot in the map: the filter starts again around it.
-            self.localizer = Localizer(self.map, self.config, initial_pose=initial[0], initial_cov=initial[1], laser_max_range=rmax)
+            self.localizer = Localizer(
+                self.map, self.config, initial_pose=initial[0], initial_cov=initial[1], laser_max_range=rmax
+            )
         elif self.localizer is None:
             self.localizer = Localizer(
                 self.map, self.config, initial_pose=self.initial_pose, initial_cov=self.initial_cov, laser_max_range=rmax

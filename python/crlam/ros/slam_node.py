@@ -43,6 +43,14 @@ __all__ = ["DIAGNOSTIC_NAME", "SlamNode"]
 DIAGNOSTIC_NAME = ": scans"
 
 
+def ros_messages() -> Any:
+    """:mod:`crlam.ros.messages`, typed as Any: its IDL field annotations are runtime objects
+    that type checkers cannot read (tests/test_ros_messages.py checks the types instead)."""
+    from crlam.ros import messages
+
+    return messages
+
+
 def stamp_seconds(t: Any) -> float:
     return float(t.sec) + float(t.nanosec) * 1e-9
 
@@ -143,7 +151,7 @@ class SlamNode:
     # --- DDS ----------------------------------------------------------------------------------
 
     def start(self) -> None:
-        from crlam.ros import messages as m
+        m = ros_messages()
         from crlam.ros import qos
         from crlam.ros.dds import DdsNode
 
@@ -286,7 +294,7 @@ class SlamNode:
         amin = wrap(amin)
         rmax = float(np.float32(msg.range_max))
         angles = amin + inc * np.arange(len(ranges))
-        return angles, np.where(ranges >= rmax, np.inf, ranges), rmax
+        return np.asarray(angles, dtype=np.float64), np.where(ranges >= rmax, np.inf, ranges), rmax
 
     def _filter_step(
         self, scan: PendingScan, angles: NDArray[np.float64], ranges: NDArray[np.float64], rmax: float
@@ -334,7 +342,7 @@ class SlamNode:
     def _publish_estimate(
         self, t: float, est: NDArray[np.float64], particles: NDArray[np.float64] | None, spread: tuple[float, float]
     ) -> None:
-        from crlam.ros import messages as m
+        m = ros_messages()
 
         p = self.params
         header = m.Header(stamp=ros_stamp(t), frame_id=p.map_frame)
@@ -344,7 +352,9 @@ class SlamNode:
         # The particle set's spread: RMS position spread shared by x and y, heading spread.
         cov[0] = cov[7] = spread[0] ** 2 / 2
         cov[35] = spread[1] ** 2
-        self._write(self.w_pose, m.PoseWithCovarianceStamped(header=header, pose=m.PoseWithCovariance(pose=pose_msg(est), covariance=cov)))
+        self._write(
+            self.w_pose, m.PoseWithCovarianceStamped(header=header, pose=m.PoseWithCovariance(pose=pose_msg(est), covariance=cov))
+        )
         self._write(self.w_path, m.Path(header=header, poses=list(self.path_poses)))
         if particles is not None:
             self._write(self.w_particles, m.PoseArray(header=header, poses=[pose_msg(q) for q in particles]))
@@ -363,7 +373,7 @@ class SlamNode:
         return mean, best.native.log_odds(best.region()) == 0.0, None
 
     def _grid(self, t: float, layer: Any, data: NDArray[np.int8]) -> Any:
-        from crlam.ros import messages as m
+        m = ros_messages()
 
         ny, nx = layer.shape
         info = m.MapMetaData(
@@ -386,7 +396,7 @@ class SlamNode:
             self._write(self.w_conf, self._grid(t, std, occupancy_grid_values(std.values, unknown, scale=200.0)))
 
     def _publish_tf(self, t: float) -> None:
-        from crlam.ros import messages as m
+        m = ros_messages()
 
         with self.lock:
             p = self.map_to_odom.copy()
@@ -414,7 +424,7 @@ class SlamNode:
         return {"latency_median_ms": float(np.median(lat)), "latency_p99_ms": float(np.percentile(lat, 99))}
 
     def _publish_diagnostics(self) -> None:
-        from crlam.ros import messages as m
+        m = ros_messages()
 
         with self.lock:
             c = self.counters
@@ -422,7 +432,9 @@ class SlamNode:
             values = [m.KeyValue(key=k, value=str(v)) for k, v in (*c.items(), ("scans_settled", settled))]
         values += [m.KeyValue(key=k, value=f"{v:.2f}") for k, v in self.latency_summary().items()]
         values += [m.KeyValue(key=k, value=str(v)) for k, v in self._extra_diagnostics().items()]
-        status = m.DiagnosticStatus(level=0, name=f"{self.NODE_NAME}: scans", message="running", hardware_id="crlam", values=values)
+        status = m.DiagnosticStatus(
+            level=0, name=f"{self.NODE_NAME}: scans", message="running", hardware_id="crlam", values=values
+        )
         self._write(self.w_diag, m.DiagnosticArray(header=m.Header(stamp=ros_stamp(self.now())), status=[status]))
 
     def _extra_diagnostics(self) -> dict[str, object]:
@@ -489,4 +501,3 @@ class SlamNode:
         for t in self.threads:
             t.join()
         self.dds.close()
-
