@@ -25,7 +25,13 @@ from crlam.ros.odometry_buffer import PendingScan
 from crlam.ros.params import NodeParameters
 from crlam.ros.slam_node import SlamNode, ros_messages
 
-__all__ = ["AMCL_NAMES", "LocalizeNode", "split_localize_parameters"]
+__all__ = ["AMCL_NAMES", "LOCALIZE_TOPICS", "LocalizeNode", "split_localize_parameters"]
+
+#: ``crlam ros localize``'s topics beyond those of ``crlam ros slam`` (less /map_confidence).
+LOCALIZE_TOPICS = (
+    ("/initialpose", "geometry_msgs/msg/PoseWithCovarianceStamped", "in", "reliable", "restart around this pose (RViz)"),
+    ("/map", "nav_msgs/msg/OccupancyGrid", "out", "transient local", "the known map, once"),
+)
 
 #: AMCL's names of LocalizeConfig fields.
 AMCL_NAMES = {

@@ -29,37 +29,33 @@ ROS_NAMES = {
 }
 
 
+def _p(default: Any, help: str) -> Any:
+    return dataclasses.field(default=default, metadata={"help": help})
+
+
 @dataclasses.dataclass
 class NodeParameters:
-    """The node's own settings (the SLAM settings are a :class:`crlam.slam.SlamConfig`)."""
+    """The node's own settings (the SLAM settings are a :class:`crlam.slam.SlamConfig`); each
+    field's ``metadata["help"]`` says what it does (the documentation's parameter table)."""
 
-    #: Frames (slam_toolbox's names and defaults).
-    map_frame: str = "map"
-    odom_frame: str = "odom"
-    base_frame: str = ""  # "": the child frame of the odometry messages
-    #: Topics.
-    scan_topic: str = "/scan"
-    odom_topic: str = "/odom"
-    save_map_topic: str = "/crlam/save_map"
-    #: Period (s) of the map -> odom transform (slam_toolbox: transform_publish_period).
-    transform_publish_period: float = 0.05
-    #: Scan time (s) between two /map messages (slam_toolbox: map_update_interval).
-    map_update_interval: float = 5.0
-    #: Stamp output with /clock instead of the wall clock.
-    use_sim_time: bool = False
-    #: Where a save request or Ctrl-C writes the run folder ("" : no save on exit).
-    output_folder: str = ""
-    #: A scan stamped this long (s) before the first or after the last odometry still takes the nearest one.
-    odom_tolerance: float = 0.25
-    #: Wall seconds a scan waits for the odometry after it before it is resolved with the newest.
-    max_scan_wait: float = 0.5
-    #: Queue every matched scan for the filter instead of keeping only the newest (replaying a bag
-    #: in lock-step, where the node must see every scan; live, a slow filter then falls behind).
-    process_every_scan: bool = False
-    #: The laser mount "x y yaw" in the base frame; "" : from /tf_static.
-    laser_mount: str = ""
-    #: The named crlam preset the SLAM settings start from.
-    preset: str = "robust"
+    map_frame: str = _p("map", "the map's frame (the parent of the map -> odom transform)")
+    odom_frame: str = _p("odom", "the odometry's frame (the child of map -> odom)")
+    base_frame: str = _p("", "the robot's frame; empty: the child frame of the odometry messages")
+    scan_topic: str = _p("/scan", "sensor_msgs/LaserScan input")
+    odom_topic: str = _p("/odom", "nav_msgs/Odometry input")
+    save_map_topic: str = _p("/crlam/save_map", "std_msgs/String: a folder to save to (empty: output_folder)")
+    transform_publish_period: float = _p(0.05, "seconds between two map -> odom transforms (slam_toolbox's name)")
+    map_update_interval: float = _p(5.0, "scan-time seconds between two /map messages (slam_toolbox's name)")
+    use_sim_time: bool = _p(False, "stamp output with /clock instead of the wall clock")
+    output_folder: str = _p("", "folder a save request without a folder, Ctrl-C and SIGTERM write (empty: no save on exit)")
+    odom_tolerance: float = _p(0.25, "a scan stamped this long (s) outside the odometry still takes the nearest reading")
+    max_scan_wait: float = _p(0.5, "wall seconds a scan waits for the odometry after its stamp (.inf: for ever)")
+    process_every_scan: bool = _p(
+        False,
+        "queue every matched scan instead of keeping the newest (bag replay in lock-step; live, the filter may fall behind)",
+    )
+    laser_mount: str = _p("", "the laser mount 'x y yaw' in the base frame (empty: from /tf_static)")
+    preset: str = _p("robust", "the crlam preset the SLAM settings start from (crlam slam's --preset)")
 
 
 NODE_PARAMETERS = tuple(f.name for f in dataclasses.fields(NodeParameters))

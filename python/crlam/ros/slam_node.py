@@ -36,7 +36,24 @@ from crlam.errors import CrlamError
 from crlam.ros.odometry_buffer import OdometryBuffer, PendingScan
 from crlam.ros.params import NodeParameters
 
-__all__ = ["DIAGNOSTIC_NAME", "SlamNode"]
+__all__ = ["DIAGNOSTIC_NAME", "SLAM_TOPICS", "SlamNode"]
+
+#: (topic, ROS type, in/out, QoS, what) of ``crlam ros slam`` (the documentation's topic table).
+SLAM_TOPICS = (
+    ("/scan", "sensor_msgs/msg/LaserScan", "in", "sensor data (best effort)", "the laser (scan_topic)"),
+    ("/odom", "nav_msgs/msg/Odometry", "in", "reliable", "wheel odometry (odom_topic)"),
+    ("/tf_static", "tf2_msgs/msg/TFMessage", "in", "transient local", "the laser mount (base frame -> laser frame)"),
+    ("/clock", "rosgraph_msgs/msg/Clock", "in", "reliable", "with use_sim_time"),
+    ("/crlam/save_map", "std_msgs/msg/String", "in", "reliable", "save the run folder (data: folder, or empty)"),
+    ("/map", "nav_msgs/msg/OccupancyGrid", "out", "transient local", "expected occupancy x 100, -1 unknown"),
+    ("/map_confidence", "nav_msgs/msg/OccupancyGrid", "out", "transient local", "the occupancy's standard deviation x 200"),
+    ("/map_metadata", "nav_msgs/msg/MapMetaData", "out", "transient local", "the map's size, resolution and origin"),
+    ("/tf", "tf2_msgs/msg/TFMessage", "out", "reliable", "map -> odom every transform_publish_period"),
+    ("/pose", "geometry_msgs/msg/PoseWithCovarianceStamped", "out", "reliable", "the estimate and the particles' spread"),
+    ("/particles", "geometry_msgs/msg/PoseArray", "out", "reliable", "the particles at each processed scan"),
+    ("/path", "nav_msgs/msg/Path", "out", "reliable", "the estimate at every scan so far"),
+    ("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "out", "reliable", "scans received, processed, dropped; latency"),
+)
 
 #: The DiagnosticStatus name of a node's counters (``/diagnostics``) ends with this; the
 #: status's hardware_id is ``crlam``.
