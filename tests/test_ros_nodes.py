@@ -276,3 +276,41 @@ def test_turtlebot4_localize_live_equals_offline_and_converges(data_dir: Path, t
     np.testing.assert_allclose(live.timestamps, offline.timestamps, atol=1e-9)
     np.testing.assert_allclose(live.poses, offline.poses, atol=1e-9)
     assert node.localizer.convergence is not None
+
+
+@pytest.mark.parametrize("function", ["crmi", "ucrmi"])
+def test_explore_node_publishes_a_reachable_goal_and_scored_candidates(tmp_path: Path, function: str) -> None:
+    """On the synthetic corridor, ``crlam ros explore`` publishes a goal inside the mapped free
+    space, ahead in the corridor's unexplored part, and one marker per candidate (plus DELETEALL)."""
+    from crlam.ros.explore_node import ExploreNode
+
+    bag = _synthetic_bag(tmp_path / "corridor.mcap")
+    params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True, map_update_interval=1.0)
+    settings = {"function": function, "sensor_range": 8.0, "n_candidates": 40, "robot_radius": 0.2, "particles": 8}
+    node = ExploreNode(params, dict(SLAM), settings, domain=DOMAIN)
+    node.start()
+    test = DdsNode("crlam_test_nav2", domain=DOMAIN)
+    col = Collector(test)
+    col.read("/goal_pose", m.PoseStamped, qos.reliable())
+    col.read("/explore/candidates", m.MarkerArray, qos.reliable())
+    try:
+        from crlam.ros.play import _wait_matched
+
+        _wait_matched(
+            {"/goal_pose": node.w_goal, "/explore/candidates": node.w_candidates}, ["/goal_pose", "/explore/candidates"], 60
+        )
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=DOMAIN, timeout=120)
+        node.wait_idle()
+    finally:
+        node.stop(save=False)
+    assert col.events["/goal_pose"].wait(30) and col.events["/explore/candidates"].wait(30)
+    test.close()
+    d = node.decisions[-1]
+    assert d.best >= 0 and len(d.candidates) > 1
+    goal = col.samples["/goal_pose"][-1]
+    assert goal.header.frame_id == "map"
+    gx, gy = goal.pose.position.x, goal.pose.position.y
+    assert abs(gy) < 1.5 and -0.5 < gx < 4.0  # inside the corridor's walls
+    assert (gx, gy) == pytest.approx(tuple(d.candidates[d.best]))
+    markers = col.samples["/explore/candidates"][-1].markers
+    assert markers[0].action == 3 and len(markers) == len(d.candidates) + 1

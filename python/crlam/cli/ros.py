@@ -15,7 +15,7 @@ from typing import Any
 
 from crlam.cli.conventions import group, input_file, say
 
-__all__ = ["add_parser", "cmd_ros_localize", "cmd_ros_play", "cmd_ros_slam"]
+__all__ = ["add_parser", "cmd_ros_explore", "cmd_ros_localize", "cmd_ros_play", "cmd_ros_slam"]
 
 
 def _dds_options(p: argparse.ArgumentParser) -> None:
@@ -94,6 +94,24 @@ def cmd_ros_localize(args: argparse.Namespace) -> int:
     return _spin(args, node)
 
 
+def cmd_ros_explore(args: argparse.Namespace) -> int:
+    _need_cyclonedds()
+    from crlam.ros.explore_node import ExploreNode, split_explore_parameters
+    from crlam.ros.params import load_params_file, split_parameters
+
+    params = load_params_file(args.params_file, "crlam_explore") if args.params_file else {}
+    if args.output_folder:
+        params["output_folder"] = args.output_folder
+    if args.use_sim_time:
+        params["use_sim_time"] = True
+    explore, rest = split_explore_parameters(params)
+    if args.function:
+        explore["function"] = args.function
+    node_params, overrides = split_parameters(rest, args.params_file or "parameters")
+    node = ExploreNode(node_params, overrides, explore, domain=args.domain, dds_config=args.dds_config)
+    return _spin(args, node)
+
+
 def _spin(args: argparse.Namespace, node: Any) -> int:
     """Runs ``node`` until SIGINT or SIGTERM, then stops it (saving to its output folder, if any)."""
     done = threading.Event()
@@ -151,6 +169,17 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     out.add_argument("-q", "--quiet", action="store_true", help="no messages")
     _dds_options(slam)
     slam.set_defaults(func=cmd_ros_slam)
+
+    exp = rs.add_parser("explore", help="crlam ros slam that publishes /goal_pose chosen by CRMI or UCRMI on the live map")
+    g = group(exp, "settings")
+    g.add_argument("--params-file", metavar="YAML", help="ROS 2 parameter file (crlam_explore: ros__parameters: ...)")
+    g.add_argument("--function", choices=("crmi", "ucrmi"), help="information function (default crmi; explore_function)")
+    g.add_argument("--use-sim-time", action="store_true", help="stamp output with /clock")
+    out = group(exp, "output")
+    out.add_argument("-o", "--output-folder", metavar="DIR", help="run folder written on a save request and on exit")
+    out.add_argument("-q", "--quiet", action="store_true", help="no messages")
+    _dds_options(exp)
+    exp.set_defaults(func=cmd_ros_explore)
 
     loc = rs.add_parser("localize", help="Monte Carlo localization on a known map, /initialpose from RViz")
     g = group(loc, "input")
