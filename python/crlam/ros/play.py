@@ -107,6 +107,7 @@ def play_bag(
     domain: int | None = None,
     dds_config: str = "loopback",
     timeout: float = 60.0,
+    duration: float | None = None,
     on_message: Callable[[str, int], None] | None = None,
 ) -> PlayStats:
     """Publishes the bag at ``path`` onto DDS (see the module docstring).
@@ -124,6 +125,8 @@ def play_bag(
         Topics whose subscriber must be matched before the first message.
     timeout : float
         Seconds to wait for a subscriber or for the node's progress before giving up (an error).
+    duration : float, optional
+        Stop after this many seconds of bag time.
     """
     if not (rate > 0):
         raise ConfigError(f"--rate must be > 0, got {rate}")
@@ -176,6 +179,8 @@ def play_bag(
             for conn, t_ns, raw in reader.messages(connections=conns):
                 if first_t is None:
                     first_t = t_ns
+                if duration is not None and (t_ns - first_t) * 1e-9 > duration:
+                    break
                 if math.isfinite(rate):
                     due = t_start + (t_ns - first_t) * 1e-9 / rate
                     delay = due - time.monotonic()
