@@ -314,3 +314,56 @@ def test_explore_node_publishes_a_reachable_goal_and_scored_candidates(tmp_path:
     assert (gx, gy) == pytest.approx(tuple(d.candidates[d.best]))
     markers = col.samples["/explore/candidates"][-1].markers
     assert markers[0].action == 3 and len(markers) == len(d.candidates) + 1
+
+
+def _synthetic_tf_multi_echo_bag(path: Path) -> Path:
+    """The corridor of :func:`_synthetic_bag` with odometry on /tf (odom -> base_link) and the
+    laser as a MultiEchoLaserScan (two echoes per beam, the first the wall)."""
+    from crlam.io.rosbag_writer import TF_MESSAGE, McapBagWriter
+
+    echo_type = "sensor_msgs/msg/MultiEchoLaserScan"
+    angles = np.linspace(-np.pi / 2, np.pi / 2, 181)
+    with McapBagWriter(path) as w:
+        T = w.types
+        w.write("/tf_static", TF_MESSAGE, 0, w.tf([w.transform(0.0, "base_link", "laser", (0.1, 0.0, 0.0))]), latched=True)
+        for k in range(80):
+            t = 1.0 + 0.05 * k
+            x = 0.0125 * k
+            w.write("/tf", TF_MESSAGE, int(t * 1e9), w.tf([w.transform(t, "odom", "base_link", (x, 0.0, 0.0))]))
+            if k % 2 == 1:
+                ts = t + 0.01
+                with np.errstate(divide="ignore"):
+                    side = np.where(np.abs(np.sin(angles)) > 1e-9, 1.5 / np.abs(np.sin(angles)), np.inf)
+                    front = np.where(np.cos(angles) > 1e-9, (4.0 - x - 0.1) / np.cos(angles), np.inf)
+                ranges = np.minimum(np.minimum(side, front), 7.5).astype(np.float32)
+                echo = T["sensor_msgs/msg/LaserEcho"]
+                msg = T[echo_type](
+                    header=w.header(ts, "laser"),
+                    angle_min=float(angles[0]),
+                    angle_max=float(angles[-1]),
+                    angle_increment=float(angles[1] - angles[0]),
+                    time_increment=0.0,
+                    scan_time=0.1,
+                    range_min=0.05,
+                    range_max=8.0,
+                    ranges=[echo(echoes=np.array([r, r + 0.5], dtype=np.float32)) for r in ranges],
+                    intensities=[echo(echoes=np.array([1.0, 2.0], dtype=np.float32)) for _ in ranges],
+                )
+                w.write("/scan", echo_type, int(ts * 1e9), msg)
+    return path
+
+
+def test_tf_odometry_and_multi_echo_scans_live_equal_offline(tmp_path: Path) -> None:
+    from crlam.experiments.slam_run import run_slam_log
+    from crlam.presets import resolve
+
+    bag = _synthetic_tf_multi_echo_bag(tmp_path / "corridor-tf.mcap")
+    node, _ = _run_live(bag, tmp_path / "live", odom_topic="/tf", scan_type="MultiEchoLaserScan")
+    assert is_complete(tmp_path / "live")
+    offline = run_slam_log(
+        bag, tmp_path / "offline", resolve("robust", dict(SLAM)), progress=False, figures=False, bag_options={"odom_topic": "/tf"}
+    )
+    live_t = read_tum(tmp_path / "live" / "trajectory.tum")
+    off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
+    assert len(live_t.timestamps) == offline.metrics["n_scans"] == 40
+    np.testing.assert_allclose(live_t.poses, off_t.poses, atol=1e-9)

@@ -166,6 +166,9 @@ def play_bag(
             clock_writer = node.writer("/clock", messages.Clock, qos.reliable(1)) if clock else None
             scan_topics = sorted({c.topic for c in conns if c.msgtype in SCAN_TYPES})
             odom_topics = sorted({c.topic for c in conns if c.msgtype == "nav_msgs/msg/Odometry"})
+            # Without an Odometry topic a node takes its odometry from /tf: lock-step follows /tf then.
+            odom_types = ("nav_msgs/msg/Odometry",) if odom_topics else ("tf2_msgs/msg/TFMessage",)
+            tf_topics = ("/tf", "tf")
             must_match = list(wait_for or [])
             if lockstep:
                 must_match += [t for t in (*scan_topics, *odom_topics, "/tf", "/tf_static") if t in writers]
@@ -191,8 +194,9 @@ def play_bag(
                     # Every scan the node can match by now (stamped before the newest odometry sent) is settled.
                     progress.wait({"scans_settled": sum(t <= odom_until for t in scan_stamps)}, timeout)
                     scan_stamps.append(_stamp(msg.header.stamp))
-                elif conn.msgtype == "nav_msgs/msg/Odometry":
-                    odom_until = max(odom_until, _stamp(msg.header.stamp))
+                elif conn.msgtype in odom_types and (odom_topics or conn.topic in tf_topics):
+                    stamps = [msg.header.stamp] if odom_topics else [tr.header.stamp for tr in msg.transforms]
+                    odom_until = max([odom_until, *(_stamp(t) for t in stamps)])
                 if clock_writer is not None:
                     sec, nsec = divmod(int(t_ns), 1_000_000_000)
                     clock_writer.write(messages.Clock(clock=messages.Time(sec=sec, nanosec=nsec)))
@@ -200,7 +204,7 @@ def play_bag(
                 writers[conn.topic].write(msg)
                 stats.published[conn.topic] = stats.published.get(conn.topic, 0) + 1
                 n_scans += conn.msgtype in SCAN_TYPES
-                n_odom += conn.msgtype == "nav_msgs/msg/Odometry"
+                n_odom += conn.msgtype in odom_types and bool(odom_topics or conn.topic in tf_topics)
                 if on_message is not None:
                     on_message(conn.topic, t_ns)
             if lockstep:

@@ -184,8 +184,14 @@ class SlamNode:
         self.w_path = d.writer("/path", m.Path, qos.reliable())
         self.w_diag = d.writer("/diagnostics", m.DiagnosticArray, qos.reliable(50))
         d.reader("/tf_static", m.TFMessage, qos.latched(100), self._on_tf_static)
-        d.reader(p.odom_topic, m.Odometry, qos.reliable(100), self._on_odom)
-        d.reader(p.scan_topic, m.LaserScan, qos.sensor_data(10), self._on_scan)
+        if p.odom_topic.strip("/") == "tf":
+            d.reader(p.odom_topic, m.TFMessage, qos.reliable(100), self._on_tf)
+        else:
+            d.reader(p.odom_topic, m.Odometry, qos.reliable(100), self._on_odom)
+        if p.scan_type == "MultiEchoLaserScan":
+            d.reader(p.scan_topic, m.MultiEchoLaserScan, qos.sensor_data(10), self._on_multi_echo)
+        else:
+            d.reader(p.scan_topic, m.LaserScan, qos.sensor_data(10), self._on_scan)
         d.reader(p.save_map_topic, m.String, qos.reliable(), self._on_save)
         if p.use_sim_time:
             d.reader("/clock", m.Clock, qos.reliable(1), self._on_clock)
@@ -242,6 +248,55 @@ class SlamNode:
                 self.base_frame = msg.child_frame_id.lstrip("/") or "base_link"
             self.buffer.add_odometry(stamp_seconds(msg.header.stamp), pose)
             self._resolve(final=False)
+
+    def _on_tf(self, msg: Any) -> None:
+        """Odometry from /tf: the odom_frame -> base_frame transforms (base_frame: the given one,
+        else the first child of odom_frame seen)."""
+        from crlam.io.rosbag_tf import planar, transform_matrix
+
+        odom = self.params.odom_frame.lstrip("/")
+        with self.lock:
+            self.counters["odometry_received"] += 1  # messages on the odometry topic, as for /odom
+        for tr in msg.transforms:
+            child = tr.child_frame_id.lstrip("/")
+            if tr.header.frame_id.lstrip("/") != odom:
+                continue
+            with self.lock:
+                if not self.base_frame:
+                    self.base_frame = child
+                if child != self.base_frame:
+                    continue
+                pose, _ = planar(transform_matrix(tr.transform))
+                self.buffer.add_odometry(stamp_seconds(tr.header.stamp), np.asarray(pose, dtype=np.float64))
+                self._resolve(final=False)
+
+    def _on_multi_echo(self, msg: Any) -> None:
+        """A MultiEchoLaserScan as a LaserScan with one range per beam (``echo``; NaN, a no-return,
+        for a beam without echoes): the offline reader's rule."""
+        m = ros_messages()
+        out = np.full(len(msg.ranges), np.nan)
+        for i, beam in enumerate(msg.ranges):
+            echoes = np.asarray(beam.echoes, dtype=np.float64)
+            if not len(echoes):
+                continue
+            if self.params.echo == "last":
+                out[i] = echoes[-1]
+            elif self.params.echo == "strongest" and i < len(msg.intensities) and len(msg.intensities[i].echoes) == len(echoes):
+                out[i] = echoes[int(np.argmax(np.asarray(msg.intensities[i].echoes)))]
+            else:
+                out[i] = echoes[0]
+        scan = m.LaserScan(
+            header=msg.header,
+            angle_min=msg.angle_min,
+            angle_max=msg.angle_max,
+            angle_increment=msg.angle_increment,
+            time_increment=msg.time_increment,
+            scan_time=msg.scan_time,
+            range_min=msg.range_min,
+            range_max=msg.range_max,
+            ranges=out.tolist(),
+        )
+        self._on_scan(scan)
 
     def _on_scan(self, msg: Any) -> None:
         with self.lock:
