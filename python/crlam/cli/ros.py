@@ -13,7 +13,7 @@ import signal
 import threading
 from typing import Any
 
-from crlam.cli.conventions import group, input_file, say
+from crlam.cli.conventions import add_output_options, group, input_file, say
 
 __all__ = ["add_parser", "cmd_ros_explore", "cmd_ros_localize", "cmd_ros_play", "cmd_ros_slam"]
 
@@ -28,6 +28,13 @@ def _dds_options(p: argparse.ArgumentParser) -> None:
         help="loopback (default: interface lo, peers on 127.0.0.1, no multicast), env (the environment's CYCLONEDDS_URI, "
         "for a robot whose nodes run on other machines) or a Cyclone DDS XML file",
     )
+
+
+def _check_out(args: argparse.Namespace) -> None:
+    """An existing -o/--out is refused without --force (the node's saves then replace it)."""
+    from crlam.run_folder import check_output
+
+    check_output(args.out, force=args.force, what="output folder")
 
 
 def _need_cyclonedds() -> None:
@@ -68,8 +75,9 @@ def cmd_ros_slam(args: argparse.Namespace) -> int:
     from crlam.ros.slam_node import SlamNode
 
     params = load_params_file(args.params_file, "crlam_slam") if args.params_file else {}
-    if args.output_folder:
-        params["output_folder"] = args.output_folder
+    if args.out:
+        _check_out(args)
+        params["output_folder"] = args.out
     if args.use_sim_time:
         params["use_sim_time"] = True
     node_params, overrides = split_parameters(params, args.params_file or "parameters")
@@ -83,8 +91,9 @@ def cmd_ros_localize(args: argparse.Namespace) -> int:
     from crlam.ros.params import load_params_file
 
     params = load_params_file(args.params_file, "crlam_localize") if args.params_file else {}
-    if args.output_folder:
-        params["output_folder"] = args.output_folder
+    if args.out:
+        _check_out(args)
+        params["output_folder"] = args.out
     if args.use_sim_time:
         params["use_sim_time"] = True
     if args.initial_pose is not None:
@@ -100,8 +109,9 @@ def cmd_ros_explore(args: argparse.Namespace) -> int:
     from crlam.ros.params import load_params_file, split_parameters
 
     params = load_params_file(args.params_file, "crlam_explore") if args.params_file else {}
-    if args.output_folder:
-        params["output_folder"] = args.output_folder
+    if args.out:
+        _check_out(args)
+        params["output_folder"] = args.out
     if args.use_sim_time:
         params["use_sim_time"] = True
     explore, rest = split_explore_parameters(params)
@@ -153,8 +163,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     rc.add_argument(
         "--wait-for-subscribers", nargs="+", default=None, metavar="TOPIC", help="wait until these topics have a subscriber"
     )
-    out = group(play, "output")
-    out.add_argument("-q", "--quiet", action="store_true", help="no summary")
+    add_output_options(play, out=None, replace=None)
     _dds_options(play)
     play.set_defaults(func=cmd_ros_play)
 
@@ -162,11 +171,11 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     g = group(slam, "settings")
     g.add_argument("--params-file", metavar="YAML", help="ROS 2 parameter file (crlam_slam: ros__parameters: ...)")
     g.add_argument("--use-sim-time", action="store_true", help="stamp output with /clock")
-    out = group(slam, "output")
-    out.add_argument(
-        "-o", "--output-folder", metavar="DIR", help="run folder written on a save request without a folder and on exit"
+    add_output_options(
+        slam,
+        out="run folder written on a save request and on exit (each save replaces it whole)",
+        required=False,
     )
-    out.add_argument("-q", "--quiet", action="store_true", help="no messages")
     _dds_options(slam)
     slam.set_defaults(func=cmd_ros_slam)
 
@@ -175,9 +184,11 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     g.add_argument("--params-file", metavar="YAML", help="ROS 2 parameter file (crlam_explore: ros__parameters: ...)")
     g.add_argument("--function", choices=("crmi", "ucrmi"), help="information function (default crmi; explore_function)")
     g.add_argument("--use-sim-time", action="store_true", help="stamp output with /clock")
-    out = group(exp, "output")
-    out.add_argument("-o", "--output-folder", metavar="DIR", help="run folder written on a save request and on exit")
-    out.add_argument("-q", "--quiet", action="store_true", help="no messages")
+    add_output_options(
+        exp,
+        out="run folder written on a save request and on exit (each save replaces it whole; the output_folder parameter)",
+        required=False,
+    )
     _dds_options(exp)
     exp.set_defaults(func=cmd_ros_explore)
 
@@ -190,9 +201,11 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     g.add_argument(
         "--initial-pose", nargs=3, type=float, metavar=("X", "Y", "THETA"), help="start around this pose (else global)"
     )
-    out = group(loc, "output")
-    out.add_argument("-o", "--output-folder", metavar="DIR", help="folder written on a save request without a folder and on exit")
-    out.add_argument("-q", "--quiet", action="store_true", help="no messages")
+    add_output_options(
+        loc,
+        out="folder written on a save request and on exit (each save replaces it whole)",
+        required=False,
+    )
     _dds_options(loc)
     loc.set_defaults(func=cmd_ros_localize)
     return p
