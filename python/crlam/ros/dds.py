@@ -7,7 +7,9 @@ machine. crlam passes that configuration to Cyclone DDS as ``CYCLONEDDS_URI`` of
 process. On a robot whose other nodes run on other machines, pass ``--dds-config env`` to
 use the ``CYCLONEDDS_URI`` of the environment as it is (Cyclone's own defaults when unset: every
 interface, multicast discovery), or ``--dds-config FILE.xml`` for a configuration file of your
-own (see the tutorial "crlam on a ROS 2 robot").
+own (see the tutorial "crlam on a ROS 2 robot"). (Cyclone DDS opens its unicast receive
+sockets on the wildcard address; with this configuration it advertises only 127.0.0.1 locators,
+discovers peers only there and sends nothing elsewhere.)
 
 **Naming.** ROS 2 puts topic ``/scan`` on the DDS topic ``rt/scan``, with the type name
 ``sensor_msgs::msg::dds_::LaserScan_`` (:mod:`crlam.ros.messages`); the domain is
