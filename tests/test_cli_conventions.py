@@ -25,7 +25,7 @@ from crlam.io.datasets import DatasetNotFoundError
 ROOT = Path(__file__).resolve().parents[1]
 
 #: Leaves that write nothing: no -o/--out. (data fetch writes into its --cache.)
-NO_OUT = {"crlam data list", "crlam data fetch"}
+NO_OUT = {"crlam data list", "crlam data fetch", "crlam ros play"}
 #: Leaves without progress output: no -q/-v.
 NO_PROGRESS = {"crlam data list"}
 DEFAULT_GROUPS = {"options", "optional arguments", "positional arguments"}
@@ -53,7 +53,8 @@ def _flags(parser: argparse.ArgumentParser) -> dict[str, argparse.Action]:
 
 def test_the_walk_sees_every_command() -> None:
     progs = {prog for prog, _ in LEAVES}
-    assert {f"crlam {c}" for c in COMMANDS if c not in ("data", "diagnose", "experiment")} <= progs
+    assert {f"crlam {c}" for c in COMMANDS if c not in ("data", "diagnose", "experiment", "ros")} <= progs
+    assert {"crlam ros slam", "crlam ros localize", "crlam ros explore", "crlam ros play"} <= progs
     assert {"crlam data fetch", "crlam experiment table1", "crlam experiment iig", "crlam diagnose likelihood-bias"} <= progs
 
 

@@ -11,6 +11,8 @@
   script from the network.
 - The docstrings' Sphinx roles (``:class:`X```, ``:func:`~a.b```) are shown as plain code in
   the API reference (:func:`on_page_content`).
+- The ROS 2 nodes' topic and parameter reference is generated the same way into the page that
+  holds ``<!-- crlam-ros-reference -->`` (``tutorials/ros2.md``).
 - Pages that other work adds later are listed in the navigation only when their file exists
   (:data:`OPTIONAL_PAGES`), so the site builds with ``--strict`` either way.
 """
@@ -24,6 +26,8 @@ from pathlib import Path
 from typing import Any
 
 MARKER = "<!-- crlam-cli-reference -->"
+#: Replaced by the ROS 2 nodes' topic and parameter reference (:func:`crlam.ros.reference.ros_reference`).
+ROS_MARKER = "<!-- crlam-ros-reference -->"
 
 OPTIONAL_PAGES = [
     # (section title, entry title, path under docs/, entry it follows)
@@ -56,6 +60,10 @@ def on_files(files: Any, config: Any) -> Any:
 
 
 def on_page_markdown(markdown: str, page: Any, config: Any, files: Any) -> str:
+    if ROS_MARKER in markdown:
+        from crlam.ros.reference import ros_reference
+
+        return markdown.replace(ROS_MARKER, ros_reference())
     if page.file.src_uri != "cli.md" or MARKER not in markdown:
         return markdown
     from crlam.cli import build_parser

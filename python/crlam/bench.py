@@ -129,12 +129,15 @@ def run_benchmarks(
     from tqdm import tqdm
 
     specs = [b for b in BENCHMARKS if names is None or b.name in names]
-    unknown = set(names or []) - {b.name for b in BENCHMARKS} - {SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES, *SLAM_BENCHES}
+    from crlam.ros.bench import ROS_LATENCY_BENCH
+
+    known_extra = {SURFACE_BENCH, EXPLORE_BENCH, ROS_LATENCY_BENCH, *IIG_BENCHES, *SLAM_BENCHES}
+    unknown = set(names or []) - {b.name for b in BENCHMARKS} - known_extra
     if unknown:
         raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS]}")
     figures: dict[str, Any] = {}
     details: dict[str, Any] = {}
-    extra = [n for n in (SURFACE_BENCH, EXPLORE_BENCH, *IIG_BENCHES) if names is None or n in names]
+    extra = [n for n in (SURFACE_BENCH, EXPLORE_BENCH, ROS_LATENCY_BENCH, *IIG_BENCHES) if names is None or n in names]
     pipeline = names is None or any(n in names for n in SLAM_BENCHES)
     total = len(specs) * max(1, repeats) + len(extra) + int(pipeline)
     bar = tqdm(total=total, desc="bench", unit="run", disable=not progress, leave=False)
@@ -174,6 +177,16 @@ def run_benchmarks(
         figures[EXPLORE_BENCH] = round(dec["ms"], 1)
         details[EXPLORE_BENCH] = dec
         done(EXPLORE_BENCH)
+    if names is None or ROS_LATENCY_BENCH in names:
+        # The live ROS 2 node (crlam.ros.bench): skipped without cyclonedds or the TurtleBot 4 bag.
+        from crlam.ros.bench import ros_latency
+
+        lat = ros_latency(quick=quick)
+        if lat is not None:
+            figures[ROS_LATENCY_BENCH + "_median"] = round(lat["median_ms"], 2)
+            figures[ROS_LATENCY_BENCH + "_p99"] = round(lat["p99_ms"], 2)
+            details[ROS_LATENCY_BENCH] = lat
+        done(ROS_LATENCY_BENCH)
     for name in IIG_BENCHES:
         if names is None or name in names:
             run = iig_run_seconds(name.split("_")[1], quick=quick)

@@ -41,6 +41,7 @@ COMMANDS = (
     "convert",
     "experiment",
     "bench",
+    "ros",
 )
 
 

@@ -54,7 +54,7 @@ from crlam.motion_noise import MotionNoiseEstimate
 from crlam.slam import SlamConfig, SlamRun
 from crlam.slam_continue import SlamPrior, pose_covariance
 
-__all__ = ["ESTIMATES", "SlamResult", "run_slam_log", "write_run_readme", "write_toml"]
+__all__ = ["ESTIMATES", "SlamResult", "run_slam_log", "write_run_readme", "write_slam_outputs", "write_toml"]
 
 
 @dataclass
@@ -568,6 +568,16 @@ def _write_outputs(
     tmp.write_text(json.dumps(metrics, indent=2, sort_keys=True, default=_jsonable) + "\n")
     tmp.replace(out / "metrics.json")
     return SlamResult(run, metrics, out)
+
+
+def write_slam_outputs(
+    run: SlamRun, wall: float, out: Path, *, source: str, input_info: dict[str, Any], figures: bool = True
+) -> SlamResult:
+    """Writes the run folder of a finished ``run`` fed by something other than a log file (a live
+    ROS 2 node, :mod:`crlam.ros.slam_node`): ``source`` names the input, ``input_info`` is the
+    ``[input]`` table (its keys replace those a log reader would give)."""
+    out.mkdir(parents=True, exist_ok=True)
+    return _write_outputs((run, wall), None, source, out, None, None, None, figures, None, odometry_info=input_info)
 
 
 ESTIMATES = {

@@ -1,0 +1,168 @@
+"""The DDS side of crlam's nodes: one Cyclone DDS participant, its configuration, ROS 2 topic names.
+
+**Network.** Unless told otherwise, crlam's participants run on the loopback interface only
+(:data:`LOOPBACK_CONFIG`: interface ``lo``, multicast off, unicast discovery of peers on
+127.0.0.1), so trying crlam, its tests and ``crlam ros play`` never send a packet off the
+machine. crlam passes that configuration to Cyclone DDS as ``CYCLONEDDS_URI`` of its own
+process. On a robot whose other nodes run on other machines, pass ``--dds-config env`` to
+use the ``CYCLONEDDS_URI`` of the environment as it is (Cyclone's own defaults when unset: every
+interface, multicast discovery), or ``--dds-config FILE.xml`` for a configuration file of your
+own (see the tutorial "crlam on a ROS 2 robot"). (Cyclone DDS opens its unicast receive
+sockets on the wildcard address; with this configuration it advertises only 127.0.0.1 locators,
+discovers peers only there and sends nothing elsewhere.)
+
+**Naming.** ROS 2 puts topic ``/scan`` on the DDS topic ``rt/scan``, with the type name
+``sensor_msgs::msg::dds_::LaserScan_`` (:mod:`crlam.ros.messages`); the domain is
+``ROS_DOMAIN_ID`` (default 0).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from crlam.errors import ConfigError
+
+__all__ = ["LOOPBACK_CONFIG", "DdsNode", "configure_dds", "dds_topic_name", "domain_id"]
+
+#: Cyclone DDS on the loopback interface only: no multicast, peers found by unicast on 127.0.0.1
+#: (participant indices 0..MaxAutoParticipantIndex give each participant its own port).
+LOOPBACK_CONFIG = (
+    '<CycloneDDS><Domain Id="any">'
+    '<General><Interfaces><NetworkInterface name="lo"/></Interfaces>'
+    "<AllowMulticast>false</AllowMulticast></General>"
+    "<Discovery><ParticipantIndex>auto</ParticipantIndex><MaxAutoParticipantIndex>60</MaxAutoParticipantIndex>"
+    '<Peers><Peer address="127.0.0.1"/></Peers></Discovery>'
+    "</Domain></CycloneDDS>"
+)
+
+_configured: str | None = None
+_lock = threading.Lock()
+
+
+def configure_dds(choice: str = "loopback") -> str:
+    """Sets ``CYCLONEDDS_URI`` of this process for ``choice``: ``loopback`` (default,
+    :data:`LOOPBACK_CONFIG`), ``env`` (the environment's value, untouched) or the path of a
+    Cyclone DDS XML file. Returns a description. Must be called before the first participant:
+    Cyclone reads its configuration once per process, so a second, different choice is an error."""
+    global _configured
+    with _lock:
+        if choice == "loopback":
+            os.environ["CYCLONEDDS_URI"] = LOOPBACK_CONFIG
+            described = "loopback (lo, 127.0.0.1, no multicast)"
+        elif choice == "env":
+            described = f"CYCLONEDDS_URI={os.environ.get('CYCLONEDDS_URI', '(unset: Cyclone defaults)')}"
+        else:
+            path = Path(choice)
+            if not path.is_file():
+                raise ConfigError(f"--dds-config {choice}: no such file (loopback, env or a Cyclone DDS XML file)")
+            os.environ["CYCLONEDDS_URI"] = path.resolve().as_uri()
+            described = f"file {path}"
+        if _configured is not None and _configured != choice:
+            raise ConfigError(f"DDS already configured as {_configured!r} in this process; cannot switch to {choice!r}")
+        _configured = choice
+        return described
+
+
+def domain_id(value: int | None = None) -> int:
+    """The DDS domain: ``value``, else ``ROS_DOMAIN_ID``, else 0 (checked to be 0..232)."""
+    if value is None:
+        text = os.environ.get("ROS_DOMAIN_ID", "").strip() or "0"
+        try:
+            value = int(text)
+        except ValueError:
+            raise ConfigError(f"ROS_DOMAIN_ID={text!r} is not an integer") from None
+    if not 0 <= value <= 232:
+        raise ConfigError(f"ROS domain id {value} is outside 0..232")
+    return value
+
+
+def dds_topic_name(topic: str) -> str:
+    """ROS 2's DDS topic for ``topic``: ``/scan`` -> ``rt/scan``."""
+    name = topic.strip()
+    if not name.startswith("/"):
+        name = "/" + name
+    return "rt" + name
+
+
+class DdsNode:
+    """One participant with ROS 2 topic naming: :meth:`writer` and :meth:`reader` by ROS topic
+    name and message class; readers can call a function for each sample (on Cyclone's thread:
+    it must only hand the sample over, never compute).
+
+    Parameters
+    ----------
+    name : str
+        The node's name (in the participant's entity name, as ROS 2 shows it).
+    domain : int, optional
+        DDS domain (default ``ROS_DOMAIN_ID`` or 0).
+    dds_config : str
+        ``loopback`` (default), ``env`` or an XML file: see :func:`configure_dds`.
+    """
+
+    def __init__(self, name: str, domain: int | None = None, dds_config: str = "loopback") -> None:
+        self.config_description = configure_dds(dds_config)
+        from cyclonedds.core import Policy, Qos
+        from cyclonedds.domain import DomainParticipant
+
+        self.name = name
+        self.domain = domain_id(domain)
+        self.participant: Any = DomainParticipant(self.domain, qos=Qos(Policy.EntityName(name)))
+        self._topics: dict[str, Any] = {}
+        self._entities: list[Any] = []
+
+    def _topic(self, topic: str, cls: type) -> Any:
+        from cyclonedds.topic import Topic
+
+        dds = dds_topic_name(topic)
+        if dds not in self._topics:
+            self._topics[dds] = Topic(self.participant, dds, cls)
+        return self._topics[dds]
+
+    def writer(self, topic: str, cls: type, qos: Any) -> Any:
+        """A DataWriter of ``cls`` on ROS topic ``topic``."""
+        from cyclonedds.pub import DataWriter
+
+        w = DataWriter(self.participant, self._topic(topic, cls), qos=qos)
+        self._entities.append(w)
+        return w
+
+    def reader(self, topic: str, cls: type, qos: Any, on_sample: Callable[[Any], None] | None = None) -> Any:
+        """A DataReader of ``cls`` on ROS topic ``topic``; ``on_sample`` is called with each sample."""
+        from cyclonedds.core import Listener
+        from cyclonedds.sub import DataReader
+
+        r = DataReader(self.participant, self._topic(topic, cls), qos=qos)
+        self._entities.append(r)
+        if on_sample is not None:
+            lock = threading.Lock()  # the drain below and Cyclone's thread never interleave samples
+
+            def available(_: Any = None) -> None:
+                with lock:
+                    while samples := r.take(N=64):
+                        for sample in samples:
+                            info = getattr(sample, "sample_info", None)
+                            if info is None or info.valid_data:
+                                on_sample(sample)
+
+            # The listener is set once the reader exists (a transient-local sample can arrive while
+            # it is being made, before Cyclone can name it); what came before is drained here.
+            r.set_listener(Listener(on_data_available=available))
+            available()
+        return r
+
+    def close(self) -> None:
+        """Deletes the participant (and with it every reader and writer). Listeners are removed
+        first: deleting a reader whose listener is set crashes the binding (a use after free in
+        Cyclone DDS Python 11) when another participant of the process uses the same type."""
+        from cyclonedds.sub import DataReader
+
+        for e in self._entities:
+            if isinstance(e, DataReader):
+                e.set_listener(None)
+        self._entities.clear()
+        self._topics.clear()
+        self.participant = None
