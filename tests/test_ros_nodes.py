@@ -96,10 +96,20 @@ def _run_live(bag: Path, out: Path, **node_changes: Any) -> tuple[SlamNode, Coll
     return node, col
 
 
-@pytest.mark.realdata
-def test_turtlebot4_live_equals_offline(data_dir: Path, tmp_path: Path) -> None:
+def _run_offline(bag: Path, out: Path, **options: Any) -> Any:
+    """``crlam slam``'s run of ``bag`` with the node's settings. The live node runs without the
+    checks that read the whole log ahead (time offset, body mask, laser mount, the map's range
+    from the readings), so the offline run does too."""
     from crlam.experiments.slam_run import run_slam_log
     from crlam.presets import resolve
+
+    without_look_ahead = {"time_offset": "off", "body_mask": "off", "map_range": "fixed"}
+    config = resolve("robust", {**SLAM, **without_look_ahead})
+    return run_slam_log(bag, out, config, progress=False, figures=False, laser_mount="data", **options)
+
+
+@pytest.mark.realdata
+def test_turtlebot4_live_equals_offline(data_dir: Path, tmp_path: Path) -> None:
 
     bag = data_dir / "bags" / "turtlebot4-mac-floor"
     if not bag.exists():
@@ -107,7 +117,7 @@ def test_turtlebot4_live_equals_offline(data_dir: Path, tmp_path: Path) -> None:
     node, col = _run_live(bag, tmp_path / "live")
     assert is_complete(tmp_path / "live")
     assert node.counters["scans_dropped"] == 0
-    offline = run_slam_log(bag, tmp_path / "offline", resolve("robust", dict(SLAM)), progress=False, figures=False)
+    offline = _run_offline(bag, tmp_path / "offline")
     live_t = read_tum(tmp_path / "live" / "trajectory.tum")
     off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
     assert offline.metrics["n_scans"] == len(live_t.timestamps)
@@ -146,13 +156,11 @@ def _synthetic_bag(path: Path) -> Path:
 
 
 def test_synthetic_bag_live_equals_offline(tmp_path: Path) -> None:
-    from crlam.experiments.slam_run import run_slam_log
-    from crlam.presets import resolve
 
     bag = _synthetic_bag(tmp_path / "corridor.mcap")
     node, col = _run_live(bag, tmp_path / "live")
     assert is_complete(tmp_path / "live")
-    offline = run_slam_log(bag, tmp_path / "offline", resolve("robust", dict(SLAM)), progress=False, figures=False)
+    offline = _run_offline(bag, tmp_path / "offline")
     live_t = read_tum(tmp_path / "live" / "trajectory.tum")
     off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
     assert len(live_t.timestamps) == offline.metrics["n_scans"] == 40
@@ -354,15 +362,11 @@ def _synthetic_tf_multi_echo_bag(path: Path) -> Path:
 
 
 def test_tf_odometry_and_multi_echo_scans_live_equal_offline(tmp_path: Path) -> None:
-    from crlam.experiments.slam_run import run_slam_log
-    from crlam.presets import resolve
 
     bag = _synthetic_tf_multi_echo_bag(tmp_path / "corridor-tf.mcap")
     node, _ = _run_live(bag, tmp_path / "live", odom_topic="/tf", scan_type="MultiEchoLaserScan")
     assert is_complete(tmp_path / "live")
-    offline = run_slam_log(
-        bag, tmp_path / "offline", resolve("robust", dict(SLAM)), progress=False, figures=False, bag_options={"odom_topic": "/tf"}
-    )
+    offline = _run_offline(bag, tmp_path / "offline", bag_options={"odom_topic": "/tf"})
     live_t = read_tum(tmp_path / "live" / "trajectory.tum")
     off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
     assert len(live_t.timestamps) == offline.metrics["n_scans"] == 40

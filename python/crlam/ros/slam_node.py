@@ -148,6 +148,7 @@ class SlamNode:
         self.map_to_odom = np.zeros(3)
         self.sim_time: float | None = None
         self.run: Any = None
+        self.readings: Any = None
         self.last_map_t = -math.inf
         self.path_poses: list[Any] = []
         self.stop_event = threading.Event()
@@ -374,11 +375,17 @@ class SlamNode:
         """Feeds one matched scan to the filter: (processed, estimate, particle poses or None,
         (position spread m, heading spread rad))."""
         from crlam.experiments.slam_run import within_sensor_range
+        from crlam.io.readings import ReadingFilter
         from crlam.slam import SlamRun
 
         assert scan.odom is not None and self.mount is not None
         if self.run is None:
             self.run = SlamRun(within_sensor_range(self.config, rmax))
+            # The no-return policy, scan by scan as offline; the checks that read the log ahead
+            # (body mask, laser mount, time offset, the map's range from the readings) do not run live.
+            self.readings = ReadingFilter(self.run.config.no_return, self.run.config.max_range)
+        assert self.readings is not None
+        angles, ranges = self.readings.apply(angles, ranges, rmax)
         step = self.run.step(scan.odom, angles, ranges, self.mount, scan.stamp)
         particles = None
         spread = (0.0, 0.0)
