@@ -7,7 +7,6 @@ import gzip
 import math
 import string
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -609,14 +608,12 @@ def test_intel_counts_and_order(intel: tuple[list[LaserScan], CarmenReader]) -> 
 
 @pytest.mark.realdata
 def test_intel_streams_first_scan_quickly() -> None:
+    """The first scan comes after the first few lines of the 27 MB log (counted, not timed)."""
     path = real(DATASETS["intel"].relative_path)
-    t0 = time.perf_counter()
     reader = CarmenReader(path)
     gen = iter(reader)
     first = next(r for r in gen if isinstance(r, LaserScan))
-    elapsed = time.perf_counter() - t0
     assert reader.lines_read < 50 and first.n_beams == 180
-    assert elapsed < 1.0
     gen.close()  # type: ignore[attr-defined]
 
 
