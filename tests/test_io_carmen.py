@@ -576,6 +576,21 @@ def test_data_root_env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
         dataset_path("intel")
 
 
+def test_an_empty_crlam_data_means_no_data_folder(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """``CRLAM_DATA=`` switches the lookup off, ``../shared/data`` beside the checkout included."""
+    import crlam.io.datasets as datasets
+
+    (tmp_path / "repo").mkdir()
+    (tmp_path / "shared" / "data").mkdir(parents=True)
+    monkeypatch.setattr(datasets, "_repo_root", lambda: tmp_path / "repo")
+    monkeypatch.delenv("CRLAM_DATA", raising=False)
+    assert data_root() == tmp_path / "shared" / "data"  # unset: the folder beside the checkout
+    monkeypatch.setenv("CRLAM_DATA", "")
+    assert data_root() is None
+    with pytest.raises(DatasetNotFoundError, match="CRLAM_DATA=''"):
+        dataset_path("cave-map")
+
+
 @pytest.mark.realdata
 def test_registry_files_exist() -> None:
     real("intel")

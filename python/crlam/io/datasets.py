@@ -133,7 +133,8 @@ def dataset_path(relative: str) -> Path:
     root = data_root()
     if root is None:
         env = os.environ.get(ENV_VAR)
-        where = f"${ENV_VAR}={env!r}" if env is not None else f"{_repo_root().parent / 'shared' / 'data'} (set ${ENV_VAR} to override)"
+        default = _repo_root().parent / "shared" / "data"
+        where = f"${ENV_VAR}={env!r}" if env is not None else f"{default} (set ${ENV_VAR} to override)"
         raise DatasetNotFoundError(f"dataset {relative!r}: no data folder at {where}")
     path = root / rel
     if not path.exists():
