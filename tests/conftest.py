@@ -1,4 +1,11 @@
-"""Shared fixtures: the real-data folder (``CRLAM_DATA``, default ``../shared/data``)."""
+"""Shared fixtures and settings.
+
+- The real-data folder: ``CRLAM_DATA``, default ``../shared/data`` beside the clone; an empty
+  ``CRLAM_DATA`` means "no data folder" and every test that needs data skips with the reason.
+- Hypothesis: no per-example deadline and no "too slow" health check, so that no outcome depends
+  on the speed or the load of the machine (what a property test finds depends only on its
+  examples).
+"""
 
 from __future__ import annotations
 
@@ -6,12 +13,17 @@ import os
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, settings
 
 # Tests run from a clone with shared/ beside it; installed (non-editable) packages cannot find
-# that folder from their own location, so point them at it here.
+# that folder from their own location, so point them at it here. CRLAM_DATA set (even to the
+# empty string, "no data") is left as it is.
 _SHARED = Path(__file__).resolve().parents[2] / "shared" / "data"
 if "CRLAM_DATA" not in os.environ and _SHARED.is_dir():
     os.environ["CRLAM_DATA"] = str(_SHARED)
+
+settings.register_profile("crlam", deadline=None, suppress_health_check=[HealthCheck.too_slow])
+settings.load_profile("crlam")
 
 
 @pytest.fixture(scope="session")

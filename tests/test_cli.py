@@ -138,3 +138,19 @@ def test_demo_small_run_writes_a_complete_report(tmp_path: Path) -> None:
     assert results["slam"]["preset"] == "robust" and results["slam"]["n_scans"] == 150
     assert results["slam"]["rmse_position_m"] < results["slam"]["odometry_rmse_position_m"]
     assert sorted(r["function"] for r in results["iig"]) == ["crmi", "gpvr", "ogmi", "ucrmi", "ugpvr"]
+    assert not results["quick"] and "--quick" not in report
+
+
+@pytest.mark.slow
+def test_demo_quick_runs_every_step_on_a_short_log(tmp_path: Path) -> None:
+    """``crlam demo --quick`` (the installation check of CI and of the installation guide)."""
+    assert main(["demo", "--quick", "--out", str(tmp_path), "--quiet"]) == 0
+    report = (tmp_path / "report.md").read_text()
+    assert report.count("A quick run (`--quick`)") == 1 and "UCRMI with 10 particles" in report
+    for link in ("world.png", "map_groundtruth_poses/map.png", "slam_map.png", "iig_trees.png", "exploration/exploration.png"):
+        assert link in report and (tmp_path / link).stat().st_size > 10_000
+    results = json.loads((tmp_path / "results.json").read_text())
+    assert results["quick"] and results["n_scans"] == 300 and results["slam"]["n_scans"] == 300
+    assert results["localization"]["n_scans"] == 60 and results["localization"]["particles"] == 10
+    assert results["slam"]["rmse_position_m"] < results["slam"]["odometry_rmse_position_m"]
+    assert (tmp_path / "simulation" / "log.clf").is_file()  # what CI then gives to crlam slam

@@ -16,6 +16,7 @@ import sys
 from collections import defaultdict
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from crlam.cli import COMMANDS, build_parser, main
@@ -260,8 +261,14 @@ def inputs(tmp_path: Path) -> dict[str, str]:
     taken.mkdir()
     (taken / "keep.txt").write_text("not crlam's")
     (tmp_path / "taken.json").write_text("{}")
+    # A map of the Cave's size (100 x 100 px at 0.2 m/px, walls round a free room): the IIG
+    # experiment's default map is a dataset, which a fresh clone does not have.
+    room = np.full((100, 100), 255, dtype=np.uint8)
+    room[[0, -1], :] = room[:, [0, -1]] = 0
+    (tmp_path / "room.pgm").write_bytes(b"P5\n100 100\n255\n" + room.tobytes())
     return {
         "log": str(tmp_path / "log.clf"),
+        "map": str(tmp_path / "room.pgm"),
         "tum": str(tmp_path / "t.tum"),
         "dir": str(taken),
         "file": str(tmp_path / "taken.json"),
@@ -281,7 +288,7 @@ EXISTING = [
     "bench --quick -o {file}",
     "experiment table1 -o {dir} -q",
     "experiment real-logs -o {dir} -q",
-    "experiment iig -o {dir} -q",
+    "experiment iig --map {map} -o {dir} -q",
     "experiment explore -o {dir} -q",
 ]
 

@@ -128,25 +128,41 @@ def test_explore_on_dask_ships_a_map_world_with_its_image(tmp_path: Path, cluste
     assert (tmp_path / "dask" / "runs" / "room-frontier-s00" / "progress.csv").is_file()
 
 
-def _sleepy(value: int, folder: str, started: str) -> dict[str, int]:
-    """Notes its start (with the pid of the worker that runs it), sleeps, writes its marker."""
+def _gated(value: int, folder: str, started: str, gate: str) -> dict[str, int]:
+    """Notes its start (with the pid of the worker that runs it), waits until the test creates
+    ``gate``, writes its marker: the test decides when a run may end, not the clock."""
     Path(started).mkdir(parents=True, exist_ok=True)
     (Path(started) / f"{value}-{os.getpid()}-{os.getppid()}").write_text("")
-    time.sleep(1.5)
+    while not Path(gate).exists():
+        time.sleep(0.02)
     Path(folder).mkdir(parents=True, exist_ok=True)
     (Path(folder) / "metrics.json").write_text(json.dumps({"value": value}))
     return {"value": value}
 
 
+def _wait_for(condition: Any, what: str, hang_guard_s: float = 600.0) -> None:
+    """Polls until ``condition()`` holds. The limit only stops a hung test (it fails it, saying
+    what never happened); no outcome depends on how fast the machine is."""
+    give_up = time.monotonic() + hang_guard_s
+    while not condition():
+        assert time.monotonic() < give_up, f"hung: {what} did not happen within {hang_guard_s:.0f} s"
+        time.sleep(0.02)
+
+
 def test_a_worker_killed_mid_sweep_costs_only_its_run(tmp_path: Path, cluster: Any) -> None:
-    root, started = tmp_path / "sweep", tmp_path / "started"
-    jobs = [(f"j{i}", {"value": i, "folder": str(root / "runs" / f"j{i}"), "started": str(started)}) for i in range(3)]
+    """Every run waits for the gate file, so the first run to start is still running when its
+    worker is killed, whatever the machine's speed."""
+    root, started, gate = tmp_path / "sweep", tmp_path / "started", tmp_path / "gate"
+    jobs = [
+        (f"j{i}", {"value": i, "folder": str(root / "runs" / f"j{i}"), "started": str(started), "gate": str(gate)})
+        for i in range(3)
+    ]
     answer: dict[str, Any] = {}
 
     def sweep() -> None:
         answer["out"] = run_jobs(
             jobs,
-            _sleepy,
+            _gated,
             lambda n: (root / "runs" / n / "metrics.json").is_file(),
             lambda n: json.loads((root / "runs" / n / "metrics.json").read_text()),
             executor=DaskExecutor(cluster.scheduler_address),
@@ -156,13 +172,11 @@ def test_a_worker_killed_mid_sweep_costs_only_its_run(tmp_path: Path, cluster: A
 
     t = threading.Thread(target=sweep)
     t.start()
-    deadline = time.monotonic() + 120
-    while not (started.is_dir() and any(started.iterdir())) and time.monotonic() < deadline:
-        time.sleep(0.02)
+    _wait_for(lambda: started.is_dir() and any(started.iterdir()), "the first run's start")
     value, _, worker = (int(x) for x in next(started.iterdir()).name.split("-"))
-    os.kill(worker, signal.SIGKILL)  # the worker process dies mid-run
-    t.join(timeout=180)
-    assert not t.is_alive()
+    os.kill(worker, signal.SIGKILL)  # the worker process dies mid-run (its run waits for the gate)
+    gate.touch()
+    _wait_for(lambda: not t.is_alive(), "the end of the sweep")
     done, errors = answer["out"]
     assert not errors and done == {f"j{i}": {"value": i} for i in range(3)}
     starts = [p.name.split("-")[0] for p in started.iterdir()]
@@ -199,22 +213,52 @@ def test_failed_runs_are_recorded_with_their_error(tmp_path: Path, cluster: Any)
     assert not (tmp_path / "j1").exists() and not (tmp_path / "j2").exists()
 
 
+def _hold_runs_but(first: str, gate: str) -> None:
+    """In a worker process: every run but ``first`` waits for the file ``gate`` before its
+    process starts (the runs' module looks the function up at call time)."""
+    from crlam.experiments import remote_run
+
+    original = getattr(remote_run, "_ungated_run_in_child", remote_run._run_in_child)
+
+    def gated(fn: Any, name: str, kwargs: dict[str, Any], threads: int, stage: Path) -> Any:
+        while name != first and not Path(gate).exists():
+            time.sleep(0.02)
+        return original(fn, name, kwargs, threads, stage)
+
+    remote_run._ungated_run_in_child = original  # type: ignore[attr-defined]
+    remote_run._run_in_child = gated
+
+
+def _release_runs() -> None:
+    from crlam.experiments import remote_run
+
+    if hasattr(remote_run, "_ungated_run_in_child"):
+        remote_run._run_in_child = remote_run._ungated_run_in_child
+        del remote_run._ungated_run_in_child
+
+
 def test_an_interrupted_sweep_resumes(tmp_path: Path, cluster: Any) -> None:
-    """The client is interrupted (Ctrl-C) after its first finished run; the same command with
-    --resume then runs only the runs that were not finished."""
-    out = tmp_path / "t1"
+    """The client is interrupted (Ctrl-C) after its first finished run, while the other runs are
+    held on the workers until the test lets them go (no race with the clock); the same command
+    with --resume then runs only the runs that were not finished."""
+    out, gate = tmp_path / "t1", tmp_path / "gate"
     argv = ["experiment", "table1", "--out", str(out), "--runs", "4", "--scans", "40", "--particles", "3", "--methods", "clam"]
     argv += ["--executor", "dask", "--scheduler", cluster.scheduler_address, "--quiet"]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-    client = subprocess.Popen([sys.executable, "-m", "crlam.cli", *argv], env=env, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 180
-    while not list(out.glob("runs/*/COMPLETE")) and client.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.02)
-    client.send_signal(signal.SIGINT)
-    _, err = client.communicate(timeout=60)
-    assert client.returncode == 130 and "interrupted" in err, err
+    with distributed.Client(cluster) as control:
+        control.run(_hold_runs_but, "clam_run00", str(gate))
+        try:
+            env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
+            client = subprocess.Popen([sys.executable, "-m", "crlam.cli", *argv], env=env, stderr=subprocess.PIPE, text=True)
+            _wait_for(lambda: (out / "runs" / "clam_run00" / "COMPLETE").exists() or client.poll() is not None, "run 0")
+            assert client.poll() is None, "the sweep ended while three of its runs were held"
+            client.send_signal(signal.SIGINT)
+            _, err = client.communicate(timeout=600)  # a hang guard only
+            assert client.returncode == 130 and "interrupted" in err, err
+        finally:
+            gate.touch()  # the held runs of the interrupted client go on and are dropped
+            control.run(_release_runs)
     finished = {p.parent.name: p.stat().st_mtime_ns for p in out.glob("runs/*/COMPLETE")}
-    assert 1 <= len(finished) < 4
+    assert set(finished) == {"clam_run00"}
     from crlam.cli import main
 
     assert main(argv) == 2  # an existing experiment folder is continued only when asked to

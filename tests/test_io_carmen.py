@@ -7,7 +7,6 @@ import gzip
 import math
 import string
 import tempfile
-import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -577,6 +576,21 @@ def test_data_root_env(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
         dataset_path("intel")
 
 
+def test_an_empty_crlam_data_means_no_data_folder(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    """``CRLAM_DATA=`` switches the lookup off, ``../shared/data`` beside the checkout included."""
+    import crlam.io.datasets as datasets
+
+    (tmp_path / "repo").mkdir()
+    (tmp_path / "shared" / "data").mkdir(parents=True)
+    monkeypatch.setattr(datasets, "_repo_root", lambda: tmp_path / "repo")
+    monkeypatch.delenv("CRLAM_DATA", raising=False)
+    assert data_root() == tmp_path / "shared" / "data"  # unset: the folder beside the checkout
+    monkeypatch.setenv("CRLAM_DATA", "")
+    assert data_root() is None
+    with pytest.raises(DatasetNotFoundError, match="CRLAM_DATA=''"):
+        dataset_path("cave-map")
+
+
 @pytest.mark.realdata
 def test_registry_files_exist() -> None:
     real("intel")
@@ -609,14 +623,12 @@ def test_intel_counts_and_order(intel: tuple[list[LaserScan], CarmenReader]) -> 
 
 @pytest.mark.realdata
 def test_intel_streams_first_scan_quickly() -> None:
+    """The first scan comes after the first few lines of the 27 MB log (counted, not timed)."""
     path = real(DATASETS["intel"].relative_path)
-    t0 = time.perf_counter()
     reader = CarmenReader(path)
     gen = iter(reader)
     first = next(r for r in gen if isinstance(r, LaserScan))
-    elapsed = time.perf_counter() - t0
     assert reader.lines_read < 50 and first.n_beams == 180
-    assert elapsed < 1.0
     gen.close()  # type: ignore[attr-defined]
 
 

@@ -276,3 +276,12 @@ def test_the_checker_sees_edges_through_re_exports_and_inline_paths() -> None:
     assert g[("a", "thing")] == {("b",)}
     assert g[("a",)] == set() and g[()] == set()
     assert _cycles(g) == [[("a", "thing"), ("b",)]]
+
+
+def test_the_glue_crate_has_no_import_loops() -> None:
+    """The PyO3 glue (crates/crlam-py/src) is one layer of flat modules; among them no loops
+    (the ``dispatch!`` macro's paths count: ``Func`` lives in dispatch.rs beside it)."""
+    glue = Crate.read(SRC.parents[1] / "crlam-py" / "src").edges()
+    loops = [" <-> ".join(_name(m) for m in comp) for comp in _cycles(glue)]
+    assert not loops, "import loops:\n" + "\n".join(loops)
+    assert ("info",) in glue[("planner",)] and ("dispatch",) in glue[("info",)]  # the reader sees the glue's uses

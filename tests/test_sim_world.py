@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from collections import deque
 from pathlib import Path
 
@@ -177,11 +176,8 @@ def test_png_and_nav2_yaml(tmp_path: Path) -> None:
         get_world("no-such-world")
 
 
-def test_cave_map_loads() -> None:
-    root = Path(os.environ.get("CRLAM_DATA", "/work/shared/data"))
-    path = root / "maps" / "cave.pgm"
-    if not path.exists():
-        pytest.skip(f"{path} not found (set CRLAM_DATA)")
+def test_cave_map_loads(data_dir: Path) -> None:
+    path = data_dir / "maps" / "cave.pgm"
     world = World.from_image(path, resolution=0.2)
     assert world.shape == (100, 100)
     assert world.extent == (0.0, 20.0, 0.0, 20.0)

@@ -22,6 +22,19 @@ use crate::convert::{shape_err, IntoPy};
 use crate::info_state::{GpVarianceMap, OccupancyLattice, ParticleBelief, UpdateKind};
 use crate::maps::CrmMap;
 
+/// Every core information function the glue serves, by kind: what `InfoFunction` holds and
+/// what [`dispatch!`] matches on.
+pub(crate) enum Func {
+    Crmi(Crmi),
+    CrmiMl(MlScanBinary),
+    CrmiR1(R1Map),
+    Ucrmi(Ucrmi),
+    Fsmi(Fsmi),
+    IigMi(IigMi),
+    Gpvr(Gpvr),
+    Ugpvr(Ugpvr),
+}
+
 /// A Python class holding a core map state.
 pub(crate) trait StateClass: PyClass<Frozen = pyo3::pyclass::boolean_struct::False> {
     type Core: Sync;
@@ -252,7 +265,7 @@ pub(crate) fn covariance_array<'py>(
 /// function `$func` holds.
 macro_rules! dispatch {
     ($func:expr, |$f:ident, $S:ident| $body:expr) => {{
-        use crate::info::Func;
+        use crate::dispatch::Func;
         match $func {
             Func::Crmi($f) => {
                 #[allow(dead_code)]

@@ -14,20 +14,9 @@ use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
 use crate::convert::{guard, pose3, poses_n3, shape_err, IntoPy};
-use crate::dispatch::{dispatch, GlueFunction, StateClass};
+use crate::dispatch::{dispatch, Func, GlueFunction, StateClass};
 use crate::info_state::InfoUpdate;
 use crate::maps::SensorModel;
-
-pub(crate) enum Func {
-    Crmi(Crmi),
-    CrmiMl(MlScanBinary),
-    CrmiR1(R1Map),
-    Ucrmi(Ucrmi),
-    Fsmi(Fsmi),
-    IigMi(IigMi),
-    Gpvr(Gpvr),
-    Ugpvr(Ugpvr),
-}
 
 /// One of the information functions (crm-spec 5–6, planner-spec 4–5).
 #[pyclass(module = "crlam._native", frozen)]

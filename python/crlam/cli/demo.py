@@ -17,7 +17,7 @@ def cmd_demo(args: argparse.Namespace) -> int:
 
     print_settings(args)
     with staged_output(args) as stage:
-        report = run_demo(stage, n_scans=args.scans, seed=args.seed, progress=not args.quiet)
+        report = run_demo(stage, n_scans=args.scans, seed=args.seed, progress=not args.quiet, quick=args.quick)
     print(f"demo written to {args.out}; open {moved(report, stage, Path(args.out))}")
     return 0
 
@@ -33,7 +33,15 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     )
     add_output_options(p, default="demo-out")
     run = group(p, "run control")
-    run.add_argument("--scans", type=positive_int, default=4000, help="number of scans to simulate (default: 4000)")
+    run.add_argument(
+        "--scans", type=positive_int, default=None, help="number of scans to simulate (default: 4000; 300 with --quick)"
+    )
+    run.add_argument(
+        "--quick",
+        action="store_true",
+        help="a short run of every step (300 scans, few particles, a 10 m exploration) that still writes the figures "
+        "and report.md: checks an installation in seconds",
+    )
     run.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     p.set_defaults(func=cmd_demo)
     return p

@@ -17,10 +17,11 @@ def cmd_info(args: argparse.Namespace) -> int:
     import numpy as np
 
     from crlam.errors import ConfigError
-    from crlam.info import compute_surface, load_map_prior, make_function, prior_from_crm_mean, save_surface
+    from crlam.info import compute_surface, load_map_prior, make_function, prior_from_crm_mean
     from crlam.io.belief import load_belief
     from crlam.mapping import ConfidenceRichMap
     from crlam.run_folder import moved
+    from crlam.viz.info import save_surface
 
     if (args.map is None) == (args.belief is None):
         raise ConfigError("give either a map file or --belief belief.npz")

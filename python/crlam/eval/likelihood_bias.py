@@ -30,7 +30,7 @@ from numpy.typing import NDArray
 from tqdm import tqdm
 
 from crlam.errors import ConfigError
-from crlam.experiments.known_poses import KnownPoseScan
+from crlam.io.known_pose_scan import KnownPoseScan
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 
 __all__ = ["LineSearchGrid", "LikelihoodBias", "likelihood_bias", "save_likelihood_bias"]

@@ -78,8 +78,9 @@ class _WholeRun:
         return from_map_frame(self.map_frame, self.poses)
 
 
-def _slam_whole_run(log: SimulatedLog, *, seed: int, progress: bool) -> _WholeRun:
-    cfg = SlamConfig.from_preset(DEMO_PRESET, seed=seed)
+def _slam_whole_run(log: SimulatedLog, *, seed: int, progress: bool, particles: int | None = None) -> _WholeRun:
+    extra = {} if particles is None else {"particles": particles}
+    cfg = SlamConfig.from_preset(DEMO_PRESET, seed=seed, **extra)
     run = SlamRun(cfg)
     ranges = np.where(log.ranges >= log.sensor.max_range, np.inf, log.ranges)
     t0 = time.perf_counter()
@@ -117,10 +118,34 @@ def _row(name: str, s: MapScores) -> str:
     )
 
 
+#: What ``quick=True`` (``crlam demo --quick``) shrinks: every step still runs and writes its
+#: figures and its section of the report, on a short log with few particles.
+QUICK = {"n_scans": 300, "loc_scans": 60, "loc_particles": 10, "slam_particles": 8, "iig_particles": 10, "explore_m": 10.0}
+
+
+QUICK_NOTE = (
+    "A quick run (`--quick`): a short log and few particles, to check an installation; the full demo runs without it.\n\n"  # noqa: E501
+)
+
+
 def run_demo(
-    out: Path, *, n_scans: int = 4000, seed: int = 0, progress: bool = True, loc_scans: int = 300, loc_particles: int = 30
+    out: Path,
+    *,
+    n_scans: int | None = None,
+    seed: int = 0,
+    progress: bool = True,
+    loc_scans: int | None = None,
+    loc_particles: int | None = None,
+    quick: bool = False,
 ) -> Path:
-    """Runs the demo into ``out`` and returns the path of ``report.md``."""
+    """Runs the demo into ``out`` and returns the path of ``report.md``.
+
+    ``n_scans`` (default 4000), ``loc_scans`` (300) and ``loc_particles`` (30) size the run;
+    ``quick`` gives the short run of :data:`QUICK` (the same steps, figures and report in
+    seconds, for checking an installation) for what is not given."""
+    n_scans = n_scans if n_scans is not None else (int(QUICK["n_scans"]) if quick else 4000)
+    loc_scans = min(n_scans, loc_scans if loc_scans is not None else (int(QUICK["loc_scans"]) if quick else 300))
+    loc_particles = loc_particles if loc_particles is not None else (int(QUICK["loc_particles"]) if quick else 30)
     t_start = time.perf_counter()
     out.mkdir(parents=True, exist_ok=True)
     say = print if progress else (lambda *a, **k: None)
@@ -159,20 +184,21 @@ def run_demo(
     save_localization_figures(loc, log.poses, out)
     loc_rows = loc.table()
     say(f"[6/8] SLAM: RBPF-CLAM ({DEMO_PRESET} preset) over all {n_scans} scans ...", flush=True)
-    slam = _slam_whole_run(log, seed=seed, progress=progress)
+    slam = _slam_whole_run(log, seed=seed, progress=progress, particles=int(QUICK["slam_particles"]) if quick else None)
     slam_rmse = float(np.sqrt(np.mean(np.sum((slam.in_odometry_frame()[:, :2] - log.poses[:, :2]) ** 2, axis=1))))
     odo_rmse = float(np.sqrt(np.mean(np.sum((log.odometry[:, :2] - log.poses[:, :2]) ** 2, axis=1))))
     _save_slam_figure(slam, log, out / "slam_map.png")
     say("[7/8] planning: IIG with five information functions on the office world ...", flush=True)
     from crlam.experiments.iig_demo import run_iig_demo
 
-    iig = run_iig_demo(out, seed=seed)
+    iig_particles = int(QUICK["iig_particles"]) if quick else 30
+    iig = run_iig_demo(out, seed=seed, particles=iig_particles)
     say("[8/8] exploring the museum world greedily by CRMI (known poses) ...", flush=True)
     from crlam.experiments.explore import ExploreConfig, default_start, explore, write_explore_folder
     from crlam.sim.worlds import get_world
 
     museum = get_world("museum", seed=seed)
-    exp_cfg = ExploreConfig(function="crmi", budget_m=80.0, threshold=0.1, seed=seed)
+    exp_cfg = ExploreConfig(function="crmi", budget_m=QUICK["explore_m"] if quick else 80.0, threshold=0.1, seed=seed)
     exp_run = explore(museum, default_start(museum), exp_cfg)
     write_explore_folder(exp_run, out / "exploration")
     exp_last = exp_run.decisions[-1] if exp_run.decisions else {}
@@ -181,6 +207,7 @@ def run_demo(
     results = {
         "n_scans": n_scans,
         "seed": seed,
+        "quick": quick,
         "path_length_m": log.trajectory.length,
         "odometry_final_drift_m": float(drift[-1]),
         "odometry_max_drift_m": float(drift.max()),
@@ -233,7 +260,7 @@ def run_demo(
     )
     report = f"""# crlam demo: confidence-rich mapping of the museum world
 
-Built-in data only: a procedural 90 m x 90 m museum-like world (halls, rooms, doors, pillars,
+{QUICK_NOTE if quick else ""}Built-in data only: a procedural 90 m x 90 m museum-like world (halls, rooms, doors, pillars,
 exhibits and clutter), the paper's LIDAR (1079 beams over 270 deg, 8 m max range, beam-mixture
 noise) and odometry with Gaussian increment noise (sigma 0.01 m, 0.01 m, 0.01 rad per scan).
 
@@ -307,7 +334,7 @@ truth (black, dashed). Position RMSE {slam_rmse:.3f} m over the run (odometry: {
 
 The IIG planner (reference settings, one seed) from a corner of the procedural office world, with
 each information function on the same prior map (occupied 0.85, free 0.3; OGMI by exact FSMI,
-UCRMI with 30 particles). `crlam experiment iig` runs the full comparison (20 seeds, the Cave map).
+UCRMI with {iig_particles} particles). `crlam experiment iig` runs the full comparison (20 seeds, the Cave map).
 
 | function | units | samples | nodes | total cost [m] | total info | mean I_RIC | stop | time [s] |
 |---|---|---|---|---|---|---|---|---|

@@ -24,6 +24,7 @@ from tqdm import tqdm
 from crlam.errors import ConfigError, DataFormatError
 from crlam.experiments.map_outputs import PANEL_CELLS, UNKNOWN_ENTROPY_TOL, map_products, write_belief_archive
 from crlam.io.carmen import LaserScan
+from crlam.io.known_pose_scan import KnownPoseScan
 from crlam.io.logs import count_scans, input_description, open_log
 from crlam.io.nav2 import write_nav2_image
 from crlam.io.readings import ReadingFilter
@@ -59,16 +60,6 @@ def sensor_pose(scan: LaserScan, source: PoseSource) -> NDArray[np.float64]:
     if source == "odometry":
         return compose(scan.odom, scan.laser_offset)
     raise ConfigError(f"pose source must be 'log' or 'odometry', got {source!r}")
-
-
-@dataclass(frozen=True)
-class KnownPoseScan:
-    """A scan ready for mapping: sensor pose (3,), beam angles (n,), ranges (n,), stamp (s)."""
-
-    pose: NDArray[np.float64]
-    angles: NDArray[np.float64]
-    ranges: NDArray[np.float64]
-    timestamp: float
 
 
 def mapping_ranges(scan: LaserScan) -> NDArray[np.float64]:

@@ -8,7 +8,7 @@
 
 from crlam.info.functions import FUNCTION_NAMES, Evaluation, InformationFunction, make_function
 from crlam.info.prior import MapPrior, lattice_from_obstacles, load_map_prior, prior_from_crm_mean
-from crlam.info.surface import InfoSurface, compute_surface, save_surface
+from crlam.info.surface import InfoSurface, compute_surface
 
 __all__ = [
     "FUNCTION_NAMES",
@@ -21,5 +21,4 @@ __all__ = [
     "load_map_prior",
     "make_function",
     "prior_from_crm_mean",
-    "save_surface",
 ]

@@ -2,11 +2,9 @@
 
 from __future__ import annotations
 
-import json
 import os
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -15,7 +13,7 @@ from numpy.typing import NDArray
 from crlam.info.functions import InformationFunction, State
 from crlam.info.prior import MapPrior
 
-__all__ = ["InfoSurface", "compute_surface", "save_surface"]
+__all__ = ["InfoSurface", "compute_surface"]
 
 
 @dataclass(frozen=True)
@@ -104,16 +102,3 @@ def compute_surface(
         settings=dict(function.settings),
         seconds=dt,
     )
-
-
-def save_surface(surface: InfoSurface, out: str | os.PathLike[str], *, dpi: int = 150) -> dict[str, Path]:
-    """Writes ``surface.npy``, ``surface.png`` and ``info.json`` into ``out``."""
-    from crlam.viz.info import save_surface_figure
-
-    d = Path(out)
-    d.mkdir(parents=True, exist_ok=True)
-    paths = {"surface": d / "surface.npy", "figure": d / "surface.png", "info": d / "info.json"}
-    np.save(paths["surface"], surface.values)
-    save_surface_figure(paths["figure"], surface, dpi=dpi)
-    paths["info"].write_text(json.dumps(surface.summary(), indent=2, sort_keys=True) + "\n")
-    return paths

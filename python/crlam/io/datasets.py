@@ -3,6 +3,8 @@
 The datasets are never part of the repository. They are looked up in the folder named by the
 environment variable ``CRLAM_DATA`` or, when it is unset, in ``../shared/data`` relative to the
 repository root (the source checkout that holds ``python/crlam``), if that folder exists.
+``CRLAM_DATA`` set to the empty string means "no data folder": nothing is looked up (the
+continuous-integration run that proves the tests pass on a fresh clone uses it).
 """
 
 from __future__ import annotations
@@ -106,10 +108,13 @@ def _repo_root() -> Path:
 def data_root() -> Path | None:
     """The data folder, or ``None`` if it does not exist.
 
-    ``$CRLAM_DATA`` when set (``None`` if it names no folder), else ``<repo>/../shared/data``.
+    ``$CRLAM_DATA`` when set (``None`` if it names no folder, or is empty: the empty string
+    switches the lookup off), else ``<repo>/../shared/data``.
     """
     env = os.environ.get(ENV_VAR)
-    if env:
+    if env is not None:
+        if not env.strip():
+            return None
         root = Path(env).expanduser()
     else:
         root = _repo_root().parent / "shared" / "data"
@@ -128,7 +133,8 @@ def dataset_path(relative: str) -> Path:
     root = data_root()
     if root is None:
         env = os.environ.get(ENV_VAR)
-        where = f"${ENV_VAR}={env!r}" if env else f"{_repo_root().parent / 'shared' / 'data'} (set ${ENV_VAR} to override)"
+        default = _repo_root().parent / "shared" / "data"
+        where = f"${ENV_VAR}={env!r}" if env is not None else f"{default} (set ${ENV_VAR} to override)"
         raise DatasetNotFoundError(f"dataset {relative!r}: no data folder at {where}")
     path = root / rel
     if not path.exists():

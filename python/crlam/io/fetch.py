@@ -244,7 +244,7 @@ def find_dataset(name: str, *, cache: str | os.PathLike[str] | None = None) -> P
     if loc.path is not None:
         return loc.path
     root = data_root()
-    where = f"data folder {root}" if root is not None else "no data folder ($CRLAM_DATA unset or missing)"
+    where = f"data folder {root}" if root is not None else "no data folder ($CRLAM_DATA unset, empty or missing)"
     hint = f"; download it with `crlam data fetch {name}`" if name in REMOTE else " (it has no public download)"
     raise DatasetNotFoundError(f"dataset {name!r} not found ({where}; cache {cache_dir(cache)}){hint}")
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import matplotlib
 
@@ -12,17 +12,51 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 from matplotlib.animation import FuncAnimation, PillowWriter
+from numpy.typing import NDArray
 
+from crlam.mapping import ConfidenceRichMap
 from crlam.viz.maps import metric_axes, save_figure
 from crlam.viz.palette import colour
 
-if TYPE_CHECKING:
-    from crlam.experiments.explore import ExploreRun
-
-__all__ = ["save_animation", "save_exploration_figure", "save_progress_figure", "save_sweep_figures"]
+__all__ = ["ExploreRunView", "save_animation", "save_exploration_figure", "save_progress_figure", "save_sweep_figures"]
 
 
-def _extent(run: ExploreRun) -> tuple[float, float, float, float]:
+class _ExploreSettings(Protocol):
+    """The settings of an exploration run that its figures show (read only)."""
+
+    @property
+    def function(self) -> str: ...
+    @property
+    def resolution(self) -> float: ...
+    @property
+    def sensor_range(self) -> float: ...
+    @property
+    def free_threshold(self) -> float: ...
+
+
+class ExploreRunView(Protocol):
+    """What the figures read of an exploration run (:class:`crlam.experiments.explore.ExploreRun`
+    has it): a protocol, so that figures do not import the experiments above them."""
+
+    @property
+    def config(self) -> _ExploreSettings: ...
+    @property
+    def crm(self) -> ConfidenceRichMap: ...
+    @property
+    def truth(self) -> NDArray[np.bool_]: ...
+    @property
+    def poses(self) -> NDArray[np.float64]: ...
+    @property
+    def decisions(self) -> list[dict[str, Any]]: ...
+    @property
+    def frames(self) -> list[dict[str, Any]]: ...
+    @property
+    def stop(self) -> str: ...
+    @property
+    def distance(self) -> float: ...
+
+
+def _extent(run: ExploreRunView) -> tuple[float, float, float, float]:
     ny, nx = run.truth.shape
     ext = run.crm.config.extent
     assert ext is not None
@@ -34,7 +68,7 @@ def _draw_map(ax: plt.Axes, mean: np.ndarray, extent: tuple[float, float, float,
     ax.imshow(mean, origin="lower", extent=extent, cmap="gray_r", vmin=0.0, vmax=1.0, interpolation="nearest")
 
 
-def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRun, *, dpi: int = 150) -> Path:
+def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRunView, *, dpi: int = 150) -> Path:
     """Left: the trajectory (start square, end star) over the final CRM's expected occupancy.
     Right: CRMI (bits) at every known-free cell of the final map."""
     from crlam.info import make_function, prior_from_crm_mean
@@ -84,7 +118,7 @@ def save_exploration_figure(path: str | os.PathLike[str], run: ExploreRun, *, dp
     return save_figure(fig, path, dpi)
 
 
-def save_progress_figure(path: str | os.PathLike[str], run: ExploreRun, *, dpi: int = 150) -> Path:
+def save_progress_figure(path: str | os.PathLike[str], run: ExploreRunView, *, dpi: int = 150) -> Path:
     """Explored area and map entropy against the distance travelled."""
     d = np.array([r["distance_m"] for r in run.decisions])
     fig, axes = plt.subplots(1, 2, figsize=(11.0, 3.8), constrained_layout=True)
@@ -103,7 +137,7 @@ def save_progress_figure(path: str | os.PathLike[str], run: ExploreRun, *, dpi: 
     return save_figure(fig, path, dpi)
 
 
-def save_animation(path: str | os.PathLike[str], run: ExploreRun, *, max_frames: int = 60, fps: int = 4) -> Path:
+def save_animation(path: str | os.PathLike[str], run: ExploreRunView, *, max_frames: int = 60, fps: int = 4) -> Path:
     """A GIF: the map and the trajectory at every decision (at most ``max_frames`` frames)."""
     ext = _extent(run)
     frames = run.frames[:: max(1, len(run.frames) // max_frames)]

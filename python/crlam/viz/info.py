@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import os
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 import matplotlib
 
@@ -12,12 +12,21 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 
+from crlam.info.surface import InfoSurface
 from crlam.viz.maps import metric_axes, save_figure
 
-if TYPE_CHECKING:
-    from crlam.info.surface import InfoSurface
+__all__ = ["save_surface", "save_surface_figure"]
 
-__all__ = ["save_surface_figure"]
+
+def save_surface(surface: InfoSurface, out: str | os.PathLike[str], *, dpi: int = 150) -> dict[str, Path]:
+    """Writes ``surface.npy``, ``surface.png`` and ``info.json`` into ``out``."""
+    d = Path(out)
+    d.mkdir(parents=True, exist_ok=True)
+    paths = {"surface": d / "surface.npy", "figure": d / "surface.png", "info": d / "info.json"}
+    np.save(paths["surface"], surface.values)
+    save_surface_figure(paths["figure"], surface, dpi=dpi)
+    paths["info"].write_text(json.dumps(surface.summary(), indent=2, sort_keys=True) + "\n")
+    return paths
 
 
 def save_surface_figure(path: str | os.PathLike[str], surface: InfoSurface, *, dpi: int = 150) -> Path:
