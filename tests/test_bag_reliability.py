@@ -19,7 +19,7 @@ import pytest
 
 from bag_messages import write_mutated
 from crlam.cli import main
-from crlam.errors import CrlamError, DataFormatError
+from crlam.errors import ConfigError, CrlamError, DataFormatError
 from crlam.io import LaserScan, OdometryReading, RosbagReader, open_log
 from crlam.io.message_checks import QUATERNION_TOLERANCE
 from test_io_rosbag import BagSpec, odom_pose, write_bag
@@ -185,6 +185,14 @@ def test_headings_do_not_depend_on_the_quaternions_length_within_the_tolerance(t
     for scale in (0.5, 2.0, 0.0, math.nan):
         with pytest.raises(DataFormatError, match=r"/odom message 1: .*quaternion"):
             _odometry(write_mutated(tmp_path / f"bad{scale}.mcap", spec, _scale_odom_quaternions(scale)))
+
+
+def test_a_nan_mount_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bag = write_mutated(tmp_path / "b.mcap", BagSpec(n_scans=3), until=100.8)
+    with pytest.raises(ConfigError, match="finite"):
+        RosbagReader(bag, laser_mount=(0.1, math.nan, 0.0))
+    status, err = _run(["map", str(bag), "--laser-mount", "0", "nan", "0", "--out", str(tmp_path / "o"), "--quiet"], capsys)
+    assert status == 2 and "finite" in _one_error_line(err, "map")
 
 
 def test_a_zero_quaternion_in_tf_static_is_refused(tmp_path: Path) -> None:

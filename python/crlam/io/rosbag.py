@@ -271,8 +271,8 @@ class RosbagReader:
         # A FIFO, a device or a socket, and a folder whose metadata.yaml names files outside it,
         # are refused before the bag library opens anything (crlam.io.bag_open).
         self.path = check_bag_input(path)
-        if laser_mount is not None and len(laser_mount) != 3:
-            raise ConfigError(f"laser_mount needs 3 values (x, y, yaw), got {list(laser_mount)}")
+        if laser_mount is not None and (len(laser_mount) != 3 or not all(math.isfinite(float(v)) for v in laser_mount)):
+            raise ConfigError(f"laser_mount needs 3 finite values (x, y, yaw), got {list(laser_mount)}")
         if not (math.isfinite(odom_tolerance) and odom_tolerance >= 0):
             raise ConfigError(f"odom_tolerance must be >= 0, got {odom_tolerance}")
         if echo not in ECHOES:

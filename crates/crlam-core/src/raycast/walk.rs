@@ -124,7 +124,7 @@ impl GridWalk {
         if self.flat_x {
             f64::INFINITY
         } else {
-            (((ix + self.bx_off) as f64) * self.res - self.ox) * self.inv_ux
+            ((ix.saturating_add(self.bx_off) as f64) * self.res - self.ox) * self.inv_ux
         }
     }
 
@@ -133,7 +133,7 @@ impl GridWalk {
         if self.flat_y {
             f64::INFINITY
         } else {
-            (((iy + self.by_off) as f64) * self.res - self.oy) * self.inv_uy
+            ((iy.saturating_add(self.by_off) as f64) * self.res - self.oy) * self.inv_uy
         }
     }
 }
