@@ -28,6 +28,8 @@ LAYERS: list[set[str]] = [
     {"crlam"},  # the package's __init__: its version and the errors and limits it re-exports
     # run_folder records the version in each run folder's markers.
     {"io", "run_folder"},
+    # Reading checks and the odometry's re-attachment at corrected stamps: below the maps and slam.
+    {"body_mask", "laser_mount", "odometry_retime", "map_range"},
     # Maps and the simulator read and write through io; fill and grid_alignment are pose maths.
     {"mapping", "sim", "fill", "grid_alignment", "motion_noise"},
     {"slam_continue", "localize_map", "info"},
@@ -35,8 +37,12 @@ LAYERS: list[set[str]] = [
     {"presets", "planner"},
     {"slam"},
     {"scan_odometry", "localize", "eval"},
+    # The log's pre-passes: the time offset reads scan-matching odometry; the lidar check the mount.
+    {"time_offset", "lidar_check"},
     {"viz"},
     {"experiments"},
+    # The live ROS 2 nodes run the experiments' SLAM runner and explorer.
+    {"ros"},
     # The SLAM benchmark runs the experiments' SLAM runner; bench runs it among the others.
     {"bench_slam"},
     {"bench"},

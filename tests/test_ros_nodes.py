@@ -244,7 +244,7 @@ def test_turtlebot4_localize_live_equals_offline_and_converges(data_dir: Path, t
     pose, cov = (6.54, -8.86, 1.705), (0.25, 0.25, 0.03)
     args = ["localize", str(bag), "--map", str(floor), "--out", str(tmp_path / "offline"), "--quiet"]
     args += ["--initial-pose", *map(str, pose), "--initial-cov", *map(str, cov)]
-    args += ["--nav2-free-thresh", "0.196", "--skip-no-returns", "--max-beams", "90"]
+    args += ["--nav2-free-thresh", "0.196", "--skip-no-returns", "--max-beams", "90", "--time-offset", "off"]
     assert main(args) == 0
 
     params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True)

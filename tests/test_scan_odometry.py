@@ -141,7 +141,12 @@ def test_slam_with_scan_matching_odometry_on_a_simulated_log(sim: Path, tmp_path
     argv = ["slam", str(sim / "log.clf"), "--out", str(run), "--odometry", "scan_match", "--particles", "5", "--quiet"]
     assert main([*argv, "--reference", str(sim / "groundtruth.tum")]) == 0
     cfg = tomllib.loads((run / "config.toml").read_text())
-    assert cfg["input"] == {"format": "carmen", "odometry": "scan_match", "odometry_choice": "given"}
+    assert {k: cfg["input"][k] for k in ("format", "odometry", "odometry_choice")} == {
+        "format": "carmen",
+        "odometry": "scan_match",
+        "odometry_choice": "given",
+    }
+    assert set(cfg["input"]) == {"format", "odometry", "odometry_choice", "lidar"}
     assert tuple(cfg["slam"]["motion_params"]) == SCAN_MATCH_MOTION_PARAMS and cfg["slam"]["motion"] == "gmapping"
     assert cfg["scan_odometry"]["window"] == ScanOdometryConfig().window
     m = json.loads((run / "metrics.json").read_text())

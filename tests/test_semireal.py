@@ -1,4 +1,4 @@
-"""Semi-real logs (``crlam.sim.semireal``, ``crlam semireal``): real scans at corrected poses with a
+"""Semi-real logs (``crlam.experiments.semireal``, ``crlam semireal``): real scans at corrected poses with a
 drifting odometry of our own and an optional laser lag."""
 
 from __future__ import annotations
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from crlam.errors import ConfigError
+from crlam.experiments.semireal import SemiRealSettings, make_semireal
 from crlam.io.carmen_types import LaserScan
 from crlam.io.tum import read_tum
 from crlam.pose import between
-from crlam.sim.semireal import SemiRealSettings, make_semireal
 
 
 def _corrected_scans(n: int = 400) -> list[LaserScan]:
@@ -69,8 +69,8 @@ def test_laser_lag_on_real_scans_is_undone_by_the_time_offset(data_dir: Path, tm
     """A corrected log's real scans with a 0.15 s laser lag: each scan's odometry field is the
     odometry 0.15 s after the scan was taken; re-attached at the offset -0.15 s it is the odometry
     of the instant the scan was taken."""
+    from crlam.experiments.semireal import write_semireal
     from crlam.experiments.stress_variants import load_records
-    from crlam.sim.semireal import write_semireal
     from crlam.time_offset import retime_odometry
 
     log = data_dir / "corrected" / "intel-corrected.log.gz"

@@ -166,7 +166,7 @@ def test_setting_is_checked() -> None:
         SlamConfig(time_offset="sometimes")
     with pytest.raises(ConfigError, match="time_offset"):
         SlamConfig(time_offset=float("nan"))
-    assert SlamConfig().time_offset == "auto" and SlamConfig.from_preset().time_offset == "auto"
+    assert SlamConfig().time_offset == "off" and SlamConfig.from_preset().time_offset == "auto"
 
 
 def test_slam_records_and_applies_the_estimate(sim_records: list[CarmenRecord], tmp_path: Path) -> None:

@@ -21,7 +21,6 @@ from crlam.map_range import MAP_RANGES
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap, MappingConfig
 from crlam.pose import number_pair
 from crlam.slam_continue import SlamPrior
-from crlam.time_offset import MAX_TIME_OFFSET, valid_time_offset
 
 __all__ = [
     "SlamConfig",
@@ -34,6 +33,21 @@ __all__ = [
 ]
 
 Method = Literal["clam", "ogm"]
+
+#: The named values of ``--time-offset`` (besides a number of seconds).
+TIME_OFFSET_CHOICES = ("auto", "off")
+#: Largest offset (s) a number may give.
+MAX_TIME_OFFSET = 10.0
+
+
+def valid_time_offset(value: object) -> bool:
+    """``"auto"``, ``"off"`` or a finite number of seconds within +-:data:`MAX_TIME_OFFSET` (not a bool)."""
+    if isinstance(value, str):
+        return value in TIME_OFFSET_CHOICES
+    return (
+        isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and abs(value) <= MAX_TIME_OFFSET
+    )
+
 
 #: Front ends in front of the scan-match proposal: ``none`` (the odometry increment as given) or
 #: ``correlative`` (a wide-window search on the best particle's map corrects it; docs/method/front-end.md).

@@ -14,8 +14,8 @@ __all__ = ["add_parser", "cmd_semireal"]
 
 
 def cmd_semireal(args: argparse.Namespace) -> int:
+    from crlam.experiments.semireal import SemiRealSettings, write_semireal
     from crlam.run_folder import moved
-    from crlam.sim.semireal import SemiRealSettings, write_semireal
 
     settings = SemiRealSettings(
         seed=args.seed,

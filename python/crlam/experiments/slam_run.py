@@ -66,6 +66,13 @@ class SlamResult:
     out_dir: Path
 
 
+def _map_range_setting(map_range: MapRangeChoice | None) -> dict[str, Any]:
+    """What config.toml records of z_max under ``map_range = "readings"``: the setting (the least
+    z_max), not the outcome, so that the file repeats the rule and a sweep resumes with it; the
+    chosen z_max is in metrics.json."""
+    return {} if map_range is None else {"max_range": map_range.floor}
+
+
 def correlative_front_end_record(run: SlamRun) -> dict[str, Any] | None:
     """What ``metrics.json`` records of the correlative front end: the processed scans it
     searched and those whose odometry increment its match corrected (``None`` when it is off)."""
@@ -211,9 +218,8 @@ def run_slam_log(
 
         from crlam.map_range import map_range_from_readings
 
-        map_range = map_range_from_readings(
-            lidar.corrected(open_log(log_path, **(bag_options or {}))), config.max_range, max_scans=max_scans
-        )
+        readings_log = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
+        map_range = map_range_from_readings(lidar.corrected(readings_log), config.max_range, max_scans=max_scans)
         config = replace(config, max_range=map_range.max_range)
     noise_estimate = None
     if config.motion_noise == "estimate" and config.motion_params is None:
@@ -534,7 +540,7 @@ def _write_outputs(
                 "continue": None if prior is None else prior.source,
             },
             "input": input_info,
-            "slam": config.to_dict() | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
+            "slam": config.to_dict() | _map_range_setting(map_range) | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
         }
         | ({} if front_end is None else {"scan_odometry": front_end.config.to_dict()}),
     )

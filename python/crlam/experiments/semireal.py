@@ -172,7 +172,7 @@ def make_semireal(scans: list[LaserScan], settings: SemiRealSettings | None = No
     stamps = t_true + s.laser_lag
     out_scans: list[LaserScan] = []
     records: list[OdometryReading] = []
-    from crlam.time_offset import interpolate_pose
+    from crlam.odometry_retime import interpolate_pose
 
     for k, sc in enumerate(scans):
         # The logger attaches the odometry at the scan's stamp, which is late by the lag.
