@@ -66,11 +66,11 @@ class SlamResult:
     out_dir: Path
 
 
-def _map_range_setting(map_range: MapRangeChoice | None) -> dict[str, Any]:
+def _map_range_setting(map_range: MapRangeChoice | None, run_max_range: float) -> dict[str, Any]:
     """What config.toml records of z_max under ``map_range = "readings"``: the setting (the least
     z_max), not the outcome, so that the file repeats the rule and a sweep resumes with it; the
-    chosen z_max is in metrics.json."""
-    return {} if map_range is None else {"max_range": map_range.floor}
+    chosen z_max is in metrics.json. A z_max cut to the sensor's own range stays cut."""
+    return {} if map_range is None else {"max_range": min(map_range.floor, run_max_range)}
 
 
 def correlative_front_end_record(run: SlamRun) -> dict[str, Any] | None:
@@ -540,7 +540,9 @@ def _write_outputs(
                 "continue": None if prior is None else prior.source,
             },
             "input": input_info,
-            "slam": config.to_dict() | _map_range_setting(map_range) | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
+            "slam": config.to_dict()
+            | _map_range_setting(map_range, config.max_range)
+            | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
         }
         | ({} if front_end is None else {"scan_odometry": front_end.config.to_dict()}),
     )
