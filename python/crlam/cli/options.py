@@ -358,7 +358,7 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             "later): auto estimates it from the scans' turns against the odometry's and re-attaches each scan's "
             "odometry at its corrected stamp when the estimate is clearly identified (else the odometry stays as "
             "logged, and the run says why); off leaves the odometry as logged; a number applies it; metrics.json "
-            f"records the estimate (default: auto; {FROM_PRESET})",
+            f"records the estimate ({FROM_PRESET}; robust: auto, paper: off)",
         ),
     ),
     "--fill": (
