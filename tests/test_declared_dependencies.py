@@ -13,8 +13,9 @@ import functools
 import importlib.metadata
 import re
 import sys
-import tomllib
 from pathlib import Path
+
+from crlam.io.structured import load_toml_text
 
 ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "python" / "crlam"
@@ -39,14 +40,14 @@ OPTIONAL_SUBPACKAGES = {"ros": "ros"}
 
 
 def _declared() -> tuple[set[str], set[str]]:
-    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    project = load_toml_text((ROOT / "pyproject.toml").read_text(), "pyproject.toml")["project"]
     required = {n for s in project["dependencies"] for n in _requirement_names(s)}
     optional = {n for specs in project["optional-dependencies"].values() for s in specs for n in _requirement_names(s)}
     return required, optional
 
 
 def _extra(name: str) -> set[str]:
-    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    project = load_toml_text((ROOT / "pyproject.toml").read_text(), "pyproject.toml")["project"]
     return {n for s in project["optional-dependencies"][name] for n in _requirement_names(s)}
 
 
