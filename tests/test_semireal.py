@@ -100,6 +100,8 @@ def test_cli_writes_the_files(tmp_path: Path) -> None:
     summary = json.loads((out / "semireal.json").read_text())
     assert summary["n_scans"] == 50 and summary["settings"]["seed"] == 3
     assert {p.name for p in out.iterdir()} >= {"log.clf", "groundtruth.tum", "odometry.tum", "semireal.json"}
+    # The summary names its files inside the folder, not in the staging folder it was written to.
+    assert all((out / name).is_file() for name in summary["files"].values())
 
 
 def test_settings_are_checked() -> None:

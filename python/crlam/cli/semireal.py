@@ -15,7 +15,6 @@ __all__ = ["add_parser", "cmd_semireal"]
 
 def cmd_semireal(args: argparse.Namespace) -> int:
     from crlam.experiments.semireal import SemiRealSettings, write_semireal
-    from crlam.run_folder import moved
 
     settings = SemiRealSettings(
         seed=args.seed,
@@ -35,7 +34,7 @@ def cmd_semireal(args: argparse.Namespace) -> int:
     print_settings(args)
     with staged_output(args) as stage:
         summary = write_semireal(args.log, stage, settings, max_scans=args.max_scans)
-    summary["files"] = {k: str(moved(Path(v), stage, Path(args.out))) for k, v in summary["files"].items()}
+    summary["files"] = {k: str(Path(args.out) / v) for k, v in summary["files"].items()}
     print(json.dumps(summary, indent=2))
     return 0
 

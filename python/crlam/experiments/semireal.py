@@ -228,11 +228,8 @@ def write_semireal(
         "odometry_end_error_m": float(math.hypot(end[0], end[1])),
         "odometry_end_error_deg": math.degrees(abs(float(end[2]))),
         "time_offset_s": -s.laser_lag,
-        "files": {
-            "carmen": str(out / "log.clf"),
-            "groundtruth": str(out / "groundtruth.tum"),
-            "odometry": str(out / "odometry.tum"),
-        },
+        # Names inside the folder: the CLI writes into a staging folder and renames it when whole.
+        "files": {"carmen": "log.clf", "groundtruth": "groundtruth.tum", "odometry": "odometry.tum"},
     }
     (out / "semireal.json").write_text(json.dumps(summary, indent=2, sort_keys=True) + "\n")
     return summary
