@@ -229,11 +229,18 @@ def test_cli_flags_override_the_preset_and_nothing_else() -> None:
 
 
 def test_the_default_run_records_the_preset(office: Path, tmp_path: Path) -> None:
+    from dataclasses import replace
+
     res = run_slam_log(office / "log.clf", tmp_path, max_scans=8, progress=False, figures=False)
-    assert res.run.config == SlamConfig.from_preset()
     metrics = json.loads((tmp_path / "metrics.json").read_text())
+    # The preset's settings, with the odometry noise the run fitted (8 scans: too few steps, so
+    # GMapping's defaults, recorded as such) written in, so that config.toml repeats the run.
+    noise = metrics["motion_noise_estimate"]
+    assert noise["fitted"] is False and noise["params"] == [0.1, 0.2, 0.1, 0.2]
+    run_config = replace(SlamConfig.from_preset(), motion_params=tuple(noise["params"]))
+    assert res.run.config == run_config
     assert metrics["preset"] == "robust"
-    assert metrics["deviations_from_paper"] == SlamConfig.from_preset().deviations()
+    assert metrics["deviations_from_paper"] == run_config.deviations()
     stored = presets.load_config_file(tmp_path / "config.toml")
     assert stored.preset == "robust" and set(stored.settings) == set(FIELDS)
     assert '\npreset = "robust"\n' in (tmp_path / "config.toml").read_text()
@@ -304,6 +311,9 @@ def test_real_logs_sweeps_use_the_robust_preset(office: Path, tmp_path: Path, mo
     (run,) = (out / "runs").iterdir()
     stored = presets.load_config_file(run / "config.toml")
     assert stored.preset == "robust"
-    assert SlamConfig(**stored.settings) == SlamConfig.from_preset("robust", particles=2, max_range=8.0)
+    fitted = json.loads((run / "metrics.json").read_text())["motion_noise_estimate"]["params"]
+    assert SlamConfig(**stored.settings) == SlamConfig.from_preset(
+        "robust", particles=2, max_range=8.0, motion_params=tuple(fitted)
+    )
     assert json.loads((run / "metrics.json").read_text())["preset"] == "robust"
     assert json.loads((out / "results.json").read_text())["preset"] == "robust"

@@ -99,11 +99,11 @@ def _run_live(bag: Path, out: Path, **node_changes: Any) -> tuple[SlamNode, Coll
 def _run_offline(bag: Path, out: Path, **options: Any) -> Any:
     """``crlam slam``'s run of ``bag`` with the node's settings. The live node runs without the
     checks that read the whole log ahead (time offset, body mask, laser mount, the map's range
-    from the readings), so the offline run does too."""
+    from the readings, the odometry noise's fit), so the offline run does too."""
     from crlam.experiments.slam_run import run_slam_log
     from crlam.presets import resolve
 
-    without_look_ahead = {"time_offset": "off", "body_mask": "off", "map_range": "fixed"}
+    without_look_ahead = {"time_offset": "off", "body_mask": "off", "map_range": "fixed", "motion_noise": "model"}
     config = resolve("robust", {**SLAM, **without_look_ahead})
     return run_slam_log(bag, out, config, progress=False, figures=False, laser_mount="data", **options)
 

@@ -132,8 +132,9 @@ def test_motion_noise_rule() -> None:
     assert ruled.motion == "gmapping" and ruled.motion_params == SCAN_MATCH_MOTION_PARAMS
     given = SlamConfig.from_preset(motion_params=(0.2, 0.2, 0.2, 0.2))
     assert scan_match_filter_config(given) == given
-    with pytest.raises(ConfigError, match="estimate"):
-        scan_match_filter_config(SlamConfig.from_preset(motion_noise="estimate"))
+    # The wheel-odometry fit does not apply: the front end's own stated noise does.
+    fitted = scan_match_filter_config(SlamConfig.from_preset(motion_noise="estimate"))
+    assert fitted.motion_params == SCAN_MATCH_MOTION_PARAMS and fitted.motion_noise == "model"
 
 
 def test_slam_with_scan_matching_odometry_on_a_simulated_log(sim: Path, tmp_path: Path) -> None:

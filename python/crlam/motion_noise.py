@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,6 +38,10 @@ MIN_STEPS = 20
 OUTLIER_SIGMAS = 4.0
 #: GMapping's default parameters (srr, srt, str, stt), used where a fit has no data.
 GMAPPING_DEFAULT = (0.1, 0.2, 0.1, 0.2)
+#: Share of the log's residuals (outliers included) that the fitted normals must cover.
+TAIL_COVERAGE = 0.95
+#: Processed scans per map of the pre-pass's matcher.
+WINDOW_STEPS = 200
 
 
 @dataclass(frozen=True)
@@ -52,14 +57,28 @@ class MotionNoiseEstimate:
         Processed steps with an increment.
     n_used : int
         Steps left after the outliers were dropped.
+    fitted : bool
+        False when the log had too few processed steps with motion (fewer than
+        :data:`MIN_STEPS`) and ``params`` are :data:`GMAPPING_DEFAULT`.
     """
 
     params: tuple[float, float, float, float]
     n_steps: int
     n_used: int
+    fitted: bool = True
+
+    def describe(self) -> str:
+        """One line saying what the run's odometry noise is and where it came from."""
+        values = " ".join(f"{v:.3g}" for v in self.params)
+        if not self.fitted:
+            return (
+                f"odometry noise: GMapping's defaults {values} (estimate: {self.n_steps} processed steps with motion, "
+                f"at least {MIN_STEPS} needed)"
+            )
+        return f"odometry noise: srr srt str stt {values} fitted to {self.n_used} of {self.n_steps} steps (estimate)"
 
     def to_dict(self) -> dict[str, object]:
-        return {"params": list(self.params), "n_steps": self.n_steps, "n_used": self.n_used}
+        return {"params": list(self.params), "n_steps": self.n_steps, "n_used": self.n_used, "fitted": self.fitted}
 
 
 def gmapping_sigmas(params: tuple[float, float, float, float], u: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -128,7 +147,25 @@ def fit_gmapping_noise(u: NDArray[np.float64], r: NDArray[np.float64]) -> Motion
         if keep.sum() < MIN_STEPS:
             keep = np.ones(len(u), dtype=bool)
             break
+    params = _cover_the_tail(params, u, r)
     return MotionNoiseEstimate(params, n_steps=len(u), n_used=int(keep.sum()))
+
+
+def _cover_the_tail(
+    params: tuple[float, float, float, float], u: NDArray[np.float64], r: NDArray[np.float64]
+) -> tuple[float, float, float, float]:
+    """``params`` scaled up (never down) until :data:`TAIL_COVERAGE` of the residuals ``r`` of all
+    steps, outliers included, lie within the normal's central interval of that probability:
+    ``srr, str`` by the translational residuals, ``stt, srt`` by the rotational ones."""
+    z_target = NormalDist().inv_cdf(0.5 + TAIL_COVERAGE / 2)
+    sig = gmapping_sigmas(params, u)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = np.abs(r) / np.where(sig > 0, sig, np.inf)
+    z = np.where(np.isnan(z), 0.0, z)  # 0 / 0: no motion in that component, no residual
+    scale_t = max(1.0, float(np.quantile(z[:, :2].ravel(), TAIL_COVERAGE)) / z_target)
+    scale_r = max(1.0, float(np.quantile(z[:, 2], TAIL_COVERAGE)) / z_target)
+    srr, srt, str_, stt = params
+    return (srr * scale_t, srt * scale_r, str_ * scale_t, stt * scale_r)
 
 
 def estimate_gmapping_noise(
@@ -159,6 +196,7 @@ def estimate_gmapping_noise(
     odoms: list[NDArray[np.float64]] = []
     poses: list[NDArray[np.float64]] = []
     n = 0
+    n_window = 0
     for rec in scans:
         if not isinstance(rec, LaserScan):
             continue
@@ -166,6 +204,13 @@ def estimate_gmapping_noise(
             break
         n += 1
         odom = np.asarray(rec.odom, dtype=np.float64)
+        if matcher is not None and n_window >= WINDOW_STEPS:
+            # A fresh map every WINDOW_STEPS processed scans bounds the map (a long log's whole
+            # map at 0.05 m exceeds the cell limit) and its drift; the pair across the restart
+            # is not a residual.
+            matcher, n_window = None, 0
+            odoms.append(np.full(3, np.nan))
+            poses.append(np.full(3, np.nan))
         if matcher is None:
             matcher = _native.OgmFilter(
                 odom,
@@ -188,13 +233,18 @@ def estimate_gmapping_noise(
             odom, np.ascontiguousarray(rec.angles), np.ascontiguousarray(ranges), np.asarray(rec.laser_offset, dtype=np.float64)
         )
         if processed:
+            n_window += 1
             odoms.append(odom)
             poses.append(np.asarray(estimate, dtype=np.float64))
-    if len(odoms) < 2:
-        raise DataFormatError("too few processed scans to estimate the odometry noise")
-    o, p = np.array(odoms), np.array(poses)
-    u = np.array([between(o[k - 1], o[k]) for k in range(1, len(o))])
-    v = np.array([between(p[k - 1], p[k]) for k in range(1, len(p))])
+    o, p = np.array(odoms).reshape(-1, 3), np.array(poses).reshape(-1, 3)
+    u = np.array([between(o[k - 1], o[k]) for k in range(1, len(o))]).reshape(-1, 3)
+    v = np.array([between(p[k - 1], p[k]) for k in range(1, len(p))]).reshape(-1, 3)
     r = v - u
     r[:, 2] = (r[:, 2] + math.pi) % (2 * math.pi) - math.pi
+    whole = np.all(np.isfinite(u), axis=1) & np.all(np.isfinite(v), axis=1)
+    u, r = u[whole].reshape(-1, 3), r[whole].reshape(-1, 3)
+    moving = int(np.count_nonzero(np.hypot(u[:, 0], u[:, 1]) + np.abs(u[:, 2]) > 1e-6))
+    if moving < MIN_STEPS:
+        # Too little motion to tell the noise apart: GMapping's defaults, and the run says so.
+        return MotionNoiseEstimate(GMAPPING_DEFAULT, n_steps=moving, n_used=0, fitted=False)
     return fit_gmapping_noise(u, r)

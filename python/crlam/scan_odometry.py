@@ -468,17 +468,10 @@ def scan_match_filter_config(config: SlamConfig) -> SlamConfig:
     """The filter settings for scan-matching odometry: GMapping's motion model with
     :data:`SCAN_MATCH_MOTION_PARAMS` unless ``motion_params`` are given.
 
-    Raises
-    ------
-    ConfigError
-        With ``motion_noise = "estimate"``: that fits wheel odometry against a scan matcher, and
-        scan-matching odometry is a scan matcher already.
+    ``motion_noise = "estimate"`` fits wheel odometry against a scan matcher; scan-matching
+    odometry is a scan matcher already, whose noise :data:`SCAN_MATCH_MOTION_PARAMS` states (fitted
+    the same way against ground truth), so it takes those and the run records ``"model"``.
     """
-    if config.motion_noise == "estimate":
-        raise ConfigError(
-            "motion_noise 'estimate' fits the odometry's noise against scan matching: it does not apply to "
-            "scan-matching odometry (leave --motion-noise at model, or give --motion-params)"
-        )
     if config.motion_params is not None:
         return config
-    return replace(config, motion="gmapping", motion_params=SCAN_MATCH_MOTION_PARAMS)
+    return replace(config, motion="gmapping", motion_params=SCAN_MATCH_MOTION_PARAMS, motion_noise="model")

@@ -236,6 +236,8 @@ def run_slam_log(
             seed=config.seed,
         )
         config = replace(config, motion_params=noise_estimate.params)
+        if progress or not noise_estimate.fitted:
+            print(noise_estimate.describe(), file=sys.stderr)
     from crlam.time_offset import apply_time_offset, report, resolve_time_offset
 
     offset = resolve_time_offset(config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0])

@@ -82,7 +82,8 @@ def stored_setting_differences(spec: RunSpec, folder: Path) -> list[str]:
     ``"name: stored X, requested Y"`` (empty when they agree).
 
     Compared: every ``SlamConfig`` field and ``max_scans``; not the file paths (data may move) and
-    not the preset's name (the values it resolved to are compared).
+    not the preset's name (the values it resolved to are compared), nor the ``motion_params`` a
+    run with ``motion_noise = "estimate"`` fitted to its log when the request leaves them unset.
     ``None`` is written as an ``# name = (unset)`` comment. A field the file does not name at all
     did not exist when the run was made; the run then had that field's default behaviour, so it
     matches a request for the default. A run folder without ``config.toml`` is not checked."""
@@ -99,6 +100,8 @@ def stored_setting_differences(spec: RunSpec, folder: Path) -> list[str]:
     for key, want in requested.items():
         if key == "preset":
             continue  # provenance, not a setting: the values themselves are compared
+        if key == "motion_params" and want is None and requested.get("motion_noise") == "estimate":
+            continue  # the run fitted them to its log and wrote them down (crlam.motion_noise)
         want = _normalised(want)
         if key in stored_slam:
             have = stored_slam[key]

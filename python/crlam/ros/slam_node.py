@@ -162,9 +162,16 @@ class SlamNode:
     NODE_NAME = "crlam_slam"
 
     def _make_config(self, overrides: dict[str, Any]) -> Any:
+        """The preset's settings with ``overrides``. The odometry-noise fit reads the whole log
+        ahead (``motion_noise = "estimate"``): live, the motion model's own parameters are used."""
+        from dataclasses import replace
+
         from crlam.presets import resolve
 
-        return resolve(self.params.preset, overrides)
+        config = resolve(self.params.preset, overrides)
+        if config.motion_noise == "estimate" and config.motion_params is None:
+            config = replace(config, motion_noise="model")
+        return config
 
     # --- DDS ----------------------------------------------------------------------------------
 
