@@ -35,6 +35,7 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         (z_max / 0.05) as usize,
     )?);
     let cfg = MclConfig {
+        measurement: crlam_core::mcl::Measurement::Crm,
         likelihood: LikelihoodSettings {
             model: SensorModel::with_defaults(SensorModelKind::Mixture, z_max, 0.05),
             tail_tolerance: 1e-6,

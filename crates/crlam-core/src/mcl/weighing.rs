@@ -1,0 +1,79 @@
+//! How a scan is weighed by the localizer: the climb's steps, the adaptive tempering and the
+//! spread of a weighted set.
+
+use crate::mcl::climb::ClimbSettings;
+use crate::mcl::config::MclConfig;
+use crate::mcl::field::MeanField;
+use crate::pose::Pose;
+use crate::resample::{effective_sample_size, normalize_log_weights};
+
+/// The climb of a spread set: first steps of half a KLD bin, halved until the step along x and
+/// y is at most the map's cell; at most 40 moves (240 evaluations of the score).
+pub(super) fn climb_settings(cfg: &MclConfig, field: &MeanField) -> ClimbSettings {
+    let step_xy = 0.5 * cfg.kld.bin_xy;
+    let cell = field.geometry().resolution;
+    let mut refinements = 0;
+    while refinements < 16 && step_xy / f64::from(1u32 << refinements) > cell {
+        refinements += 1;
+    }
+    ClimbSettings {
+        step_xy,
+        step_theta: 0.5 * cfg.kld.bin_theta,
+        refinements,
+        max_moves: 40,
+    }
+}
+
+/// The tempering of a scan: `base`, or, when the weights `prior + ll / base` would have an
+/// effective sample size below `min_neff` times that of `prior`, the smallest τ > base (to
+/// 0.1 %, by bisection on log τ; N_eff grows with τ towards the prior's) at which they have it.
+pub(super) fn adaptive_tempering(prior: &[f64], ll: &[f64], base: f64, min_neff: f64) -> f64 {
+    let n = ll.len();
+    if min_neff <= 0.0 || n == 0 {
+        return base;
+    }
+    let target = min_neff * effective_sample_size(&normalize_log_weights(prior));
+    let neff = |tau: f64| {
+        let lw: Vec<f64> = prior.iter().zip(ll).map(|(p, l)| p + l / tau).collect();
+        effective_sample_size(&normalize_log_weights(&lw))
+    };
+    if neff(base) >= target {
+        return base;
+    }
+    let mut hi = base * 2.0;
+    while neff(hi) < target {
+        if hi > base * 1e12 {
+            return hi;
+        }
+        hi *= 2.0;
+    }
+    let mut lo = hi / 2.0;
+    while hi / lo > 1.001 {
+        let mid = (lo * hi).sqrt();
+        if neff(mid) >= target {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    hi
+}
+
+/// The weighted set's RMS distance from its mean position plus 1 m times its circular heading
+/// spread sqrt(−2 ln R) (rad).
+pub(super) fn set_spread(poses: &[Pose], w: &[f64]) -> f64 {
+    let (mut x, mut y, mut c, mut s) = (0.0, 0.0, 0.0, 0.0);
+    for (p, &wi) in poses.iter().zip(w) {
+        x += wi * p[0];
+        y += wi * p[1];
+        c += wi * p[2].cos();
+        s += wi * p[2].sin();
+    }
+    let var: f64 = poses
+        .iter()
+        .zip(w)
+        .map(|(p, &wi)| wi * ((p[0] - x).powi(2) + (p[1] - y).powi(2)))
+        .sum();
+    let r = c.hypot(s).clamp(1e-300, 1.0);
+    var.max(0.0).sqrt() + (-2.0 * r.ln()).max(0.0).sqrt()
+}
