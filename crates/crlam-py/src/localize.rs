@@ -355,7 +355,9 @@ impl MclFilter {
         self.inner.field().n_free()
     }
 
-    /// The scan's likelihood at a robot pose: (Σ log η, Σ explained share, beams used).
+    /// The scan's likelihood at a robot pose under the filter's measurement model with the
+    /// model's own σ_hit, on the beams the filter keeps (before tempering): (Σ log-likelihood
+    /// per beam, Σ explained share, beams used).
     fn scan_fit(
         &self,
         py: Python<'_>,
@@ -368,23 +370,7 @@ impl MclFilter {
             let sensor = crlam_core::pose::compose(pose3(&pose)?, pose3(&laser_offset)?);
             let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
             let inner = &self.inner;
-            let beams: Vec<usize> = crlam_core::mcl::select_beams(
-                a.len(),
-                inner.config().beam_stride,
-                inner.config().max_beams,
-            );
-            let fit = py
-                .allow_threads(|| {
-                    crlam_core::mcl::scan_log_likelihood(
-                        inner.field(),
-                        &inner.config().likelihood,
-                        sensor,
-                        a,
-                        r,
-                        &beams,
-                    )
-                })
-                .py_err()?;
+            let fit = py.allow_threads(|| inner.scan_fit(sensor, a, r)).py_err()?;
             Ok((fit.log_likelihood, fit.explained, fit.n_beams))
         })
     }

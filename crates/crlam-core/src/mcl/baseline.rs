@@ -2,10 +2,11 @@
 //! *Probabilistic Robotics*, Tables 6.1 and 6.3) as alternatives to the CRM likelihood on the
 //! same filter, so that a comparison isolates the measurement model.
 //!
-//! Both read the map as AMCL reads an occupancy grid: a cell is an obstacle when its expected
-//! occupancy m̂ is at least [`OCCUPIED`] (0.5; AMCL's occupied and unknown cells both stop its
-//! ray, and a Nav2 map's unknown cells become m̂ ≥ 0.5 only where the map's prior says so).
-//! The map's confidence plays no part: that is what the comparison measures.
+//! Both read the map as AMCL reads an occupancy grid, from the expected occupancy m̂ alone (the
+//! map's confidence plays no part: that is what the comparison measures). AMCL's beam model stops
+//! its ray at occupied and at unknown cells, and its likelihood field measures distances to the
+//! occupied cells only; a Nav2 map's unknown cells become m̂ = 0.5 (the uniform pmf), so here the
+//! ray stops at m̂ ≥ [`OCCUPIED`] and the field's obstacles are the cells with m̂ > [`OCCUPIED`].
 //!
 //! Per beam, with the reading z (m) and the laser's z_max:
 //!
@@ -30,7 +31,8 @@ use crate::mcl::likelihood::ScanFit;
 use crate::pose::Pose;
 use crate::raycast::traverse_with;
 
-/// m̂ from which a cell is an obstacle for AMCL's models.
+/// m̂ from which a cell stops the beam model's ray, and above which it is an obstacle of the
+/// likelihood field.
 pub const OCCUPIED: f64 = 0.5;
 
 /// AMCL's likelihood-field model (defaults: `nav2_amcl`'s).
@@ -173,7 +175,7 @@ pub struct RangeLimits {
 }
 
 /// The likelihood field's table: per cell of the map's rectangle, the distance (m) from its
-/// centre to the nearest obstacle cell's centre, capped at `max_dist`.
+/// centre to the nearest obstacle cell's centre (m̂ > [`OCCUPIED`]), capped at `max_dist`.
 #[derive(Clone, Debug)]
 pub struct DistanceField {
     geometry: GridGeometry,
@@ -185,8 +187,10 @@ pub struct DistanceField {
 impl DistanceField {
     /// The table of `field` (an exact Euclidean distance transform of its obstacle cells).
     pub fn new(field: &MeanField, max_dist: f64) -> Self {
+        // The least double above 0.5: `occupied_distance` counts m̂ ≥ its argument.
+        let above = f64::from_bits(OCCUPIED.to_bits() + 1);
         let dist = field
-            .occupied_distance(OCCUPIED)
+            .occupied_distance(above)
             .into_iter()
             .map(|d| d.min(max_dist) as f32)
             .collect();

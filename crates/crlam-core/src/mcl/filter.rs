@@ -37,21 +37,18 @@ use std::sync::Arc;
 use rayon::prelude::*;
 
 use crate::error::{config_err, Result};
-use crate::mcl::baseline::{
-    beam_model_scan, likelihood_field_scan, DistanceField, Measurement, RangeLimits,
-};
+use crate::mcl::baseline::{DistanceField, Measurement};
 use crate::mcl::climb::{endpoints, EndpointField};
 use crate::mcl::cluster::{clusters, clusters_with_labels, Cluster};
 pub use crate::mcl::config::MclConfig;
 use crate::mcl::field::MeanField;
 use crate::mcl::kld::KldSettings;
-use crate::mcl::likelihood::{scan_log_likelihood, select_beams, LikelihoodSettings, ScanFit};
-use crate::mcl::weighing::{adaptive_tempering, climb_settings, set_spread};
+use crate::mcl::likelihood::{select_beams, ScanFit};
+use crate::mcl::weighing::{adaptive_tempering, climb_settings, set_spread, ScanWeigher};
 use crate::pose::{between, compose, covariance_factor, draw_pose, Pose};
 use crate::rbpf::{OdometryTracker, ScanInput};
 use crate::resample::{effective_sample_size, normalize_log_weights};
 use crate::rng::Rng;
-use crate::sensor::SensorModel;
 
 /// How the particles start.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -241,6 +238,25 @@ impl Mcl {
         clusters(&self.poses, &self.weights(), &self.cfg.kld)
     }
 
+    /// The fit of a scan seen from the sensor pose `sensor` under this localizer's measurement
+    /// model with the model's own hit σ, on the beams its rule keeps (`beam_stride`,
+    /// `max_beams`): what a particle there would be weighed with (before tempering).
+    pub fn scan_fit(&self, sensor: Pose, angles: &[f64], ranges: &[f64]) -> Result<ScanFit> {
+        let beams = select_beams(angles.len(), self.cfg.beam_stride, self.cfg.max_beams);
+        let sigma = self
+            .cfg
+            .measurement
+            .sigma_hit()
+            .unwrap_or(self.cfg.likelihood.model.sigma_hit);
+        ScanWeigher::new(
+            &self.cfg,
+            &self.field,
+            self.distance_field.as_deref(),
+            sigma,
+        )
+        .fit(sensor, angles, ranges, &beams)
+    }
+
     /// Feeds one scan; processes it when the update trigger fires.
     pub fn process(&mut self, scan: &ScanInput) -> Result<MclStep> {
         scan.validate()?;
@@ -299,18 +315,7 @@ impl Mcl {
             .sigma_hit()
             .unwrap_or(cfg.likelihood.model.sigma_hit);
         let sigma_hit = (cfg.anneal * spread).min(cfg.sigma_max).max(base);
-        let likelihood = LikelihoodSettings {
-            model: SensorModel {
-                sigma_hit,
-                ..cfg.likelihood.model
-            },
-            ..cfg.likelihood
-        };
-        let limits = RangeLimits {
-            z_min: cfg.likelihood.model.z_min,
-            z_max: cfg.likelihood.model.z_max,
-        };
-        let distance_field = self.distance_field.clone();
+        let weigher = ScanWeigher::new(cfg, field, self.distance_field.as_deref(), sigma_hit);
         // The climb of a spread set, on the endpoint score at this scan's σ.
         if cfg.spread_climb && spread > cfg.spread_limit && self.endpoint_field.is_none() {
             self.endpoint_field = Some(EndpointField::new(field));
@@ -322,8 +327,8 @@ impl Mcl {
                     scan.angles,
                     scan.ranges,
                     beams,
-                    likelihood.model.z_min,
-                    likelihood.model.z_max,
+                    cfg.likelihood.model.z_min,
+                    cfg.likelihood.model.z_max,
                 );
                 Some((&*e, climb_settings(cfg, field), points))
             }
@@ -349,16 +354,7 @@ impl Mcl {
                     None => pose,
                 };
                 let sensor = compose(pose, scan.laser_offset);
-                let (angles, ranges) = (scan.angles, scan.ranges);
-                let fit = match (&cfg.measurement, &distance_field) {
-                    (Measurement::LikelihoodField(p), Some(table)) => likelihood_field_scan(
-                        table, p, sigma_hit, limits, sensor, angles, ranges, beams,
-                    )?,
-                    (Measurement::Beam(p), _) => {
-                        beam_model_scan(field, p, sigma_hit, limits, sensor, angles, ranges, beams)?
-                    }
-                    _ => scan_log_likelihood(field, &likelihood, sensor, angles, ranges, beams)?,
-                };
+                let fit = weigher.fit(sensor, scan.angles, scan.ranges, beams)?;
                 Ok((pose, fit))
             })
             .collect();

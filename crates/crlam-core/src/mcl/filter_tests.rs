@@ -3,8 +3,10 @@
 use super::*;
 use crate::grid::{CellRect, GridGeometry};
 use crate::mcl::kld::KldSettings;
+use crate::mcl::likelihood::LikelihoodSettings;
 use crate::motion::MotionModel;
 use crate::rbpf::UpdateTrigger;
+use crate::sensor::SensorModel;
 use crate::sensor::SensorModelKind;
 
 fn filter(min_cluster: usize) -> Mcl {

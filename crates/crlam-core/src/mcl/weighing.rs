@@ -1,11 +1,17 @@
 //! How a scan is weighed by the localizer: the climb's steps, the adaptive tempering and the
 //! spread of a weighted set.
 
+use crate::error::Result;
+use crate::mcl::baseline::{
+    beam_model_scan, likelihood_field_scan, DistanceField, Measurement, RangeLimits,
+};
 use crate::mcl::climb::ClimbSettings;
 use crate::mcl::config::MclConfig;
 use crate::mcl::field::MeanField;
+use crate::mcl::likelihood::{scan_log_likelihood, LikelihoodSettings, ScanFit};
 use crate::pose::Pose;
 use crate::resample::{effective_sample_size, normalize_log_weights};
+use crate::sensor::SensorModel;
 
 /// The climb of a spread set: first steps of half a KLD bin, halved until the step along x and
 /// y is at most the map's cell; at most 40 moves (240 evaluations of the score).
@@ -76,4 +82,63 @@ pub(super) fn set_spread(poses: &[Pose], w: &[f64]) -> f64 {
         .sum();
     let r = c.hypot(s).clamp(1e-300, 1.0);
     var.max(0.0).sqrt() + (-2.0 * r.ln()).max(0.0).sqrt()
+}
+
+/// The measurement model of one scan: the CRM likelihood or AMCL's, with the scan's hit σ.
+pub(super) struct ScanWeigher<'a> {
+    pub measurement: Measurement,
+    pub field: &'a MeanField,
+    pub distance_field: Option<&'a DistanceField>,
+    /// The CRM's settings with the scan's σ_hit.
+    pub likelihood: LikelihoodSettings,
+    pub sigma_hit: f64,
+}
+
+impl<'a> ScanWeigher<'a> {
+    /// The weigher of `cfg`'s model on `field` with the hit σ `sigma_hit`.
+    pub fn new(
+        cfg: &MclConfig,
+        field: &'a MeanField,
+        distance_field: Option<&'a DistanceField>,
+        sigma_hit: f64,
+    ) -> Self {
+        Self {
+            measurement: cfg.measurement,
+            field,
+            distance_field,
+            likelihood: LikelihoodSettings {
+                model: SensorModel {
+                    sigma_hit,
+                    ..cfg.likelihood.model
+                },
+                ..cfg.likelihood
+            },
+            sigma_hit,
+        }
+    }
+
+    /// The fit of the beams `beams` of a scan seen from the sensor pose `sensor`.
+    pub fn fit(
+        &self,
+        sensor: Pose,
+        angles: &[f64],
+        ranges: &[f64],
+        beams: &[usize],
+    ) -> Result<ScanFit> {
+        let model = &self.likelihood.model;
+        let limits = RangeLimits {
+            z_min: model.z_min,
+            z_max: model.z_max,
+        };
+        let sigma = self.sigma_hit;
+        match (&self.measurement, self.distance_field) {
+            (Measurement::LikelihoodField(p), Some(table)) => {
+                likelihood_field_scan(table, p, sigma, limits, sensor, angles, ranges, beams)
+            }
+            (Measurement::Beam(p), _) => {
+                beam_model_scan(self.field, p, sigma, limits, sensor, angles, ranges, beams)
+            }
+            _ => scan_log_likelihood(self.field, &self.likelihood, sensor, angles, ranges, beams),
+        }
+    }
 }
