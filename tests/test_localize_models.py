@@ -23,7 +23,8 @@ from crlam.io.belief import save_belief
 from crlam.io.carmen import read_scans
 from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer
-from crlam.localize_map import load_localization_map
+from crlam.io.nav2 import write_nav2_map
+from crlam.localize_map import Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between
 from crlam.sim.lookalike import lookalike_world
@@ -186,3 +187,26 @@ def test_cli_model_flags(lookalike: Path, tmp_path: Path, capsys: pytest.Capture
     assert "max_dist" in capsys.readouterr().err
     with pytest.raises(SystemExit):
         main(args + ["--force", "--model-param", "sigma_hit"])
+
+
+@pytest.mark.parametrize("negate", [0, 1])
+def test_a_nav2_maps_unknown_cells_take_the_confidence_the_user_sets(tmp_path: Path, negate: int) -> None:
+    """The room with an unknown block 1 m east of the sensor: unknown cells read m̂ = 0.5 by
+    default, which stops AMCL's beam model's ray (as AMCL's unknown cells do); with
+    ``unknown_mean`` 0.3 (``--nav2-unknown 0.3``) the ray passes them and meets the wall."""
+    occ = np.zeros((40, 40))
+    occ[0, :] = occ[-1, :] = occ[:, 0] = occ[:, -1] = 1.0
+    occ[15:25, 30:33] = np.nan
+    yaml = write_nav2_map(tmp_path / "room.pgm", occ, resolution=0.1, origin=(0.0, 0.0), negate=negate)
+    cfg = LocalizeConfig(model="beam", max_range=10.0, max_beams=0, max_particles=10, min_particles=10)
+    fits = []
+    for unknown in (0.5, 0.3):
+        m = load_localization_map(yaml, nav2_prior=Nav2Prior(unknown_mean=unknown), max_range=10.0)
+        loc = Localizer(m, cfg, initial_pose=[2.05, 2.05, 0.0], initial_cov=[0.01, 0.01, 0.01])
+        assert loc.filter is not None
+        fits.append(loc.filter.scan_fit(np.array([2.05, 2.05, 0.0]), np.zeros(1), np.array([1.0]), NO_OFFSET)[0])
+    # The reading 1.0 m lies 0.05 m past the unknown block's entry at x = 3.0 (r* = 0.95 m) with
+    # 0.5, and 0.85 m short of the wall (r* = 1.85 m) with 0.3.
+    assert fits[0] == pytest.approx(math.log(0.5 * math.exp(-0.0025 / 0.08) + 0.05), abs=1e-6)
+    short = 0.5 * math.exp(-(0.85**2) / 0.08) + 0.005 * math.exp(-0.1) + 0.05
+    assert fits[1] == pytest.approx(math.log(short), abs=1e-6)

@@ -106,7 +106,12 @@ def cmd_localize(args: argparse.Namespace) -> int:
 
     config = localize_config_of(args)
     pose, cov = _initial(args)
-    prior = Nav2Prior(occupied_mean=args.nav2_occupied, free_mean=args.nav2_free, free_thresh=args.nav2_free_thresh)
+    prior = Nav2Prior(
+        occupied_mean=args.nav2_occupied,
+        free_mean=args.nav2_free,
+        unknown_mean=args.nav2_unknown,
+        free_thresh=args.nav2_free_thresh,
+    )
     print_settings(args, localize_settings=config, initial_pose=pose, initial_cov=cov)
     if args.trials:
         from crlam.experiments.localize_trials import run_global_trials
@@ -363,6 +368,13 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     n = group(p, "Nav2 map as a CRM prior", "for a .yaml map")
     n.add_argument("--nav2-occupied", type=positive_float, default=0.9, help="expected occupancy of an occupied cell (0.9)")
     n.add_argument("--nav2-free", type=positive_float, default=0.01, help="expected occupancy of a free cell (0.01)")
+    n.add_argument(
+        "--nav2-unknown",
+        type=positive_float,
+        default=0.5,
+        help="expected occupancy of an unknown cell (0.5: the uniform pmf; AMCL's beam model stops at unknown cells "
+        "from 0.5 up); a scale or raw value q in (0, 1) gets free + q (occupied - free)",
+    )
     n.add_argument(
         "--nav2-free-thresh",
         type=nonnegative_float,
