@@ -21,9 +21,9 @@ from crlam.cli import main
 from crlam.errors import ConfigError
 from crlam.io.belief import save_belief
 from crlam.io.carmen import read_scans
+from crlam.io.nav2 import write_nav2_map
 from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer
-from crlam.io.nav2 import write_nav2_map
 from crlam.localize_map import Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between
@@ -127,7 +127,9 @@ def test_the_crm_likelihood_is_within_its_stated_error_of_the_exact_one(tmp_path
     start = {"initial_pose": [3.0, 2.5, 0.0], "initial_cov": [0.01, 0.01, 0.01]}
     exact = Localizer(m, LocalizeConfig(model="crm-exact", max_particles=10, min_particles=10), **start)
     tols = (1e-3, 1e-6)
-    fast = [Localizer(m, LocalizeConfig(max_beams=0, tail_tolerance=t, max_particles=10, min_particles=10), **start) for t in tols]
+    fast = [
+        Localizer(m, LocalizeConfig(max_beams=0, tail_tolerance=t, max_particles=10, min_particles=10), **start) for t in tols
+    ]
     assert exact.filter is not None
     for _ in range(20):
         sensor = np.array([rng.uniform(0, 6), rng.uniform(0, 5), rng.uniform(-math.pi, math.pi)])

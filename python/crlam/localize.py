@@ -44,7 +44,16 @@ MODEL_PARAMS: dict[str, tuple[str, ...]] = {
 EXACT_TOLERANCE = 2.0**-60
 """The tail tolerance of ``crm-exact``: each beam's log-likelihood to rounding."""
 
-__all__ = ["EXACT_TOLERANCE", "MODELS", "MODEL_PARAMS", "Convergence", "LocalizeConfig", "LocalizeStep", "Localizer", "converged_at"]
+__all__ = [
+    "EXACT_TOLERANCE",
+    "MODELS",
+    "MODEL_PARAMS",
+    "Convergence",
+    "LocalizeConfig",
+    "LocalizeStep",
+    "Localizer",
+    "converged_at",
+]
 
 
 @dataclass(frozen=True)

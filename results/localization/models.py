@@ -85,7 +85,9 @@ def _sim(folder: Path, world: World, seed: int = 1) -> tuple[list[LaserScan], np
     folder.mkdir(parents=True, exist_ok=True)
     if not (folder / "log.clf").exists():
         world.to_nav2_yaml(folder / "floor.yaml")
-        write_simulation(simulate(SimulationConfig(world=str(folder / "floor.yaml"), n_scans=300, seed=seed, sensor="sick")), folder)
+        write_simulation(
+            simulate(SimulationConfig(world=str(folder / "floor.yaml"), n_scans=300, seed=seed, sensor="sick")), folder
+        )
     return list(read_scans(folder / "log.clf")), read_tum(folder / "groundtruth.tum").poses
 
 
@@ -107,7 +109,9 @@ def _config(model: str, seed: int) -> LocalizeConfig:
     return LocalizeConfig(model=model, seed=seed)
 
 
-def global_runs(model: str, map_path: Path, scans: list[LaserScan], truth: np.ndarray, starts: int, case: str) -> list[dict[str, Any]]:
+def global_runs(
+    model: str, map_path: Path, scans: list[LaserScan], truth: np.ndarray, starts: int, case: str
+) -> list[dict[str, Any]]:
     m = load_localization_map(map_path)
     rows = []
     for seed in range(starts):
@@ -190,7 +194,11 @@ def table(rows: list[dict[str, Any]]) -> str:
                 travel = f"{np.median([r['travel_m'] for r in ok]):.2f}" if ok else "-"
             elif case.startswith("kidnap"):
                 r = rs[0]
-                result = f"{r['outcome']} after {r['recovery_scans']} scans ({r['recovery_s']} s)" if r["recovery_scans"] != "" else "lost"
+                result = (
+                    f"{r['outcome']} after {r['recovery_scans']} scans ({r['recovery_s']} s)"
+                    if r["recovery_scans"] != ""
+                    else "lost"
+                )
                 travel = "-"
             else:
                 r = rs[0]
