@@ -212,3 +212,23 @@ def test_a_nav2_maps_unknown_cells_take_the_confidence_the_user_sets(tmp_path: P
     assert fits[0] == pytest.approx(math.log(0.5 * math.exp(-0.0025 / 0.08) + 0.05), abs=1e-6)
     short = 0.5 * math.exp(-(0.85**2) / 0.08) + 0.005 * math.exp(-0.1) + 0.05
     assert fits[1] == pytest.approx(math.log(short), abs=1e-6)
+
+
+def test_bench_measures_each_model_in_the_same_run() -> None:
+    """The speed figures of the four models and the CRM's ratio over each, per CPU second (the
+    figures themselves are not judged here: speed belongs to the benchmark)."""
+    from crlam.bench import run_benchmarks
+
+    names = [
+        "mcl_scans_per_s_1000p",
+        "mcl_crm_exact_scans_per_s_1000p",
+        "mcl_likelihood_field_scans_per_s_1000p",
+        "mcl_beam_scans_per_s_1000p",
+    ]
+    r = run_benchmarks(names, quick=True, repeats=1)
+    figures, details = r["figures"], r["details"]
+    for other, label in zip(names[1:], ("crm_exact", "likelihood_field", "beam")):
+        crm, base = details[names[0]], details[other]
+        want = crm.get("per_cpu_second", figures[names[0]]) / base.get("per_cpu_second", figures[other])
+        assert figures[f"mcl_crm_over_{label}"] == pytest.approx(want, rel=0.01, abs=0.001)
+    assert "60 of 180 beams" in details[names[0]]["unit"] and "all 180 beams" in details[names[1]]["unit"]
