@@ -310,6 +310,8 @@ class MclFilter:
         spread_climb: bool = False,
         tail_tolerance: float = 1e-06,
         skip_no_returns: bool = False,
+        measurement: str = "crm",
+        measurement_params: list[tuple[str, float]] | None = None,
         seed: int = 0,
     ) -> MclFilter: ...
     def process(

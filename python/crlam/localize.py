@@ -6,10 +6,14 @@
 does, and keeps one pose per scan, the particle set's summary per processed scan and when the
 estimate converged.
 
-The measurement model is the CRM predictive likelihood of the scan (crm-spec 4.1) under the
-map's beliefs, read from a dense layer of the map's expected occupancy: exact, except that each
-beam's walk stops once the rest of its ray can change its likelihood by less than a relative
-``tail_tolerance`` (each beam's log-likelihood is then low by less than that, never high).
+The measurement model (``model``) is the CRM predictive likelihood of the scan (crm-spec 4.1)
+under the map's beliefs, read from a dense layer of the map's expected occupancy: exact, except
+that each beam's walk stops once the rest of its ray can change its likelihood by less than a
+relative ``tail_tolerance`` (each beam's log-likelihood is then low by less than that, never
+high), on at most ``max_beams`` beams of each scan (60, AMCL's ``laser_max_beams``, spread
+evenly). ``model="crm-exact"`` weighs every beam to rounding (tolerance 2^-60, no beam cap);
+``"likelihood_field"`` and ``"beam"`` are AMCL's models on the same filter
+(``crlam_core::mcl::baseline``), for comparison.
 """
 
 from __future__ import annotations
@@ -26,7 +30,30 @@ from crlam.errors import ConfigError
 from crlam.localize_map import LocalizationMap
 from crlam.pose import between
 
-__all__ = ["Convergence", "LocalizeConfig", "LocalizeStep", "Localizer", "converged_at"]
+MODELS = ("crm", "crm-exact", "likelihood_field", "beam")
+"""The measurement models :class:`LocalizeConfig` takes."""
+
+MODEL_PARAMS: dict[str, tuple[str, ...]] = {
+    "crm": (),
+    "crm-exact": (),
+    "likelihood_field": ("z_hit", "z_rand", "sigma_hit", "max_dist"),
+    "beam": ("z_hit", "z_short", "z_max", "z_rand", "sigma_hit", "lambda_short"),
+}
+"""The parameters each model takes in ``model_params`` (AMCL's models; defaults: nav2_amcl's)."""
+
+EXACT_TOLERANCE = 2.0**-60
+"""The tail tolerance of ``crm-exact``: each beam's log-likelihood to rounding."""
+
+__all__ = [
+    "EXACT_TOLERANCE",
+    "MODELS",
+    "MODEL_PARAMS",
+    "Convergence",
+    "LocalizeConfig",
+    "LocalizeStep",
+    "Localizer",
+    "converged_at",
+]
 
 
 @dataclass(frozen=True)
@@ -68,8 +95,20 @@ class LocalizeConfig:
         likelihood is sharp (σ_hit of a few cm); right after a global start the particle nearest
         the true pose is decimetres away, and one scan at τ would give all the weight to whichever
         particle happens to fit best, wrong or right.
+    model : str
+        The measurement model: ``"crm"`` (the CRM likelihood within ``tail_tolerance`` on
+        ``max_beams`` beams), ``"crm-exact"`` (the CRM likelihood of every beam to rounding:
+        ``beam_stride`` 1, no beam cap, tolerance 2^-60), ``"likelihood_field"`` (AMCL's, defaults
+        z_hit 0.95, z_rand 0.05, sigma_hit 0.2 m, max_dist 2 m) or ``"beam"`` (AMCL's, defaults
+        z_hit 0.5, z_short 0.05, z_max 0.05, z_rand 0.5, sigma_hit 0.2 m, lambda_short 0.1).
+        AMCL's models read a cell as an obstacle when m̂ >= 0.5 and ignore the map's confidence;
+        they use the laser's z_min and z_max but none of the mixture's weights.
+    model_params : tuple of (str, float)
+        Overrides of the AMCL model's parameters (:data:`MODEL_PARAMS`), e.g.
+        ``(("sigma_hit", 0.1),)``.
     beam_stride, max_beams : int
-        Every n-th beam, then at most ``max_beams`` of those spread evenly (0: all; AMCL: 60).
+        Every n-th beam, then at most ``max_beams`` of those spread evenly, first and last
+        included (0: all; default 60, AMCL's ``laser_max_beams``).
     max_range : float or None
         z_max (m); longer readings are no-returns. None: the map's own (its config's
         ``max_range``), never longer than the laser's.
@@ -178,8 +217,10 @@ class LocalizeConfig:
     min_neff: float = 0.3
     sigma_max: float = 0.2
     anneal: float = 0.5
+    model: str = "crm"
+    model_params: tuple[tuple[str, float], ...] = ()
     beam_stride: int = 1
-    max_beams: int = 0
+    max_beams: int = 60
     max_range: float | None = None
     sigma_hit: float | None = None
     w_hit: float = 0.7
@@ -254,6 +295,17 @@ class LocalizeConfig:
             raise bad("spread_limit", "must be finite and >= 0")
         if not (len(self.kld_bin) == 2 and all(math.isfinite(v) and v > 0 for v in self.kld_bin)):
             raise bad("kld_bin", "needs 2 bin sizes > 0 (m, rad)")
+        if self.model not in MODELS:
+            raise bad("model", f"must be one of {', '.join(MODELS)}")
+        known = MODEL_PARAMS[self.model]
+        for item in self.model_params:
+            if not (isinstance(item, tuple) and len(item) == 2 and isinstance(item[0], str)):
+                raise bad("model_params", "must be (name, value) pairs")
+            if item[0] not in known:
+                has = ", ".join(known) if known else "none"
+                raise bad("model_params", f"model {self.model!r} has no parameter {item[0]!r} (it has {has})")
+            if not math.isfinite(float(item[1])):
+                raise bad("model_params", f"{item[0]} must be finite")
         if self.motion not in ("gaussian", "thrun", "gmapping"):
             raise bad("motion", "must be 'gaussian', 'thrun' or 'gmapping'")
         for name in ("sigma_max", "anneal"):
@@ -420,6 +472,7 @@ class Localizer:
         self.model = c.sensor_model(self.map, self.laser_max_range)
         params = list(c.motion_params) if c.motion_params is not None else None
         margin = int(math.ceil(min(self.model.z_max, 40.0) / self.map.resolution)) + 2
+        exact = c.model == "crm-exact"
         try:
             self.filter = _native.MclFilter(
                 self.map.crm.native,
@@ -441,8 +494,8 @@ class Localizer:
                 min_neff=c.min_neff,
                 sigma_max=c.sigma_max,
                 anneal=c.anneal,
-                beam_stride=c.beam_stride,
-                max_beams=c.max_beams,
+                beam_stride=1 if exact else c.beam_stride,
+                max_beams=0 if exact else c.max_beams,
                 motion=c.motion,
                 motion_params=params,
                 linear_update=c.linear_update,
@@ -457,8 +510,10 @@ class Localizer:
                 place_theta=float(c.place_theta),
                 spread_max=c.spread_particles,
                 spread_climb=bool(c.spread_climb),
-                tail_tolerance=c.tail_tolerance,
+                tail_tolerance=EXACT_TOLERANCE if exact else c.tail_tolerance,
                 skip_no_returns=c.skip_no_returns,
+                measurement="crm" if exact else c.model,
+                measurement_params=[(k, float(v)) for k, v in c.model_params],
                 seed=c.seed,
             )
         except ValueError as e:

@@ -13,6 +13,42 @@ use crate::slam::{filter_figure, filter_workload, time_filter_cpu, BenchFigure};
 /// Gaussian around the start, every scan processed (motion draw, CRM likelihood of every beam,
 /// clusters, KLD resampling with `n_min = n_max = n_particles`), recovery on.
 pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<BenchFigure> {
+    mcl_scans_with(n_scans, n_particles, n_beams, MclModel::Crm)
+}
+
+/// The measurement model of an MCL figure.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum MclModel {
+    /// The CRM likelihood of 60 of the scan's beams spread evenly (AMCL's `max_beams`), each
+    /// beam's log η low by less than 1e-6 (crlam localize's default, `--model crm`).
+    Crm,
+    /// The CRM likelihood of every beam to rounding (tail tolerance 2^-60, `--model crm-exact`).
+    CrmExact,
+    /// AMCL's likelihood field with its defaults, 60 beams.
+    LikelihoodField,
+    /// AMCL's beam model with its defaults, 60 beams.
+    Beam,
+}
+
+impl MclModel {
+    /// The figure's name for 1000 particles and 180 beams.
+    pub fn figure_name(&self) -> &'static str {
+        match self {
+            MclModel::Crm => "mcl_scans_per_s_1000p",
+            MclModel::CrmExact => "mcl_crm_exact_scans_per_s_1000p",
+            MclModel::LikelihoodField => "mcl_likelihood_field_scans_per_s_1000p",
+            MclModel::Beam => "mcl_beam_scans_per_s_1000p",
+        }
+    }
+}
+
+/// [`mcl_scans`] with the measurement model `model`.
+pub fn mcl_scans_with(
+    n_scans: usize,
+    n_particles: usize,
+    n_beams: usize,
+    model: MclModel,
+) -> Result<BenchFigure> {
     use crlam_core::crm::ScanOptions;
     use crlam_core::mcl::{KldSettings, LikelihoodSettings, Mcl, MclConfig, MclInit, MeanField};
     use crlam_core::motion::MotionModel;
@@ -34,10 +70,22 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         0.25,
         (z_max / 0.05) as usize,
     )?);
+    let measurement = match model {
+        MclModel::Crm | MclModel::CrmExact => crlam_core::mcl::Measurement::Crm,
+        MclModel::LikelihoodField => {
+            crlam_core::mcl::Measurement::LikelihoodField(Default::default())
+        }
+        MclModel::Beam => crlam_core::mcl::Measurement::Beam(Default::default()),
+    };
+    let (max_beams, tail_tolerance) = match model {
+        MclModel::CrmExact => (0, 1.0 / (1u64 << 60) as f64),
+        _ => (60, 1e-6),
+    };
     let cfg = MclConfig {
+        measurement,
         likelihood: LikelihoodSettings {
             model: SensorModel::with_defaults(SensorModelKind::Mixture, z_max, 0.05),
-            tail_tolerance: 1e-6,
+            tail_tolerance,
             skip_no_returns: false,
         },
         motion: MotionModel::gmapping(),
@@ -56,7 +104,7 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         sigma_max: 0.0,
         anneal: 0.0,
         beam_stride: 1,
-        max_beams: 0,
+        max_beams,
         resample_threshold: 1.0,
         min_cluster: 0,
         min_bin: 0,
@@ -85,17 +133,18 @@ pub fn mcl_scans(n_scans: usize, n_particles: usize, n_beams: usize) -> Result<B
         })
     })?;
     let name = match (n_particles, n_beams) {
-        (1000, 180) => "mcl_scans_per_s_1000p",
+        (1000, 180) => model.figure_name(),
         _ => "mcl_scans_per_s",
+    };
+    let unit: &'static str = match model {
+        MclModel::Crm => "processed scan (1000 particles: motion draw, CRM likelihood of 60 of 180 beams over 180 deg (AMCL's max_beams), 20 m, 0.05 m map; clusters; KLD resampling; one thread)",
+        MclModel::CrmExact => "processed scan (1000 particles: motion draw, CRM likelihood of all 180 beams to rounding, 20 m, 0.05 m map; clusters; KLD resampling; one thread)",
+        MclModel::LikelihoodField => "processed scan (1000 particles: motion draw, AMCL's likelihood field on 60 of 180 beams, 20 m, 0.05 m map; clusters; KLD resampling; one thread)",
+        MclModel::Beam => "processed scan (1000 particles: motion draw, AMCL's beam model on 60 of 180 beams, 20 m, 0.05 m map; clusters; KLD resampling; one thread)",
     };
     Ok(BenchFigure {
         cpu_seconds: cpu,
-        ..filter_figure(
-            name,
-            "processed scan (1000 particles: motion draw, CRM likelihood of 180 beams over 180 deg, 20 m, 0.05 m map; clusters; KLD resampling; one thread)",
-            n_scans,
-            secs,
-        )
+        ..filter_figure(name, unit, n_scans, secs)
     })
 }
 
@@ -108,7 +157,14 @@ mod tests {
             .ok()
             .and_then(|v| v.parse().ok())
             .unwrap_or(20);
-        let f = super::mcl_scans(n, 1000, 180).unwrap();
-        eprintln!("{f:?}");
+        for m in [
+            super::MclModel::Crm,
+            super::MclModel::CrmExact,
+            super::MclModel::LikelihoodField,
+            super::MclModel::Beam,
+        ] {
+            let f = super::mcl_scans_with(n, 1000, 180, m).unwrap();
+            eprintln!("{f:?}");
+        }
     }
 }

@@ -60,6 +60,24 @@ pub fn run_benchmark<'py>(
                 }
                 "rbpf_ogm_scans_per_s_1079x100" => Some(bench::rbpf_ogm_scans_table1(size)),
                 "mcl_scans_per_s_1000p" => Some(crlam_bench::mcl::mcl_scans(size, 1000, 180)),
+                "mcl_crm_exact_scans_per_s_1000p" => Some(crlam_bench::mcl::mcl_scans_with(
+                    size,
+                    1000,
+                    180,
+                    crlam_bench::mcl::MclModel::CrmExact,
+                )),
+                "mcl_likelihood_field_scans_per_s_1000p" => Some(crlam_bench::mcl::mcl_scans_with(
+                    size,
+                    1000,
+                    180,
+                    crlam_bench::mcl::MclModel::LikelihoodField,
+                )),
+                "mcl_beam_scans_per_s_1000p" => Some(crlam_bench::mcl::mcl_scans_with(
+                    size,
+                    1000,
+                    180,
+                    crlam_bench::mcl::MclModel::Beam,
+                )),
                 _ => None,
             })
             .ok_or_else(|| shape_err(format!("unknown benchmark {name:?}")))?

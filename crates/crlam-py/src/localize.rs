@@ -4,7 +4,8 @@ use std::sync::Arc;
 
 use crlam_core::grid::CellRect;
 use crlam_core::mcl::{
-    Cluster, KldSettings, LikelihoodSettings, Mcl, MclConfig, MclInit, MclStep, MeanField,
+    BeamParams, Cluster, KldSettings, LikelihoodFieldParams, LikelihoodSettings, Mcl, MclConfig,
+    MclInit, MclStep, MeanField, Measurement,
 };
 use crlam_core::pose::Pose;
 use crlam_core::rbpf::{ScanInput, UpdateTrigger};
@@ -32,6 +33,59 @@ fn cov3(a: &PyReadonlyArray2<'_, f64>) -> PyResult<[[f64; 3]; 3]> {
         }
     }
     Ok(c)
+}
+
+/// The measurement model named `name` (`crm`, `likelihood_field`, `beam`) with AMCL's defaults,
+/// overridden by `params` (the parameter names of [`LikelihoodFieldParams`] or [`BeamParams`]).
+fn measurement(name: &str, params: Option<Vec<(String, f64)>>) -> PyResult<Measurement> {
+    let params = params.unwrap_or_default();
+    let unknown = |k: &str, known: &str| {
+        shape_err(format!(
+            "measurement model {name:?} has no parameter {k:?} (it has {known})"
+        ))
+    };
+    match name {
+        "crm" => match params.first() {
+            None => Ok(Measurement::Crm),
+            Some((k, _)) => Err(unknown(k, "none: its parameters are the mixture's")),
+        },
+        "likelihood_field" => {
+            let mut p = LikelihoodFieldParams::default();
+            for (k, v) in params {
+                match k.as_str() {
+                    "z_hit" => p.z_hit = v,
+                    "z_rand" => p.z_rand = v,
+                    "sigma_hit" => p.sigma_hit = v,
+                    "max_dist" => p.max_dist = v,
+                    _ => return Err(unknown(&k, "z_hit, z_rand, sigma_hit, max_dist")),
+                }
+            }
+            Ok(Measurement::LikelihoodField(p))
+        }
+        "beam" => {
+            let mut p = BeamParams::default();
+            for (k, v) in params {
+                match k.as_str() {
+                    "z_hit" => p.z_hit = v,
+                    "z_short" => p.z_short = v,
+                    "z_max" => p.z_max = v,
+                    "z_rand" => p.z_rand = v,
+                    "sigma_hit" => p.sigma_hit = v,
+                    "lambda_short" => p.lambda_short = v,
+                    _ => {
+                        return Err(unknown(
+                            &k,
+                            "z_hit, z_short, z_max, z_rand, sigma_hit, lambda_short",
+                        ))
+                    }
+                }
+            }
+            Ok(Measurement::Beam(p))
+        }
+        _ => Err(shape_err(format!(
+            "unknown measurement model {name:?} (crm, likelihood_field or beam)"
+        ))),
+    }
 }
 
 fn cluster_dict<'py>(py: Python<'py>, c: &Cluster) -> PyResult<Bound<'py, PyDict>> {
@@ -89,7 +143,7 @@ impl MclFilter {
     #[pyo3(signature = (crm, rect, model, *, initial_pose=None, initial_cov=None, free_threshold=0.25, margin=0,
         n_min=100, n_max=5000, kld_err=0.01, kld_z=2.326_347_874_040_840_8, bin_xy=0.5, bin_theta=0.174_532_925_199_432_95,
         alpha_slow=0.001, alpha_fast=0.1, tempering=1.0, min_neff=0.0, sigma_max=0.0, anneal=0.5, beam_stride=1, max_beams=0, motion="gmapping",
-        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, min_cluster=0, keep_ratio=1e-3, min_bin=0, place_xy=0.0, place_theta=std::f64::consts::FRAC_PI_2, spread_max=0, spread_climb=false, tail_tolerance=1e-6, skip_no_returns=false, seed=0))]
+        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, min_cluster=0, keep_ratio=1e-3, min_bin=0, place_xy=0.0, place_theta=std::f64::consts::FRAC_PI_2, spread_max=0, spread_climb=false, tail_tolerance=1e-6, skip_no_returns=false, measurement="crm", measurement_params=None, seed=0))]
     fn new(
         py: Python<'_>,
         crm: &CrmMap,
@@ -129,6 +183,8 @@ impl MclFilter {
         spread_climb: bool,
         tail_tolerance: f64,
         skip_no_returns: bool,
+        measurement: &str,
+        measurement_params: Option<Vec<(String, f64)>>,
         seed: u64,
     ) -> PyResult<Self> {
         guard("MclFilter.new", || {
@@ -145,6 +201,7 @@ impl MclFilter {
                 )),
             };
             let cfg = MclConfig {
+                measurement: self::measurement(measurement, measurement_params)?,
                 likelihood: LikelihoodSettings {
                     model: model.inner,
                     tail_tolerance,
@@ -298,7 +355,9 @@ impl MclFilter {
         self.inner.field().n_free()
     }
 
-    /// The scan's likelihood at a robot pose: (Σ log η, Σ explained share, beams used).
+    /// The scan's likelihood at a robot pose under the filter's measurement model with the
+    /// model's own σ_hit, on the beams the filter keeps (before tempering): (Σ log-likelihood
+    /// per beam, Σ explained share, beams used).
     fn scan_fit(
         &self,
         py: Python<'_>,
@@ -311,23 +370,7 @@ impl MclFilter {
             let sensor = crlam_core::pose::compose(pose3(&pose)?, pose3(&laser_offset)?);
             let (a, r) = (slice1(&angles, "angles")?, slice1(&ranges, "ranges")?);
             let inner = &self.inner;
-            let beams: Vec<usize> = crlam_core::mcl::select_beams(
-                a.len(),
-                inner.config().beam_stride,
-                inner.config().max_beams,
-            );
-            let fit = py
-                .allow_threads(|| {
-                    crlam_core::mcl::scan_log_likelihood(
-                        inner.field(),
-                        &inner.config().likelihood,
-                        sensor,
-                        a,
-                        r,
-                        &beams,
-                    )
-                })
-                .py_err()?;
+            let fit = py.allow_threads(|| inner.scan_fit(sensor, a, r)).py_err()?;
             Ok((fit.log_likelihood, fit.explained, fit.n_beams))
         })
     }

@@ -34,6 +34,7 @@ def localize_config_of(args: argparse.Namespace) -> Any:
         "alpha_fast",
         "tempering",
         "max_beams",
+        "model",
         "max_range",
         "motion",
         "linear_update",
@@ -60,9 +61,22 @@ def localize_config_of(args: argparse.Namespace) -> Any:
         given["sigma_hit"] = args.sigma_range
     if args.motion_params is not None:
         given["motion_params"] = tuple(args.motion_params)
+    if args.model_param:
+        given["model_params"] = tuple(args.model_param)
     if args.skip_no_returns:
         given["skip_no_returns"] = True
     return LocalizeConfig(**given)
+
+
+def _model_param(text: str) -> tuple[str, float]:
+    name, sep, value = text.partition("=")
+    try:
+        v = float(value)
+    except ValueError:
+        v = math.nan
+    if not sep or not name or not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"expected NAME=VALUE with a finite number, got {text!r}")
+    return name.strip(), v
 
 
 def _initial(args: argparse.Namespace) -> tuple[Any, Any]:
@@ -92,7 +106,12 @@ def cmd_localize(args: argparse.Namespace) -> int:
 
     config = localize_config_of(args)
     pose, cov = _initial(args)
-    prior = Nav2Prior(occupied_mean=args.nav2_occupied, free_mean=args.nav2_free, free_thresh=args.nav2_free_thresh)
+    prior = Nav2Prior(
+        occupied_mean=args.nav2_occupied,
+        free_mean=args.nav2_free,
+        unknown_mean=args.nav2_unknown,
+        free_thresh=args.nav2_free_thresh,
+    )
     print_settings(args, localize_settings=config, initial_pose=pose, initial_cov=cov)
     if args.trials:
         from crlam.experiments.localize_trials import run_global_trials
@@ -245,7 +264,26 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     f.add_argument("--tempering", type=positive_float, default=None, help="weight tempering tau (default 10)")
     f.add_argument("--weight-stride", type=positive_int, default=None, help="every n-th beam of the weights (default 1)")
     f.add_argument(
-        "--max-beams", type=nonnegative_int, default=None, help="at most this many beams, spread evenly (default 0: all)"
+        "--max-beams",
+        type=nonnegative_int,
+        default=None,
+        help="at most this many beams, spread evenly (default 60, AMCL's laser_max_beams; 0: all)",
+    )
+    f.add_argument(
+        "--model",
+        choices=("crm", "crm-exact", "likelihood_field", "beam"),
+        default=None,
+        help="measurement model: crm (default: the CRM likelihood, each beam within --tail-tolerance, --max-beams beams), "
+        "crm-exact (every beam to rounding), likelihood_field or beam (AMCL's, nav2 defaults; m >= 0.5 is an obstacle)",
+    )
+    f.add_argument(
+        "--model-param",
+        type=_model_param,
+        action="append",
+        default=None,
+        metavar="NAME=VALUE",
+        help="a parameter of AMCL's model (likelihood_field: z_hit z_rand sigma_hit max_dist; beam: z_hit z_short "
+        "z_max z_rand sigma_hit lambda_short); repeatable",
     )
     f.add_argument(
         "--resample-threshold", type=nonnegative_float, default=None, help="resample when N_eff < this x n (default 0.5)"
@@ -330,6 +368,13 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     n = group(p, "Nav2 map as a CRM prior", "for a .yaml map")
     n.add_argument("--nav2-occupied", type=positive_float, default=0.9, help="expected occupancy of an occupied cell (0.9)")
     n.add_argument("--nav2-free", type=positive_float, default=0.01, help="expected occupancy of a free cell (0.01)")
+    n.add_argument(
+        "--nav2-unknown",
+        type=positive_float,
+        default=0.5,
+        help="expected occupancy of an unknown cell (0.5: the uniform pmf; AMCL's beam model stops at unknown cells "
+        "from 0.5 up); a scale or raw value q in (0, 1) gets free + q (occupied - free)",
+    )
     n.add_argument(
         "--nav2-free-thresh",
         type=nonnegative_float,

@@ -340,12 +340,25 @@ def _metrics(
             "lambda_short": model.lambda_short,
             "cause_kernel": model.cause_kernel,
         },
-        "likelihood_error": f"each beam's log-likelihood is low by less than tail_tolerance = {loc.config.tail_tolerance:g} "
-        "(its walk stops once the rest of the ray can change it by less; never high)",
+        "measurement_model": loc.config.model,
+        "likelihood_error": _likelihood_error(loc.config),
         "estimate_rule": "the weighted mean of the heaviest cluster of the weighted particles (AMCL's); between processed "
         "scans, the last one composed with the raw-odometry increment",
         "input": input_description(reader),
     }
+
+
+def _likelihood_error(c: LocalizeConfig) -> str:
+    """What the run's likelihood leaves out, against the exact CRM likelihood of every beam."""
+    beams = "every beam" if c.max_beams == 0 else f"at most {c.max_beams} beams of each scan, spread evenly"
+    if c.model == "crm-exact":
+        return "each beam's log-likelihood to rounding (tail tolerance 2^-60), every beam"
+    if c.model == "crm":
+        return (
+            f"each beam's log-likelihood is low by less than tail_tolerance = {c.tail_tolerance:g} "
+            f"(its walk stops once the rest of the ray can change it by less; never high); {beams}"
+        )
+    return f"AMCL's {c.model} model (not the CRM likelihood); {beams}"
 
 
 def _rule(c: LocalizeConfig) -> str:

@@ -7,18 +7,26 @@
 //! - [`kld`]: Fox's sample-count bound and the pose histogram;
 //! - [`cluster`]: the clusters of a weighted set;
 //! - [`climb`]: the scan-matched proposal of a spread set (an endpoint score and its climb);
-//! - [`filter`]: the localizer.
+//! - [`baseline`]: AMCL's likelihood-field and beam models, the alternatives to the CRM likelihood;
+//! - [`config`]: the localizer's settings;
+//! - [`filter`]: the localizer (its resamplings in `resampling`, its tempering and spread in
+//!   `weighing`).
 
+pub mod baseline;
 pub mod climb;
 pub mod cluster;
+pub mod config;
 pub mod field;
 pub mod filter;
 pub mod kld;
 pub mod likelihood;
+mod resampling;
+mod weighing;
 
 #[cfg(test)]
 mod tests;
 
+pub use baseline::{BeamParams, LikelihoodFieldParams, Measurement};
 pub use cluster::{clusters, Cluster};
 pub use field::MeanField;
 pub use filter::{Mcl, MclConfig, MclInit, MclStep};

@@ -146,6 +146,7 @@ fn config(n_min: usize, n_max: usize) -> MclConfig {
     let mut model = SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, RES);
     model.sigma_hit = 0.05;
     MclConfig {
+        measurement: crate::mcl::Measurement::Crm,
         likelihood: LikelihoodSettings {
             model,
             tail_tolerance: 1e-6,
