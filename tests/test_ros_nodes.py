@@ -20,6 +20,7 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="crlam[ros] (cyclonedds) is not installed")
 
+from corridor_bag import corridor_bag as _synthetic_bag  # noqa: E402
 from crlam.io.tum import read_tum  # noqa: E402
 from crlam.ros import messages as m  # noqa: E402
 from crlam.ros import qos  # noqa: E402
@@ -128,31 +129,6 @@ def test_turtlebot4_live_equals_offline(data_dir: Path, tmp_path: Path) -> None:
     assert grid.header.frame_id == "map" and len(grid.data) == grid.info.width * grid.info.height > 0
     assert any(tr.header.frame_id == "map" and tr.child_frame_id == "odom" for s in col.samples["/tf"] for tr in s.transforms)
     assert len(col.samples["/pose"]) > 0
-
-
-def _synthetic_bag(path: Path) -> Path:
-    """A small MCAP bag: a robot driving 1 m along a corridor, 40 scans, odometry at 2x the scan rate."""
-    from crlam.io.rosbag_writer import LASER_SCAN, ODOMETRY, TF_MESSAGE, McapBagWriter
-
-    angles = np.linspace(-np.pi / 2, np.pi / 2, 181)
-    with McapBagWriter(path) as w:
-        w.write("/tf_static", TF_MESSAGE, 0, w.tf([w.transform(0.0, "base_link", "laser", (0.1, 0.0, 0.0))]), latched=True)
-        for k in range(80):
-            t = 1.0 + 0.05 * k
-            x = 0.0125 * k
-            w.write("/odom", ODOMETRY, int(t * 1e9), w.odometry(t, "odom", "base_link", (x, 0.0, 0.0), tv=0.25))
-            if k % 2 == 1:
-                ts = t + 0.01
-                lx = x + 0.1
-                # Walls at y = +-1.5 and x = 4: the range along each bearing.
-                with np.errstate(divide="ignore"):
-                    side = np.where(np.abs(np.sin(angles)) > 1e-9, 1.5 / np.abs(np.sin(angles)), np.inf)
-                    front = np.where(np.cos(angles) > 1e-9, (4.0 - lx) / np.cos(angles), np.inf)
-                ranges = np.minimum(np.minimum(side, front), 8.0)
-                w.write(
-                    "/scan", LASER_SCAN, int(ts * 1e9), w.laser_scan(ts, "laser", ranges, angles[0], angles[1] - angles[0], 8.0)
-                )
-    return path
 
 
 def test_synthetic_bag_live_equals_offline(tmp_path: Path) -> None:

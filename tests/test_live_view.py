@@ -1,0 +1,110 @@
+"""``--foxglove``: a Foxglove WebSocket client on 127.0.0.1 receives the map of an offline
+``crlam slam`` run and of a live ``crlam ros slam`` node, and the decoded grid is the run's map.
+
+Every wait here is on an event (a line the command prints, a message received, a process that
+ends); the timeouts only turn a hang into a failure.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+pytest.importorskip("foxglove", reason="crlam[live] (foxglove-sdk) is not installed")
+pytest.importorskip("websockets", reason="the websockets package (the test's Foxglove client) is not installed")
+
+from foxglove_client import FoxgloveClient  # noqa: E402
+
+from crlam.cli import main  # noqa: E402
+from crlam.errors import ConfigError  # noqa: E402
+from crlam.run_folder import is_complete  # noqa: E402
+
+TIMEOUT = 120.0
+
+
+def _read_until(proc: subprocess.Popen[str], prefix: str) -> str:
+    """The first line of ``proc``'s output that starts with ``prefix`` (the lines before are skipped)."""
+    assert proc.stdout is not None
+    for line in proc.stdout:
+        if line.startswith(prefix):
+            return line
+    raise AssertionError(f"the command ended (exit {proc.wait()}) without printing {prefix!r}")
+
+
+def _port_of(line: str) -> int:
+    return int(line.rsplit("(port ", 1)[1].split(")")[0])
+
+
+def _mcap_map(path: Path) -> Any:
+    from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
+
+    with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as reader:
+        maps = [reader.deserialize(raw, c.msgtype) for c, _, raw in reader.messages() if c.topic == "/map"]
+    assert len(maps) == 1
+    return maps[0]
+
+
+def test_view_binds_to_loopback_and_port_zero_picks_a_free_port() -> None:
+    from crlam.live_view import LiveView, ros_type_name
+
+    view = LiveView(port=0)
+    try:
+        assert view.host == "127.0.0.1" and view.port > 0 and view.url == f"ws://127.0.0.1:{view.port}"
+        # The port is taken: a second server on it is a clear error.
+        with pytest.raises(ConfigError, match="cannot serve"):
+            LiveView(port=view.port)
+    finally:
+        view.close()
+    assert ros_type_name("nav_msgs::msg::dds_::OccupancyGrid_") == "nav_msgs/msg/OccupancyGrid"
+
+
+def test_offline_slam_serves_its_map_on_foxglove(tmp_path: Path) -> None:
+    assert main(["simulate", "--scans", "30", "--world", "office", "--out", str(tmp_path / "sim"), "--quiet"]) == 0
+    out = tmp_path / "run"
+    cmd = [sys.executable, "-m", "crlam", "slam", str(tmp_path / "sim" / "log.clf"), "-o", str(out), "--quiet", "--mcap"]
+    cmd += ["--particles", "8", "--seed", "3", "--foxglove", "0", "--foxglove-wait"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    try:
+        port = _port_of(_read_until(proc, "foxglove: serving on ws://127.0.0.1:"))
+        client = FoxgloveClient(port, timeout=TIMEOUT)
+        topics = ["/map", "/map_confidence", "/scan", "/particles", "/pose", "/path", "/tf", "/tf_static"]
+        client.subscribe(topics)
+        got: dict[str, list[tuple[int, Any]]] = {t: [] for t in topics}
+        final = None
+        while final is None:
+            topic, log_time, msg = client.receive()
+            got[topic].append((log_time, msg))
+            # The final map comes once the run folder is in place; earlier maps come while it runs.
+            if topic == "/map" and is_complete(out):
+                expected = _mcap_map(out / "run.mcap")
+                if (msg.header.stamp.sec, msg.header.stamp.nanosec) == (expected.header.stamp.sec, expected.header.stamp.nanosec):
+                    final = msg
+        client.close()
+        assert proc.wait(TIMEOUT) == 0  # --foxglove-wait: it ends once the client has left
+    finally:
+        proc.kill()
+    assert final.info.width == expected.info.width and final.info.height == expected.info.height
+    assert final.info.resolution == pytest.approx(expected.info.resolution)
+    assert final.info.origin.position.x == pytest.approx(expected.info.origin.position.x)
+    np.testing.assert_array_equal(final.data, expected.data)
+    assert (final.data >= 0).any() and (final.data == -1).any()  # a map with known and unknown cells
+    assert len(got["/scan"]) == 30 and len(got["/tf"]) == 30 and len(got["/tf_static"]) >= 1
+    assert len(got["/particles"]) >= 1 and len(got["/particles"][-1][1].poses) == 8
+    assert len(got["/pose"]) == len(got["/particles"])
+    assert len(got["/map_confidence"]) >= 1 and len(got["/path"][-1][1].poses) == 30
+
+
+def test_missing_foxglove_sdk_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    from crlam.live_view import need_foxglove
+
+    monkeypatch.setitem(sys.modules, "foxglove", None)  # import foxglove now raises ImportError
+    with pytest.raises(ConfigError, match=r"crlam\[live\]"):
+        need_foxglove()
