@@ -19,11 +19,10 @@ import pytest
 pytest.importorskip("foxglove", reason="crlam[live] (foxglove-sdk) is not installed")
 pytest.importorskip("websockets", reason="the websockets package (the test's Foxglove client) is not installed")
 
-from foxglove_client import FoxgloveClient  # noqa: E402
-
 from crlam.cli import main  # noqa: E402
 from crlam.errors import ConfigError  # noqa: E402
 from crlam.run_folder import is_complete  # noqa: E402
+from foxglove_client import FoxgloveClient  # noqa: E402
 
 TIMEOUT = 120.0
 
@@ -108,3 +107,58 @@ def test_missing_foxglove_sdk_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) 
     monkeypatch.setitem(sys.modules, "foxglove", None)  # import foxglove now raises ImportError
     with pytest.raises(ConfigError, match=r"crlam\[live\]"):
         need_foxglove()
+
+
+def test_live_slam_node_serves_its_map_on_foxglove(tmp_path: Path) -> None:
+    """``crlam ros slam --foxglove 0``: the node's outputs on the WebSocket are its DDS outputs
+    (the same CDR bytes); the last /map decodes to the map the node published on DDS."""
+    pytest.importorskip("cyclonedds", reason="crlam[ros] (cyclonedds) is not installed")
+    from corridor_bag import corridor_bag
+    from crlam.live_view import LiveView
+    from crlam.ros import messages as m
+    from crlam.ros import qos
+    from crlam.ros.dds import DdsNode
+    from crlam.ros.params import NodeParameters
+    from crlam.ros.play import play_bag
+    from crlam.ros.slam_node import SlamNode
+
+    domain = 100 + (os.getpid() + 50) % 100  # not test_ros_nodes.py's domain
+    bag = corridor_bag(tmp_path / "corridor.mcap")
+    params = NodeParameters(max_scan_wait=float("inf"), map_update_interval=1.0, process_every_scan=True)
+    node = SlamNode(params, {"particles": 8, "seed": 3}, domain=domain)
+    view = LiveView(port=0)
+    node.live_view = view
+    node.start()
+    dds_maps: list[Any] = []
+    rviz = DdsNode("crlam_test_rviz", domain=domain)
+    rviz.reader("/map", m.OccupancyGrid, qos.latched(), dds_maps.append)
+    client = FoxgloveClient(view.port, timeout=TIMEOUT)
+    try:
+        # Outputs, and the inputs the view mirrors (the scans the filter took, odom -> base_link, the mount).
+        topics = ["/map", "/map_confidence", "/particles", "/pose", "/path", "/scan", "/tf", "/tf_static"]
+        client.subscribe(topics)
+        assert view.wait_for_subscriber("/scan", TIMEOUT)
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=domain, timeout=TIMEOUT)
+        node.request_save(str(tmp_path / "live"))  # the save publishes the final map
+        node.wait_idle()
+        final_stamp = node.run.stamps[-1]
+        got: dict[str, list[Any]] = {t: [] for t in topics}
+        while True:
+            topic, _, msg = client.receive()
+            got[topic].append(msg)
+            if topic == "/map" and abs(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 - final_stamp) < 1e-6:
+                break
+    finally:
+        client.close()
+        node.stop(save=False)
+        view.close()
+    assert is_complete(tmp_path / "live")
+    final = got["/map"][-1]
+    dds = [g for g in dds_maps if abs(g.header.stamp.sec + g.header.stamp.nanosec * 1e-9 - final_stamp) < 1e-6][-1]
+    assert (final.info.width, final.info.height) == (dds.info.width, dds.info.height)
+    np.testing.assert_array_equal(final.data, np.asarray(dds.data, dtype=np.int8))
+    assert (final.data >= 0).any() and final.header.frame_id == "map"
+    assert len(got["/scan"]) == 40 and len(got["/particles"]) >= 1 and len(got["/tf_static"]) >= 1
+    assert any(tr.header.frame_id == "map" and tr.child_frame_id == "odom" for s in got["/tf"] for tr in s.transforms)
+    assert any(tr.header.frame_id == "odom" and tr.child_frame_id == "base_link" for s in got["/tf"] for tr in s.transforms)
+    rviz.close()

@@ -48,15 +48,19 @@ def ros_type_name(dds_type_name: str) -> str:
 
 class _Subscriptions:
     """A foxglove ServerListener that counts each topic's subscribers (and wakes waiters); a
-    client that disconnects is unsubscribed from everything."""
+    client that disconnects is unsubscribed from everything. ``fresh`` lists the topics a client
+    has just subscribed to (their latched message is sent again)."""
 
     def __init__(self) -> None:
         self.cond = threading.Condition()
         self.topics: dict[str, int] = {}
+        self.fresh: list[str] = []
 
     def on_subscribe(self, client: Any, channel: Any) -> None:
+        # The server's own thread: only note it (logging from here could wait on the server).
         with self.cond:
             self.topics[channel.topic] = self.topics.get(channel.topic, 0) + 1
+            self.fresh.append(channel.topic)
             self.cond.notify_all()
 
     def on_unsubscribe(self, client: Any, channel: Any) -> None:
@@ -104,6 +108,10 @@ class LiveView:
         self._channels: dict[str, tuple[str, Any]] = {}
         self._lock = threading.Lock()
         self.counts: dict[str, int] = {}
+        self._latched: dict[str, tuple[str, bytes, int | None]] = {}
+        self._closed = False
+        self._republisher = threading.Thread(target=self._republish, name="crlam-foxglove-latch", daemon=True)
+        self._republisher.start()
 
     @property
     def url(self) -> str:
@@ -124,20 +132,46 @@ class LiveView:
                 raise ConfigError(f"live view: topic {topic} carries {got[0]}, not {msgtype}")
             return got[1]
 
-    def publish_cdr(self, topic: str, msgtype: str, data: bytes, t_ns: int | None = None) -> None:
+    def publish_cdr(self, topic: str, msgtype: str, data: bytes, t_ns: int | None = None, *, latched: bool = False) -> None:
         """Queues the CDR bytes ``data`` (with their 4-byte encapsulation header) of a ``msgtype``
-        message on ``topic``; ``t_ns``: the log time (ns since the epoch; default now)."""
+        message on ``topic``; ``t_ns``: the log time (ns since the epoch; default now).
+        ``latched`` (``/map``, ``/tf_static``: transient local on DDS) keeps the message and sends
+        it again whenever a client subscribes to the topic, as a late RViz gets a latched map."""
         channel = self._channel(topic, msgtype)
-        channel.log(bytes(data), log_time=t_ns)
+        data = bytes(data)
+        if latched:
+            with self._lock:
+                self._latched[topic] = (msgtype, data, t_ns)
+        channel.log(data, log_time=t_ns)
         with self._lock:
             self.counts[topic] = self.counts.get(topic, 0) + 1
 
-    def publish(self, topic: str, msgtype: str, msg: Any, t_ns: int | None = None) -> None:
+    def publish(self, topic: str, msgtype: str, msg: Any, t_ns: int | None = None, *, latched: bool = False) -> None:
         """Serialises ``msg`` (built from :attr:`types`) and queues it on ``topic``."""
-        channel = self._channel(topic, msgtype)  # before the work: a topic with another type fails first
-        if not channel.has_sinks():
+        if not (latched or self.has_subscriber(topic, msgtype)):
             return  # nobody listens: skip the serialisation
-        self.publish_cdr(topic, msgtype, bytes(self.typestore.serialize_cdr(msg, msgtype)), t_ns)
+        self.publish_cdr(topic, msgtype, bytes(self.typestore.serialize_cdr(msg, msgtype)), t_ns, latched=latched)
+
+    def has_subscriber(self, topic: str, msgtype: str) -> bool:
+        """Whether a client subscribes to ``topic`` (advertised as ``msgtype`` from now on)."""
+        return bool(self._channel(topic, msgtype).has_sinks())
+
+    def _republish(self) -> None:
+        """Sends the latched message of each newly subscribed topic again (its own thread)."""
+        cond = self.subscriptions.cond
+        while True:
+            with cond:
+                while not self.subscriptions.fresh and not self._closed:
+                    cond.wait()
+                if self._closed:
+                    return
+                topics, self.subscriptions.fresh = self.subscriptions.fresh, []
+            for topic in dict.fromkeys(topics):
+                with self._lock:
+                    got = self._latched.get(topic)
+                    channel = self._channels.get(topic)
+                if got is not None and channel is not None:
+                    channel[1].log(got[1], log_time=got[2])
 
     def wants(self, topic: str) -> bool:
         """Whether a client subscribes to ``topic`` now (expensive messages are made only then)."""
@@ -165,6 +199,10 @@ class LiveView:
 
     def close(self) -> None:
         """Stops the server (queued messages not yet sent are dropped)."""
+        with self.subscriptions.cond:
+            self._closed = True
+            self.subscriptions.cond.notify_all()
+        self._republisher.join()
         with self._lock:
             for _, channel in self._channels.values():
                 channel.close()

@@ -3,15 +3,19 @@
 The topics are those of ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: frames ``map``,
 ``odom``, ``base_link``, ``laser``), sent while the run goes rather than at its end:
 
-``/scan``, ``/tf`` (``odom -> base_link``; ``map -> odom`` at processed scans), ``/tf_static``
-    At every scan (``/tf_static`` once, and again to each newly subscribing client's benefit
-    every :data:`STATIC_PERIOD` s of wall time).
+``/scan``, ``/tf`` (``odom -> base_link``; ``map -> odom`` at processed scans)
+    At every scan.
+``/tf_static``
+    Once, at the first scan: ``base_link -> laser``.
 ``/particles`` (PoseArray), ``/pose`` (PoseWithCovarianceStamped)
     At every processed scan.
 ``/map`` and ``/map_confidence`` (OccupancyGrid, as in ``run.mcap``), ``/path`` (Path)
     The best particle's map at most every ``map_period`` s of wall time while a client
     subscribes to it (making a map costs time: nothing is made for nobody), and once more, the
     run's final map (exactly ``run.mcap``'s ``/map``), when the run ends.
+
+``/map``, ``/map_confidence`` and ``/tf_static`` are latched (:meth:`crlam.live_view.LiveView.publish`):
+a client that subscribes later receives the newest one at once.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from crlam.io.rosbag_writer import LASER_SCAN, OCCUPANCY_GRID, PATH, POSE_ARRAY,
 from crlam.live_view import LiveView
 from crlam.pose import compose, inverse
 
-__all__ = ["STATIC_PERIOD", "TOPICS", "SlamLiveFeed"]
+__all__ = ["TOPICS", "SlamLiveFeed"]
 
 POSE_COV = "geometry_msgs/msg/PoseWithCovarianceStamped"
 
@@ -43,10 +47,6 @@ TOPICS = {
     "/map": OCCUPANCY_GRID,
     "/map_confidence": OCCUPANCY_GRID,
 }
-
-#: Wall seconds between two repeats of ``/tf_static`` (Foxglove has no latching: a client that
-#: connects later still gets the laser mount).
-STATIC_PERIOD = 2.0
 
 
 class SlamLiveFeed:
@@ -68,7 +68,6 @@ class SlamLiveFeed:
         self.msgs = RosMessageBuilder(view.types)
         self.map_period = float(map_period)
         self._last_map_wall = -np.inf
-        self._last_static_wall = -np.inf
         self._static: Any = None
         self._last_t = 0.0
         self.path: list[tuple[float, NDArray[np.float64]]] = []
@@ -90,9 +89,7 @@ class SlamLiveFeed:
         wall = time.monotonic()
         if self._static is None:
             self._static = b.tf([b.transform(t, BASE_FRAME, LASER_FRAME, rec.laser_offset)])
-        if wall - self._last_static_wall >= STATIC_PERIOD:
-            self._last_static_wall = wall
-            v.publish("/tf_static", TF_MESSAGE, self._static, t_ns)
+            v.publish("/tf_static", TF_MESSAGE, self._static, t_ns, latched=True)
         ranges = np.where(rec.ranges >= rec.max_range, np.inf, rec.ranges)
         v.publish(
             "/scan", LASER_SCAN, b.laser_scan(t, LASER_FRAME, ranges, rec.angle_min, rec.angle_increment, rec.max_range), t_ns
@@ -155,9 +152,9 @@ class SlamLiveFeed:
 
     def _publish_grids(self, t: float, grid: GridInfo, data: NDArray[np.int8], confidence: NDArray[np.int8] | None) -> None:
         t_ns = self._ns(t)
-        self.view.publish("/map", OCCUPANCY_GRID, self._grid_msg(t, grid, data), t_ns)
+        self.view.publish("/map", OCCUPANCY_GRID, self._grid_msg(t, grid, data), t_ns, latched=True)
         if confidence is not None:
-            self.view.publish("/map_confidence", OCCUPANCY_GRID, self._grid_msg(t, grid, confidence), t_ns)
+            self.view.publish("/map_confidence", OCCUPANCY_GRID, self._grid_msg(t, grid, confidence), t_ns, latched=True)
 
     def _publish_path(self, t: float, stamps: NDArray[np.float64], poses: NDArray[np.float64]) -> None:
         T, b = self.view.types, self.msgs
@@ -182,13 +179,11 @@ class SlamLiveFeed:
 
     def publish_final(self) -> bool:
         """Publishes the final ``/path``, ``/map`` and ``/map_confidence``, stamped with the last
-        scan's time, and ``/tf_static`` once more; False if :meth:`finish` was not called."""
+        scan's time; False if :meth:`finish` was not called."""
         if self._final is None:
             return False
         stamps, poses, grid, data, confidence = self._final
         t = self._last_t
         self._publish_path(t, stamps, poses)
         self._publish_grids(t, grid, data, confidence)
-        if self._static is not None:
-            self.view.publish("/tf_static", TF_MESSAGE, self._static, self._ns(t))
         return True

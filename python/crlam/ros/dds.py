@@ -113,6 +113,10 @@ class DdsNode:
         self.participant: Any = DomainParticipant(self.domain, qos=Qos(Policy.EntityName(name)))
         self._topics: dict[str, Any] = {}
         self._entities: list[Any] = []
+        #: Each writer's (ROS topic, ROS type name ``pkg/msg/Type``, transient local), by ``id(writer)``.
+        self.writer_topics: dict[int, tuple[str, str, bool]] = {}
+        #: Called with (ROS topic, ROS type name) of each new writer (the live view advertises it).
+        self.on_new_writer: Callable[[str, str], None] | None = None
 
     def _topic(self, topic: str, cls: type) -> Any:
         from cyclonedds.topic import Topic
@@ -124,10 +128,17 @@ class DdsNode:
 
     def writer(self, topic: str, cls: type, qos: Any) -> Any:
         """A DataWriter of ``cls`` on ROS topic ``topic``."""
+        from cyclonedds.core import Policy
         from cyclonedds.pub import DataWriter
+
+        from crlam.live_view import ros_type_name
 
         w = DataWriter(self.participant, self._topic(topic, cls), qos=qos)
         self._entities.append(w)
+        msgtype = ros_type_name(cls.__idl_typename__)  # type: ignore[attr-defined]
+        self.writer_topics[id(w)] = (topic, msgtype, Policy.Durability.TransientLocal in qos)
+        if self.on_new_writer is not None:
+            self.on_new_writer(topic, msgtype)
         return w
 
     def reader(self, topic: str, cls: type, qos: Any, on_sample: Callable[[Any], None] | None = None) -> Any:

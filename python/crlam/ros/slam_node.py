@@ -15,7 +15,12 @@ expected occupancy x 100 and the occupancy's standard deviation x 200, -1 unknow
 take a lock for microseconds); one worker thread runs the filter on the newest matched scan
 (a matched scan that another replaces before the worker takes it is *dropped* and counted: the
 filter's own update triggers would have skipped most of them anyway), and a timer thread
-publishes map -> odom at a steady rate. A save (request or shutdown) writes a crlam run folder
+publishes map -> odom at a steady rate. With a :class:`crlam.live_view.LiveView` as
+:attr:`SlamNode.live_view` (``--foxglove``), every output also goes, as the same CDR bytes, to the
+Foxglove WebSocket, with the scans the filter took, ``odom -> base_link`` at those scans and
+``/tf_static``; a message is serialised for it only while a client subscribes to its topic, and
+the server drops a slow client's oldest messages: the view never holds up the filter.
+A save (request or shutdown) writes a crlam run folder
 (trajectory, maps, belief, config) plus the Nav2 map through :func:`crlam.run_folder.staged_folder`:
 the folder appears whole or not at all.
 """
@@ -157,6 +162,8 @@ class SlamNode:
         self.busy = False
         self.threads: list[threading.Thread] = []
         self.t_first_wall: float | None = None
+        #: A :class:`crlam.live_view.LiveView` to mirror the outputs to (set before :meth:`start`), or None.
+        self.live_view: Any = None
 
     #: The node's name (DDS participant, parameter file section, diagnostics).
     NODE_NAME = "crlam_slam"
@@ -176,6 +183,12 @@ class SlamNode:
         p = self.params
         self.dds = DdsNode(self.NODE_NAME, domain=self.domain, dds_config=self.dds_config)
         d = self.dds
+        view = self.live_view
+        if view is not None:
+            # Every output is advertised at once (a client can subscribe before its first message),
+            # and so are the inputs the view mirrors.
+            d.on_new_writer = lambda topic, msgtype: view.announce({topic: msgtype})
+            view.announce({"/scan": "sensor_msgs/msg/LaserScan", "/tf_static": "tf2_msgs/msg/TFMessage"})
         self.w_map = d.writer("/map", m.OccupancyGrid, qos.latched())
         self.w_conf = d.writer("/map_confidence", m.OccupancyGrid, qos.latched())
         self.w_meta = d.writer("/map_metadata", m.MapMetaData, qos.latched())
@@ -204,9 +217,22 @@ class SlamNode:
 
     def _write(self, writer: Any, msg: Any) -> None:
         """Every write goes through one lock: the binding serialises a type into a buffer it
-        shares between writers, so two threads must never write at once."""
+        shares between writers, so two threads must never write at once. The live view gets the
+        same bytes (transient-local topics latched)."""
         with self.write_lock:
             writer.write(msg)
+            view = self.live_view
+            if view is not None:
+                topic, msgtype, latched = self.dds.writer_topics[id(writer)]
+                if latched or view.has_subscriber(topic, msgtype):
+                    view.publish_cdr(topic, msgtype, msg.serialize(), latched=latched)
+
+    def _view_input(self, topic: str, msgtype: str, msg: Any, latched: bool = False) -> None:
+        """Mirrors an input message (a scan, the laser mount) to the live view, if any listens."""
+        view = self.live_view
+        if view is not None and (latched or view.has_subscriber(topic, msgtype)):
+            with self.write_lock:
+                view.publish_cdr(topic, msgtype, msg.serialize(), latched=latched)
 
     def now(self) -> float:
         """The time output is stamped with: /clock with use_sim_time, else the wall clock (s)."""
@@ -221,6 +247,14 @@ class SlamNode:
         with self.lock:
             for tr in msg.transforms:
                 self.static[(tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/"))] = tr.transform
+            static = list(self.static.items())
+        if self.live_view is not None:
+            m = ros_messages()
+            transforms = [
+                m.TransformStamped(header=m.Header(frame_id=parent), child_frame_id=child, transform=tr)
+                for (parent, child), tr in static
+            ]
+            self._view_input("/tf_static", "tf2_msgs/msg/TFMessage", m.TFMessage(transforms=transforms), latched=True)
 
     def _mount_of(self, laser_frame: str) -> tuple[NDArray[np.float64], bool] | None:
         """The laser's mount in the base frame from /tf_static (None until it is known)."""
@@ -403,6 +437,8 @@ class SlamNode:
             self.t_first_wall = time.perf_counter()
         angles, ranges, rmax = self._scan_inputs(scan.payload)
         processed, est, particles, spread = self._filter_step(scan, angles, ranges, rmax)
+        if self.live_view is not None:
+            self._view_scan(scan)
         # map -> odom = estimate (map) composed with the inverse odometry pose (odom).
         c, s = math.cos(scan.odom[2]), math.sin(scan.odom[2])
         inv = np.array([-(c * scan.odom[0] + s * scan.odom[1]), s * scan.odom[0] - c * scan.odom[1], -scan.odom[2]])
@@ -417,6 +453,23 @@ class SlamNode:
         if processed and scan.stamp - self.last_map_t >= self.params.map_update_interval:
             self.last_map_t = scan.stamp
             self._publish_map(scan.stamp)
+
+    def _view_scan(self, scan: PendingScan) -> None:
+        """The live view's scan and ``odom -> base_link`` at its stamp (the odometry it was matched with)."""
+        m = ros_messages()
+
+        assert scan.odom is not None
+        msg = scan.payload
+        self._view_input("/scan", "sensor_msgs/msg/LaserScan", msg)
+        o = scan.odom
+        tr = m.TransformStamped(
+            header=m.Header(stamp=msg.header.stamp, frame_id=self.params.odom_frame),  # type: ignore[attr-defined]
+            child_frame_id=self.base_frame or "base_link",
+            transform=m.Transform(
+                translation=m.Vector3(x=float(o[0]), y=float(o[1]), z=0.0), rotation=yaw_quaternion(float(o[2]))
+            ),
+        )
+        self._view_input("/tf", "tf2_msgs/msg/TFMessage", m.TFMessage(transforms=[tr]))
 
     def _publish_estimate(
         self, t: float, est: NDArray[np.float64], particles: NDArray[np.float64] | None, spread: tuple[float, float]
