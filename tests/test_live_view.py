@@ -162,3 +162,40 @@ def test_live_slam_node_serves_its_map_on_foxglove(tmp_path: Path) -> None:
     assert any(tr.header.frame_id == "map" and tr.child_frame_id == "odom" for s in got["/tf"] for tr in s.transforms)
     assert any(tr.header.frame_id == "odom" and tr.child_frame_id == "base_link" for s in got["/tf"] for tr in s.transforms)
     rviz.close()
+
+
+def test_offline_localize_serves_the_known_map_particles_and_path(tmp_path: Path) -> None:
+    from crlam.experiments.slam_mcap import occupancy_grid_values
+    from crlam.io.tum import read_tum
+    from crlam.localize_map import load_localization_map
+
+    assert main(["simulate", "--scans", "30", "--world", "office", "--out", str(tmp_path / "sim"), "--quiet"]) == 0
+    world = tmp_path / "sim" / "world.yaml"
+    start = read_tum(tmp_path / "sim" / "groundtruth.tum").poses[0]
+    out = tmp_path / "loc"
+    cmd = [sys.executable, "-m", "crlam", "localize", str(tmp_path / "sim" / "log.clf"), "--map", str(world), "-o", str(out)]
+    cmd += ["--quiet", "--time-offset", "off", "--initial-pose", *map(str, start), "--foxglove", "0", "--foxglove-wait"]
+    cmd += ["--kld-min-particles", "20", "--kld-max-particles", "100", "--max-beams", "30"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    try:
+        port = _port_of(_read_until(proc, "foxglove: serving on ws://127.0.0.1:"))
+        client = FoxgloveClient(port, timeout=TIMEOUT)
+        client.subscribe(["/map", "/particles", "/path", "/scan"])
+        got: dict[str, list[Any]] = {"/map": [], "/particles": [], "/path": [], "/scan": []}
+        while not got["/path"]:  # /path comes once, when the run folder is in place
+            topic, _, msg = client.receive()
+            got[topic].append(msg)
+        client.close()
+        assert proc.wait(TIMEOUT) == 0
+    finally:
+        proc.kill()
+    assert is_complete(out)
+    layer = load_localization_map(str(world)).expected_occupancy()
+    expected = occupancy_grid_values(layer.values, ~np.isfinite(layer.values))
+    assert len(got["/map"]) == 1 and got["/map"][0].info.width == layer.values.shape[1]
+    np.testing.assert_array_equal(got["/map"][0].data, expected)
+    assert len(got["/scan"]) == 30 and len(got["/particles"]) >= 1
+    traj = read_tum(out / "trajectory.tum")
+    path = np.array([[p.pose.position.x, p.pose.position.y] for p in got["/path"][0].poses])
+    np.testing.assert_allclose(path, traj.poses[:, :2], atol=1e-9)

@@ -14,7 +14,7 @@ from typing import Any
 
 from crlam.cli.conventions import group
 
-__all__ = ["add_foxglove_options", "hold_for_clients", "open_live_view"]
+__all__ = ["add_foxglove_options", "announce_live_view", "hold_for_clients", "open_live_view"]
 
 
 def _port(text: str) -> int:
@@ -61,18 +61,24 @@ def add_foxglove_options(p: argparse.ArgumentParser, *, wait: bool = True) -> No
 @contextmanager
 def open_live_view(args: argparse.Namespace, name: str) -> Iterator[Any]:
     """The :class:`~crlam.live_view.LiveView` of ``args`` (None without ``--foxglove``),
-    stopped on exit. Prints its address (one line starting ``foxglove: serving``)."""
+    stopped on exit. Call :func:`announce_live_view` once its channels exist."""
     if getattr(args, "foxglove", None) is None:
         yield None
         return
     from crlam.live_view import LiveView
 
     view = LiveView(port=args.foxglove, host=args.foxglove_host, name=name)
-    print(f"foxglove: serving on {view.url} (port {view.port})", flush=True)
     try:
         yield view
     finally:
         view.close()
+
+
+def announce_live_view(view: Any) -> None:
+    """Prints the view's address (one line starting ``foxglove: serving``), once its channels
+    are advertised: a client that connects then can subscribe to all of them at once."""
+    if view is not None:
+        print(f"foxglove: serving on {view.url} (port {view.port})", flush=True)
 
 
 def hold_for_clients(view: Any, what: str) -> None:

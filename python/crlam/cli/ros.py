@@ -14,7 +14,7 @@ import threading
 from typing import Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, say
-from crlam.cli.live import add_foxglove_options, open_live_view
+from crlam.cli.live import add_foxglove_options, announce_live_view, open_live_view
 
 __all__ = ["add_parser", "cmd_ros_explore", "cmd_ros_localize", "cmd_ros_play", "cmd_ros_slam"]
 
@@ -136,6 +136,7 @@ def _spin(args: argparse.Namespace, node: Any) -> int:
     with open_live_view(args, name) as view:
         node.live_view = view
         node.start()
+        announce_live_view(view)
         say(args, f"{name}: running on DDS domain {node.dds.domain} ({node.dds.config_description}); Ctrl-C to stop")
         done.wait()
         node.stop(save=True)

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, print_settings
-from crlam.cli.live import add_foxglove_options, hold_for_clients, open_live_view
+from crlam.cli.live import add_foxglove_options, announce_live_view, hold_for_clients, open_live_view
 from crlam.cli.options import (
     SLAM_FLAGS,
     add_bag_options,
@@ -95,6 +95,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
             from crlam.experiments.slam_live_view import SlamLiveFeed
 
             feed = SlamLiveFeed(view)
+            announce_live_view(view)
             if args.foxglove_wait:
                 print("foxglove: waiting for a client to subscribe to /map", flush=True)
                 view.wait_for_subscriber("/map")

@@ -1,4 +1,4 @@
-"""``crlam slam --foxglove [PORT]``: an offline run served live on a Foxglove WebSocket.
+"""``crlam slam|localize --foxglove [PORT]``: an offline run served live on a Foxglove WebSocket.
 
 The topics are those of ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: frames ``map``,
 ``odom``, ``base_link``, ``laser``), sent while the run goes rather than at its end:
@@ -12,7 +12,9 @@ The topics are those of ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: frames
 ``/map`` and ``/map_confidence`` (OccupancyGrid, as in ``run.mcap``), ``/path`` (Path)
     The best particle's map at most every ``map_period`` s of wall time while a client
     subscribes to it (making a map costs time: nothing is made for nobody), and once more, the
-    run's final map (exactly ``run.mcap``'s ``/map``), when the run ends.
+    run's final map (exactly ``run.mcap``'s ``/map``), when the run ends. A localization
+    publishes its known map once, at the start (:meth:`SlamLiveFeed.publish_known_map`), and
+    ``/path`` at the end.
 
 ``/map``, ``/map_confidence`` and ``/tf_static`` are latched (:meth:`crlam.live_view.LiveView.publish`):
 a client that subscribes later receives the newest one at once.
@@ -72,16 +74,34 @@ class SlamLiveFeed:
         self._last_t = 0.0
         self.path: list[tuple[float, NDArray[np.float64]]] = []
         self._final: tuple[Any, ...] | None = None
+        self.fixed_map = False
         view.announce(TOPICS)
 
     def _ns(self, t: float) -> int:
         sec, nsec = ros_time(max(float(t), 0.0))
         return sec * 1_000_000_000 + nsec
 
+    def publish_known_map(self, occupancy: Any) -> None:
+        """A localization's map (a :class:`crlam.mapping.MapLayer` of expected occupancy, NaN
+        unknown), published once, latched; the run then publishes no map of its own."""
+        from crlam.experiments.slam_mcap import occupancy_grid_values
+
+        values = np.asarray(occupancy.values, dtype=np.float64)
+        grid = GridInfo(values.shape, tuple(occupancy.origin), float(occupancy.resolution))  # type: ignore[arg-type]
+        self._publish_grids(0.0, grid, occupancy_grid_values(values, ~np.isfinite(values)), None)
+        self.fixed_map = True
+
     def scan(
-        self, run: Any, rec: LaserScan, processed: bool, estimate: NDArray[np.float64], particles: NDArray[np.float64] | None
+        self,
+        run: Any,
+        rec: LaserScan,
+        processed: bool,
+        estimate: NDArray[np.float64],
+        particles: NDArray[np.float64] | None,
+        spread: tuple[float, float] | None = None,
     ) -> None:
-        """Publishes one scan's messages (``particles``: shape (n, 3), or None)."""
+        """Publishes one scan's messages (``particles``: shape (n, 3), or None; ``spread``: the
+        particles' (position m, heading rad) spread, default the SLAM run's last particle set's)."""
         v, b = self.view, self.msgs
         t = max(float(rec.timestamp), self._last_t)
         self._last_t = t
@@ -109,19 +129,22 @@ class SlamLiveFeed:
                 v.types[POSE_ARRAY](header=b.header(t, MAP_FRAME), poses=[b.pose(p) for p in particles]),
                 t_ns,
             )
-            rec_set = run.particle_sets[-1] if getattr(run, "particle_sets", None) else None
-            v.publish("/pose", POSE_COV, self._pose_msg(t, est, rec_set), t_ns)
+            if spread is None and getattr(run, "particle_sets", None):
+                spread = (float(run.particle_sets[-1].spread_xy), float(run.particle_sets[-1].spread_theta))
+            v.publish("/pose", POSE_COV, self._pose_msg(t, est, spread), t_ns)
+        if self.fixed_map:
+            return
         if wall - self._last_map_wall >= self.map_period and (v.wants("/map") or v.wants("/map_confidence") or v.wants("/path")):
             self._last_map_wall = wall
             self._publish_map(run, t)
 
-    def _pose_msg(self, t: float, est: NDArray[np.float64], rec_set: Any) -> Any:
+    def _pose_msg(self, t: float, est: NDArray[np.float64], spread: tuple[float, float] | None) -> Any:
         T, b = self.view.types, self.msgs
         cov = np.zeros(36)
-        if rec_set is not None:
+        if spread is not None:
             # The particle set's spread: RMS position spread shared by x and y, heading spread (as crlam ros slam).
-            cov[0] = cov[7] = float(rec_set.spread_xy) ** 2 / 2
-            cov[35] = float(rec_set.spread_theta) ** 2
+            cov[0] = cov[7] = spread[0] ** 2 / 2
+            cov[35] = spread[1] ** 2
         return T[POSE_COV](
             header=b.header(t, MAP_FRAME), pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=b.pose(est), covariance=cov)
         )
@@ -177,6 +200,10 @@ class SlamLiveFeed:
         :meth:`publish_final`: the command publishes them once its run folder is in place."""
         self._final = (np.asarray(stamps), np.asarray(poses), grid, data, confidence)
 
+    def finish_path(self, stamps: NDArray[np.float64], poses: NDArray[np.float64]) -> None:
+        """:meth:`finish` for a run without a map of its own (a localization): the trajectory only."""
+        self._final = (np.asarray(stamps), np.asarray(poses), None, None, None)
+
     def publish_final(self) -> bool:
         """Publishes the final ``/path``, ``/map`` and ``/map_confidence``, stamped with the last
         scan's time; False if :meth:`finish` was not called."""
@@ -185,5 +212,6 @@ class SlamLiveFeed:
         stamps, poses, grid, data, confidence = self._final
         t = self._last_t
         self._publish_path(t, stamps, poses)
-        self._publish_grids(t, grid, data, confidence)
+        if grid is not None:
+            self._publish_grids(t, grid, data, confidence)
         return True
