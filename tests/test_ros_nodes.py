@@ -347,3 +347,58 @@ def test_tf_odometry_and_multi_echo_scans_live_equal_offline(tmp_path: Path) -> 
     off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
     assert len(live_t.timestamps) == offline.metrics["n_scans"] == 40
     np.testing.assert_allclose(live_t.poses, off_t.poses, atol=1e-9)
+
+
+def test_save_map_service_over_dds_request_reply(tmp_path: Path) -> None:
+    """``/crlam_slam/save_map`` (slam_toolbox/srv/SaveMap as rmw_cyclonedds carries it): before
+    any scan the reply says no map yet and nothing is written; after the bag, the reply says
+    success and the folder is a whole run folder with the Nav2 map. Each reply carries its
+    request's client id and sequence number."""
+    from crlam.ros.services import (
+        RESULT_NO_MAP_RECEIVED,
+        RESULT_SUCCESS,
+        SaveMapRequest,
+        SaveMapResponse,
+        service_topics,
+    )
+
+    bag = _synthetic_bag(tmp_path / "corridor.mcap")
+    params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True)
+    node = SlamNode(params, dict(SLAM), domain=DOMAIN)
+    node.start()
+    client = DdsNode("crlam_test_service_client", domain=DOMAIN)
+    replies: list[Any] = []
+    got = threading.Condition()
+
+    def on_reply(sample: Any) -> None:
+        with got:
+            replies.append(sample)
+            got.notify_all()
+
+    request_topic, reply_topic = service_topics("/crlam_slam/save_map")
+    assert (request_topic, reply_topic) == ("rq/crlam_slam/save_mapRequest", "rr/crlam_slam/save_mapReply")
+    client.reader(reply_topic, SaveMapResponse, qos.reliable(), on_reply, raw=True)
+    w = client.writer(request_topic, SaveMapRequest, qos.reliable(), raw=True)
+
+    def call(seq: int, folder: str) -> Any:
+        w.write(SaveMapRequest(client_guid=0xC0FFEE, sequence_number=seq, name=m.String(data=folder)))
+        with got:
+            assert got.wait_for(lambda: any(r.sequence_number == seq for r in replies), 60)
+        return next(r for r in replies if r.sequence_number == seq)
+
+    try:
+        from crlam.ros.play import _wait_matched
+
+        _wait_matched({request_topic: w}, [request_topic], 60)
+        early = call(1, str(tmp_path / "early"))
+        assert early.result == RESULT_NO_MAP_RECEIVED and early.client_guid == 0xC0FFEE
+        assert not (tmp_path / "early").exists()
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=DOMAIN, timeout=120)
+        done = call(2, str(tmp_path / "saved"))
+        assert done.result == RESULT_SUCCESS and done.client_guid == 0xC0FFEE
+    finally:
+        node.stop(save=False)
+        client.close()
+    out = tmp_path / "saved"
+    assert is_complete(out) and (out / "map.yaml").is_file() and (out / "map.pgm").is_file()
+    assert len(read_tum(out / "trajectory.tum").timestamps) == 40

@@ -38,8 +38,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crlam.errors import CrlamError
+from crlam.ros.live_view_mirror import LiveViewMirror
 from crlam.ros.odometry_buffer import OdometryBuffer, PendingScan
 from crlam.ros.params import NodeParameters
+from crlam.ros.save_map_service import SaveMapService
 
 __all__ = ["DIAGNOSTIC_NAME", "SLAM_TOPICS", "SlamNode"]
 
@@ -110,7 +112,7 @@ def scan_ranges(msg: Any) -> NDArray[np.float64]:
     return r
 
 
-class SlamNode:
+class SlamNode(SaveMapService, LiveViewMirror):
     """The node; :meth:`start` makes its readers, writers and threads, :meth:`stop` ends them.
 
     Parameters
@@ -157,7 +159,8 @@ class SlamNode:
         self.last_map_t = -math.inf
         self.path_poses: list[Any] = []
         self.stop_event = threading.Event()
-        self.save_requests: deque[str] = deque()
+        #: Save requests: (folder, the service request's (client id, sequence number) to reply to, or None).
+        self.save_requests: deque[tuple[str, tuple[int, int] | None]] = deque()
         self.saved: list[Path] = []
         self.busy = False
         self.threads: list[threading.Thread] = []
@@ -207,6 +210,7 @@ class SlamNode:
         else:
             d.reader(p.scan_topic, m.LaserScan, qos.sensor_data(10), self._on_scan)
         d.reader(p.save_map_topic, m.String, qos.reliable(), self._on_save)
+        self._serve_save_map()
         if p.use_sim_time:
             d.reader("/clock", m.Clock, qos.reliable(1), self._on_clock)
         for target, name in ((self._work, "crlam-slam-worker"), (self._publish_tf_loop, "crlam-slam-tf")):
@@ -222,17 +226,11 @@ class SlamNode:
         with self.write_lock:
             writer.write(msg)
             view = self.live_view
-            if view is not None:
-                topic, msgtype, latched = self.dds.writer_topics[id(writer)]
+            entry = None if view is None else self.dds.writer_topics.get(id(writer))  # None: a service's reply
+            if entry is not None:
+                topic, msgtype, latched = entry
                 if latched or view.has_subscriber(topic, msgtype):
                     view.publish_cdr(topic, msgtype, msg.serialize(), latched=latched)
-
-    def _view_input(self, topic: str, msgtype: str, msg: Any, latched: bool = False) -> None:
-        """Mirrors an input message (a scan, the laser mount) to the live view, if any listens."""
-        view = self.live_view
-        if view is not None and (latched or view.has_subscriber(topic, msgtype)):
-            with self.write_lock:
-                view.publish_cdr(topic, msgtype, msg.serialize(), latched=latched)
 
     def now(self) -> float:
         """The time output is stamped with: /clock with use_sim_time, else the wall clock (s)."""
@@ -249,12 +247,7 @@ class SlamNode:
                 self.static[(tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/"))] = tr.transform
             static = list(self.static.items())
         if self.live_view is not None:
-            m = ros_messages()
-            transforms = [
-                m.TransformStamped(header=m.Header(frame_id=parent), child_frame_id=child, transform=tr)
-                for (parent, child), tr in static
-            ]
-            self._view_input("/tf_static", "tf2_msgs/msg/TFMessage", m.TFMessage(transforms=transforms), latched=True)
+            self._view_static(static)
 
     def _mount_of(self, laser_frame: str) -> tuple[NDArray[np.float64], bool] | None:
         """The laser's mount in the base frame from /tf_static (None until it is known)."""
@@ -341,7 +334,7 @@ class SlamNode:
 
     def _on_save(self, msg: Any) -> None:
         with self.lock:
-            self.save_requests.append(msg.data.strip())
+            self.save_requests.append((msg.data.strip(), None))
             self.wake.notify_all()
 
     def _resolve(self, final: bool) -> None:
@@ -373,14 +366,17 @@ class SlamNode:
                     return  # stop
                 scan = self.ready.popleft() if self.ready else None
                 self.busy = scan is not None or request is not None
+            saved: bool | None = None
             try:
                 if scan is not None:
                     self._step(scan)
                 if request is not None:
-                    self._save(request)
-            except CrlamError as exc:
+                    saved = self._save(request[0])
+            except (CrlamError, OSError) as exc:
                 print(f"crlam ros slam: error: {exc}", flush=True)
             finally:
+                if request is not None and request[1] is not None:
+                    self._reply_save(request[1], saved)
                 with self.lock:
                     self.busy = False
                     self.wake.notify_all()
@@ -453,23 +449,6 @@ class SlamNode:
         if processed and scan.stamp - self.last_map_t >= self.params.map_update_interval:
             self.last_map_t = scan.stamp
             self._publish_map(scan.stamp)
-
-    def _view_scan(self, scan: PendingScan) -> None:
-        """The live view's scan and ``odom -> base_link`` at its stamp (the odometry it was matched with)."""
-        m = ros_messages()
-
-        assert scan.odom is not None
-        msg = scan.payload
-        self._view_input("/scan", "sensor_msgs/msg/LaserScan", msg)
-        o = scan.odom
-        tr = m.TransformStamped(
-            header=m.Header(stamp=msg.header.stamp, frame_id=self.params.odom_frame),  # type: ignore[attr-defined]
-            child_frame_id=self.base_frame or "base_link",
-            transform=m.Transform(
-                translation=m.Vector3(x=float(o[0]), y=float(o[1]), z=0.0), rotation=yaw_quaternion(float(o[2]))
-            ),
-        )
-        self._view_input("/tf", "tf2_msgs/msg/TFMessage", m.TFMessage(transforms=[tr]))
 
     def _publish_estimate(
         self, t: float, est: NDArray[np.float64], particles: NDArray[np.float64] | None, spread: tuple[float, float]
@@ -574,14 +553,15 @@ class SlamNode:
 
     # --- saving -------------------------------------------------------------------------------
 
-    def _save(self, request: str) -> None:
-        """Writes the run folder ``request`` (or ``output_folder``) whole, or not at all."""
+    def _save(self, request: str) -> bool | None:
+        """Writes the run folder ``request`` (or ``output_folder``) whole, or not at all: True once
+        written, False with nothing to save yet, None without a folder to write."""
         from crlam.run_folder import staged_folder
 
         target = request or self.params.output_folder
         if not target:
             print("crlam ros slam: save request without a folder and no output_folder parameter: ignored", flush=True)
-            return
+            return None
         with self.lock:
             self._resolve(final=True)
             scans, self.ready = list(self.ready), deque()
@@ -589,7 +569,7 @@ class SlamNode:
             self._step(scan)
         if self.run is None or not self.run.particle_sets:
             print(f"crlam ros slam: nothing to save to {target} yet (no scan processed)", flush=True)
-            return
+            return False
         from crlam.experiments.slam_run import write_slam_outputs
 
         p = self.params
@@ -609,11 +589,12 @@ class SlamNode:
         self._publish_map(self.run.stamps[-1])
         self.saved.append(Path(target))
         print(f"crlam ros slam: saved {self.run.n_scans} scans to {target}", flush=True)
+        return True
 
     def request_save(self, folder: str = "") -> None:
         """Queues a save (as a message on the save topic does)."""
         with self.lock:
-            self.save_requests.append(folder)
+            self.save_requests.append((folder, None))
             self.wake.notify_all()
 
     def wait_idle(self) -> None:
