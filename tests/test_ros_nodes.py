@@ -402,3 +402,44 @@ def test_save_map_service_over_dds_request_reply(tmp_path: Path) -> None:
     out = tmp_path / "saved"
     assert is_complete(out) and (out / "map.yaml").is_file() and (out / "map.pgm").is_file()
     assert len(read_tum(out / "trajectory.tum").timestamps) == 40
+
+
+def test_play_clock_and_use_sim_time(tmp_path: Path) -> None:
+    """``crlam ros play --clock`` publishes /clock (the bag's times); a node with use_sim_time
+    (``--use-sim-time`` or ``use_sim_time: true`` in the params file) stamps its map -> odom with
+    it: every stamp is a time the bag's /clock carried (0 before the first /clock arrives, as in
+    ROS 2), none the wall clock."""
+    from rosbags.highlevel import AnyReader
+
+    f = tmp_path / "p.yaml"
+    f.write_text("crlam_slam:\n  ros__parameters:\n    use_sim_time: true\n")
+    assert split_parameters(load_params_file(f, "crlam_slam"), str(f))[0].use_sim_time is True
+    from crlam.cli import build_parser
+
+    args = build_parser().parse_args(["ros", "slam", "--use-sim-time"])
+    assert args.use_sim_time is True
+
+    bag = _synthetic_bag(tmp_path / "corridor.mcap")
+    with AnyReader([bag]) as reader:
+        bag_times = {t for _, t, _ in reader.messages()}
+    params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True, use_sim_time=True)
+    node = SlamNode(params, dict(SLAM), domain=DOMAIN)
+    node.start()
+    test = DdsNode("crlam_test_clock", domain=DOMAIN)
+    col = Collector(test)
+    col.read("/clock", m.Clock, qos.reliable(1))
+    col.read("/tf", m.TFMessage, qos.reliable(100))
+    try:
+        stats = play_bag(bag, rate=float("inf"), lockstep=True, clock=True, domain=DOMAIN, timeout=120)
+        node.wait_idle()
+    finally:
+        node.stop(save=False)
+    assert col.events["/clock"].wait(30) and col.events["/tf"].wait(30)
+    test.close()
+    assert stats.clock_messages == sum(stats.published.values())
+    ns = lambda t: t.sec * 1_000_000_000 + t.nanosec  # noqa: E731
+    clocks = [ns(c.clock) for c in col.samples["/clock"]]
+    assert set(clocks) <= bag_times and clocks == sorted(clocks)
+    stamps = [ns(tr.header.stamp) for s in col.samples["/tf"] for tr in s.transforms if tr.child_frame_id == "odom"]
+    assert stamps and set(stamps) <= bag_times | {0}
+    assert any(s > 0 for s in stamps)
