@@ -6,7 +6,18 @@ import threading
 from collections import deque
 from typing import Any
 
-__all__ = ["SaveMapService"]
+__all__ = ["SERVICES", "SaveMapService"]
+
+#: (service, ROS 2 type, DDS topics, what) of every node (the documentation's service table).
+SERVICES = (
+    (
+        "/<node>/save_map",
+        "slam_toolbox/srv/SaveMap",
+        "rq/<node>/save_mapRequest` and `rr/<node>/save_mapReply",
+        "save the run folder (name.data: folder, or empty for output_folder); result 0 saved, 1 nothing to save yet, "
+        "255 failed (no folder, an error)",
+    ),
+)
 
 
 class SaveMapService:
