@@ -199,3 +199,37 @@ def test_offline_localize_serves_the_known_map_particles_and_path(tmp_path: Path
     traj = read_tum(out / "trajectory.tum")
     path = np.array([[p.pose.position.x, p.pose.position.y] for p in got["/path"][0].poses])
     np.testing.assert_allclose(path, traj.poses[:, :2], atol=1e-9)
+
+
+def test_offline_explore_serves_map_goals_and_candidates(tmp_path: Path) -> None:
+    import csv
+
+    out = tmp_path / "explore"
+    cmd = [sys.executable, "-m", "crlam", "explore", "--world", "office", "--budget", "6", "--candidates", "20", "--no-gif"]
+    cmd += ["-o", str(out), "--quiet", "--foxglove", "0", "--foxglove-wait"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    topics = ["/map", "/goal_pose", "/explore/candidates", "/scan", "/path"]
+    got: dict[str, list[Any]] = {t: [] for t in topics}
+    try:
+        port = _port_of(_read_until(proc, "foxglove: serving on ws://127.0.0.1:"))
+        client = FoxgloveClient(port, timeout=TIMEOUT)
+        client.subscribe(topics)
+        while True:  # the last decision's map comes once more when the run folder is in place
+            topic, _, msg = client.receive()
+            got[topic].append(msg)
+            if topic == "/map" and is_complete(out):
+                break
+        client.close()
+        assert proc.wait(TIMEOUT) == 0
+    finally:
+        proc.kill()
+    with open(out / "progress.csv") as f:
+        rows = list(csv.DictReader(f))
+    assert len(got["/goal_pose"]) == len(rows) >= 1
+    assert len(got["/explore/candidates"][-1].markers) == int(rows[-1]["candidates"]) + 1
+    final = got["/map"][-1]
+    # The map's observed cells (not -1) are the decision's explored area.
+    explored = float(np.count_nonzero(final.data != -1)) * final.info.resolution**2
+    assert explored == pytest.approx(float(rows[-1]["explored_m2"]), abs=1e-3)
+    assert len(got["/scan"]) >= len(rows) and len(got["/path"][-1].poses) == len(got["/scan"])

@@ -152,6 +152,16 @@ class LiveView:
             return  # nobody listens: skip the serialisation
         self.publish_cdr(topic, msgtype, bytes(self.typestore.serialize_cdr(msg, msgtype)), t_ns, latched=latched)
 
+    def republish(self, topic: str) -> bool:
+        """Sends ``topic``'s latched message again (False if it has none)."""
+        with self._lock:
+            got = self._latched.get(topic)
+            channel = self._channels.get(topic)
+        if got is None or channel is None:
+            return False
+        channel[1].log(got[1], log_time=got[2])
+        return True
+
     def has_subscriber(self, topic: str, msgtype: str) -> bool:
         """Whether a client subscribes to ``topic`` (advertised as ``msgtype`` from now on)."""
         return bool(self._channel(topic, msgtype).has_sinks())

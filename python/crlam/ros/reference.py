@@ -18,6 +18,7 @@ def _table(header: tuple[str, ...], rows: Sequence[tuple[str, ...]]) -> str:
 def ros_reference() -> str:
     """Markdown: the nodes' topics, their parameters and the slam_toolbox / AMCL names."""
     from crlam.experiments.explore import ExploreConfig
+    from crlam.experiments.explore_live_view import TOPICS as EXPLORE_VIEW_TOPICS
     from crlam.experiments.slam_live_view import TOPICS as OFFLINE_VIEW_TOPICS
     from crlam.localize import LocalizeConfig
     from crlam.ros.explore_node import EXPLORE_TOPICS
@@ -64,6 +65,8 @@ def ros_reference() -> str:
     )
     out += [""]
     out.append(_table(("topic", "type"), [(f"`{t}`", f"`{ty}`") for t, ty in OFFLINE_VIEW_TOPICS.items()]))
+    out += ["", "`crlam explore` (a simulated exploration; stamps: 0.1 s of simulated time per scan) serves:", ""]
+    out.append(_table(("topic", "type"), [(f"`{t}`", f"`{ty}`") for t, ty in EXPLORE_VIEW_TOPICS.items()]))
     out += ["", "### Node parameters (every node)", ""]
     rows = [(f"`{f.name}`", f"`{f.default!r}`", f.metadata.get("help", "")) for f in dataclasses.fields(NodeParameters)]
     out.append(_table(("parameter", "default", "what"), rows))
