@@ -24,7 +24,7 @@ class FoxgloveClient:
     def __init__(self, port: int, timeout: float = 60.0) -> None:
         from websockets.sync.client import connect
 
-        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=timeout)  # type: ignore[list-item]
+        self._connection = connect(f"ws://127.0.0.1:{port}", subprotocols=[SUBPROTOCOL], open_timeout=timeout, close_timeout=2)  # type: ignore[list-item]
         self.ws = self._connection.__enter__()
         self.timeout = timeout
         self.channels: dict[str, dict[str, Any]] = {}

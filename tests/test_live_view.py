@@ -233,3 +233,32 @@ def test_offline_explore_serves_map_goals_and_candidates(tmp_path: Path) -> None
     explored = float(np.count_nonzero(final.data != -1)) * final.info.resolution**2
     assert explored == pytest.approx(float(rows[-1]["explored_m2"]), abs=1e-3)
     assert len(got["/scan"]) >= len(rows) and len(got["/path"][-1].poses) == len(got["/scan"])
+
+
+def test_cli_without_foxglove_sdk_names_the_extra(tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: Any) -> None:
+    assert main(["simulate", "--scans", "5", "--world", "office", "--out", str(tmp_path / "sim"), "--quiet"]) == 0
+    monkeypatch.setitem(sys.modules, "foxglove", None)
+    code = main(["slam", str(tmp_path / "sim" / "log.clf"), "-o", str(tmp_path / "run"), "--quiet", "--foxglove", "0"])
+    assert code != 0
+    assert "crlam[live]" in capsys.readouterr().err
+    assert not (tmp_path / "run").exists()  # nothing was run nor written
+
+
+def test_a_client_that_never_reads_does_not_hold_up_the_publisher() -> None:
+    """A subscribed client that reads nothing: 1,000 messages of 100 kB (far beyond its queue
+    and the socket's buffers) are all handed over without waiting for it (its oldest are dropped)."""
+    from crlam.live_view import BACKLOG, LiveView
+
+    view = LiveView(port=0)
+    try:
+        view.announce({"/map": "std_msgs/msg/String"})
+        client = FoxgloveClient(view.port, timeout=TIMEOUT)
+        client.subscribe(["/map"])
+        assert view.wait_for_subscriber("/map", TIMEOUT)
+        payload = b"\x00\x01\x00\x00" + (100_000).to_bytes(4, "little") + b"x" * 99_999 + b"\x00"
+        for _ in range(1000):  # would block here if the publisher waited for the client
+            view.publish_cdr("/map", "std_msgs/msg/String", payload)
+        assert view.counts["/map"] == 1000 > BACKLOG
+        client.close()
+    finally:
+        view.close()
