@@ -110,10 +110,10 @@ class SlamLiveFeed:
         if self._static is None:
             self._static = b.tf([b.transform(t, BASE_FRAME, LASER_FRAME, rec.laser_offset)])
             v.publish("/tf_static", TF_MESSAGE, self._static, t_ns, latched=True)
-        ranges = np.where(rec.ranges >= rec.max_range, np.inf, rec.ranges)
-        v.publish(
-            "/scan", LASER_SCAN, b.laser_scan(t, LASER_FRAME, ranges, rec.angle_min, rec.angle_increment, rec.max_range), t_ns
-        )
+        if v.has_subscriber("/scan", LASER_SCAN):  # messages are built only for someone
+            ranges = np.where(rec.ranges >= rec.max_range, np.inf, rec.ranges)
+            scan = b.laser_scan(t, LASER_FRAME, ranges, rec.angle_min, rec.angle_increment, rec.max_range)
+            v.publish("/scan", LASER_SCAN, scan, t_ns)
         transforms = [b.transform(t, ODOM_FRAME, BASE_FRAME, rec.odom)]
         est = np.asarray(estimate, dtype=np.float64)
         self.path.append((t, est))
@@ -122,13 +122,14 @@ class SlamLiveFeed:
         v.publish("/tf", TF_MESSAGE, b.tf(transforms), t_ns)
         if not processed:
             return
-        if particles is not None:
+        if particles is not None and v.has_subscriber("/particles", POSE_ARRAY):
             v.publish(
                 "/particles",
                 POSE_ARRAY,
                 v.types[POSE_ARRAY](header=b.header(t, MAP_FRAME), poses=[b.pose(p) for p in particles]),
                 t_ns,
             )
+        if particles is not None:
             if spread is None and getattr(run, "particle_sets", None):
                 spread = (float(run.particle_sets[-1].spread_xy), float(run.particle_sets[-1].spread_theta))
             v.publish("/pose", POSE_COV, self._pose_msg(t, est, spread), t_ns)
