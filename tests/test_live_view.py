@@ -262,3 +262,47 @@ def test_a_client_that_never_reads_does_not_hold_up_the_publisher() -> None:
         client.close()
     finally:
         view.close()
+
+
+def test_ros_slam_command_serves_foxglove(tmp_path: Path) -> None:
+    """``crlam ros slam --foxglove 0`` as a process: a client gets the map the save publishes."""
+    pytest.importorskip("cyclonedds", reason="crlam[ros] (cyclonedds) is not installed")
+    import signal
+
+    from corridor_bag import corridor_bag
+    from crlam.ros import messages as m
+    from crlam.ros import qos
+    from crlam.ros.dds import DdsNode
+    from crlam.ros.play import _wait_matched, play_bag
+
+    domain = 100 + (os.getpid() + 25) % 100
+    bag = corridor_bag(tmp_path / "corridor.mcap")
+    params = tmp_path / "params.yaml"
+    params.write_text(
+        "crlam_slam:\n  ros__parameters:\n    particles: 8\n    max_scan_wait: .inf\n    process_every_scan: true\n"
+    )
+    cmd = [sys.executable, "-m", "crlam", "ros", "slam", "--params-file", str(params), "--domain", str(domain)]
+    cmd += ["--foxglove", "0"]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    try:
+        port = _port_of(_read_until(proc, "foxglove: serving on ws://127.0.0.1:"))
+        client = FoxgloveClient(port, timeout=TIMEOUT)
+        client.subscribe(["/map", "/scan"])
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=domain, timeout=TIMEOUT)
+        save = DdsNode("crlam_test_save", domain=domain)
+        w = save.writer("/crlam/save_map", m.String, qos.reliable())
+        _wait_matched({"/crlam/save_map": w}, ["/crlam/save_map"], TIMEOUT)
+        w.write(m.String(data=str(tmp_path / "saved")))
+        while True:  # the save publishes the map at the last scan's stamp (4.96 s)
+            topic, _, msg = client.receive()
+            if topic == "/map" and abs(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9 - 4.96) < 1e-6:
+                break
+        client.close()
+        save.close()
+        proc.send_signal(signal.SIGTERM)
+        assert proc.wait(TIMEOUT) == 0
+    finally:
+        proc.kill()
+    assert is_complete(tmp_path / "saved")
+    assert (msg.data >= 0).any() and msg.info.width > 0
