@@ -40,17 +40,19 @@ class FoxgloveClient:
                 self.channels = {t: c for t, c in self.channels.items() if c["id"] != cid}
 
     def subscribe(self, topics: list[str]) -> None:
-        """Waits until every topic is advertised, then subscribes to them."""
+        """Waits until every topic is advertised, then subscribes to them, in the order given."""
         while not all(t in self.channels for t in topics):
             frame = self.ws.recv(timeout=self.timeout)
             assert isinstance(frame, str), "binary data before any subscription"
             self._control(json.loads(frame))
-        subs = []
+        # One message per topic, in order: the server handles a client's messages in turn, so
+        # the topics before the last are subscribed once the server sees the last one's
+        # subscription (the commands' --foxglove-wait waits for /map: tests list it last).
         for topic in topics:
             sid = len(self.by_subscription) + 1
             self.by_subscription[sid] = self.channels[topic]
-            subs.append({"id": sid, "channelId": self.channels[topic]["id"]})
-        self.ws.send(json.dumps({"op": "subscribe", "subscriptions": subs}))
+            sub = {"id": sid, "channelId": self.channels[topic]["id"]}
+            self.ws.send(json.dumps({"op": "subscribe", "subscriptions": [sub]}))
 
     def receive(self) -> tuple[str, int, Any]:
         """The next message on a subscribed channel: (topic, log time ns, decoded ROS 2 message)."""

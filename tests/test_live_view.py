@@ -74,7 +74,7 @@ def test_offline_slam_serves_its_map_on_foxglove(tmp_path: Path) -> None:
     try:
         port = _port_of(_read_until(proc, "foxglove: serving on ws://127.0.0.1:"))
         client = FoxgloveClient(port, timeout=TIMEOUT)
-        topics = ["/map", "/map_confidence", "/scan", "/particles", "/pose", "/path", "/tf", "/tf_static"]
+        topics = ["/map_confidence", "/scan", "/particles", "/pose", "/path", "/tf", "/tf_static", "/map"]
         client.subscribe(topics)
         got: dict[str, list[tuple[int, Any]]] = {t: [] for t in topics}
         final = None
@@ -137,7 +137,7 @@ def test_live_slam_node_serves_its_map_on_foxglove(tmp_path: Path) -> None:
         # Outputs, and the inputs the view mirrors (the scans the filter took, odom -> base_link, the mount).
         topics = ["/map", "/map_confidence", "/particles", "/pose", "/path", "/scan", "/tf", "/tf_static"]
         client.subscribe(topics)
-        assert view.wait_for_subscriber("/scan", TIMEOUT)
+        assert view.wait_for_subscriber(topics[-1], TIMEOUT)  # and so every topic before it
         play_bag(bag, rate=float("inf"), lockstep=True, domain=domain, timeout=TIMEOUT)
         node.request_save(str(tmp_path / "live"))  # the save publishes the final map
         node.wait_idle()
@@ -181,7 +181,7 @@ def test_offline_localize_serves_the_known_map_particles_and_path(tmp_path: Path
     try:
         port = _port_of(_read_until(proc, "foxglove: serving on ws://127.0.0.1:"))
         client = FoxgloveClient(port, timeout=TIMEOUT)
-        client.subscribe(["/map", "/particles", "/path", "/scan"])
+        client.subscribe(["/particles", "/path", "/scan", "/map"])
         got: dict[str, list[Any]] = {"/map": [], "/particles": [], "/path": [], "/scan": []}
         while not got["/path"]:  # /path comes once, when the run folder is in place
             topic, _, msg = client.receive()
@@ -209,7 +209,7 @@ def test_offline_explore_serves_map_goals_and_candidates(tmp_path: Path) -> None
     cmd += ["-o", str(out), "--quiet", "--foxglove", "0", "--foxglove-wait"]
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path))
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
-    topics = ["/map", "/goal_pose", "/explore/candidates", "/scan", "/path"]
+    topics = ["/goal_pose", "/explore/candidates", "/scan", "/path", "/map"]
     got: dict[str, list[Any]] = {t: [] for t in topics}
     try:
         port = _port_of(_read_until(proc, "foxglove: serving on ws://127.0.0.1:"))
