@@ -135,3 +135,17 @@ def test_cdr_bytes_equal_rosbags(ros_type: str) -> None:
 
 def test_dds_type_name() -> None:
     assert messages.dds_type_name("sensor_msgs/msg/LaserScan") == "sensor_msgs::msg::dds_::LaserScan_"
+
+
+def test_save_map_service_wire_format() -> None:
+    """rmw_cyclonedds' service samples: the request header (client id u64, sequence number i64),
+    then slam_toolbox/srv/SaveMap's fields, as plain little-endian CDR."""
+    import struct
+
+    from crlam.ros.services import SaveMapRequest, SaveMapResponse
+
+    req = SaveMapRequest(client_guid=0x0102030405060708, sequence_number=-3, name=messages.String(data="run"))
+    assert req.serialize() == b"\x00\x01\x00\x00" + struct.pack("<QqI", 0x0102030405060708, -3, 4) + b"run\x00"
+    assert SaveMapRequest.deserialize(req.serialize()) == req
+    rep = SaveMapResponse(client_guid=7, sequence_number=9, result=1)
+    assert rep.serialize()[:21] == b"\x00\x01\x00\x00" + struct.pack("<Qqb", 7, 9, 1)

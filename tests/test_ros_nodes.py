@@ -20,6 +20,7 @@ import pytest
 
 pytest.importorskip("cyclonedds", reason="crlam[ros] (cyclonedds) is not installed")
 
+from corridor_bag import corridor_bag as _synthetic_bag  # noqa: E402
 from crlam.io.tum import read_tum  # noqa: E402
 from crlam.ros import messages as m  # noqa: E402
 from crlam.ros import qos  # noqa: E402
@@ -128,31 +129,6 @@ def test_turtlebot4_live_equals_offline(data_dir: Path, tmp_path: Path) -> None:
     assert grid.header.frame_id == "map" and len(grid.data) == grid.info.width * grid.info.height > 0
     assert any(tr.header.frame_id == "map" and tr.child_frame_id == "odom" for s in col.samples["/tf"] for tr in s.transforms)
     assert len(col.samples["/pose"]) > 0
-
-
-def _synthetic_bag(path: Path) -> Path:
-    """A small MCAP bag: a robot driving 1 m along a corridor, 40 scans, odometry at 2x the scan rate."""
-    from crlam.io.rosbag_writer import LASER_SCAN, ODOMETRY, TF_MESSAGE, McapBagWriter
-
-    angles = np.linspace(-np.pi / 2, np.pi / 2, 181)
-    with McapBagWriter(path) as w:
-        w.write("/tf_static", TF_MESSAGE, 0, w.tf([w.transform(0.0, "base_link", "laser", (0.1, 0.0, 0.0))]), latched=True)
-        for k in range(80):
-            t = 1.0 + 0.05 * k
-            x = 0.0125 * k
-            w.write("/odom", ODOMETRY, int(t * 1e9), w.odometry(t, "odom", "base_link", (x, 0.0, 0.0), tv=0.25))
-            if k % 2 == 1:
-                ts = t + 0.01
-                lx = x + 0.1
-                # Walls at y = +-1.5 and x = 4: the range along each bearing.
-                with np.errstate(divide="ignore"):
-                    side = np.where(np.abs(np.sin(angles)) > 1e-9, 1.5 / np.abs(np.sin(angles)), np.inf)
-                    front = np.where(np.cos(angles) > 1e-9, (4.0 - lx) / np.cos(angles), np.inf)
-                ranges = np.minimum(np.minimum(side, front), 8.0)
-                w.write(
-                    "/scan", LASER_SCAN, int(ts * 1e9), w.laser_scan(ts, "laser", ranges, angles[0], angles[1] - angles[0], 8.0)
-                )
-    return path
 
 
 def test_synthetic_bag_live_equals_offline(tmp_path: Path) -> None:
@@ -371,3 +347,99 @@ def test_tf_odometry_and_multi_echo_scans_live_equal_offline(tmp_path: Path) -> 
     off_t = read_tum(tmp_path / "offline" / "trajectory.tum")
     assert len(live_t.timestamps) == offline.metrics["n_scans"] == 40
     np.testing.assert_allclose(live_t.poses, off_t.poses, atol=1e-9)
+
+
+def test_save_map_service_over_dds_request_reply(tmp_path: Path) -> None:
+    """``/crlam_slam/save_map`` (slam_toolbox/srv/SaveMap as rmw_cyclonedds carries it): before
+    any scan the reply says no map yet and nothing is written; after the bag, the reply says
+    success and the folder is a whole run folder with the Nav2 map. Each reply carries its
+    request's client id and sequence number."""
+    from crlam.ros.services import (
+        RESULT_NO_MAP_RECEIVED,
+        RESULT_SUCCESS,
+        SaveMapRequest,
+        SaveMapResponse,
+        service_topics,
+    )
+
+    bag = _synthetic_bag(tmp_path / "corridor.mcap")
+    params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True)
+    node = SlamNode(params, dict(SLAM), domain=DOMAIN)
+    node.start()
+    client = DdsNode("crlam_test_service_client", domain=DOMAIN)
+    replies: list[Any] = []
+    got = threading.Condition()
+
+    def on_reply(sample: Any) -> None:
+        with got:
+            replies.append(sample)
+            got.notify_all()
+
+    request_topic, reply_topic = service_topics("/crlam_slam/save_map")
+    assert (request_topic, reply_topic) == ("rq/crlam_slam/save_mapRequest", "rr/crlam_slam/save_mapReply")
+    client.reader(reply_topic, SaveMapResponse, qos.reliable(), on_reply, raw=True)
+    w = client.writer(request_topic, SaveMapRequest, qos.reliable(), raw=True)
+
+    def call(seq: int, folder: str) -> Any:
+        w.write(SaveMapRequest(client_guid=0xC0FFEE, sequence_number=seq, name=m.String(data=folder)))
+        with got:
+            assert got.wait_for(lambda: any(r.sequence_number == seq for r in replies), 60)
+        return next(r for r in replies if r.sequence_number == seq)
+
+    try:
+        from crlam.ros.play import _wait_matched
+
+        _wait_matched({request_topic: w}, [request_topic], 60)
+        early = call(1, str(tmp_path / "early"))
+        assert early.result == RESULT_NO_MAP_RECEIVED and early.client_guid == 0xC0FFEE
+        assert not (tmp_path / "early").exists()
+        play_bag(bag, rate=float("inf"), lockstep=True, domain=DOMAIN, timeout=120)
+        done = call(2, str(tmp_path / "saved"))
+        assert done.result == RESULT_SUCCESS and done.client_guid == 0xC0FFEE
+    finally:
+        node.stop(save=False)
+        client.close()
+    out = tmp_path / "saved"
+    assert is_complete(out) and (out / "map.yaml").is_file() and (out / "map.pgm").is_file()
+    assert len(read_tum(out / "trajectory.tum").timestamps) == 40
+
+
+def test_play_clock_and_use_sim_time(tmp_path: Path) -> None:
+    """``crlam ros play --clock`` publishes /clock (the bag's times); a node with use_sim_time
+    (``--use-sim-time`` or ``use_sim_time: true`` in the params file) stamps its map -> odom with
+    it: every stamp is a time the bag's /clock carried (0 before the first /clock arrives, as in
+    ROS 2), none the wall clock."""
+    from rosbags.highlevel import AnyReader
+
+    f = tmp_path / "p.yaml"
+    f.write_text("crlam_slam:\n  ros__parameters:\n    use_sim_time: true\n")
+    assert split_parameters(load_params_file(f, "crlam_slam"), str(f))[0].use_sim_time is True
+    from crlam.cli import build_parser
+
+    args = build_parser().parse_args(["ros", "slam", "--use-sim-time"])
+    assert args.use_sim_time is True
+
+    bag = _synthetic_bag(tmp_path / "corridor.mcap")
+    with AnyReader([bag]) as reader:
+        bag_times = {t for _, t, _ in reader.messages()}
+    params = NodeParameters(max_scan_wait=float("inf"), process_every_scan=True, use_sim_time=True)
+    node = SlamNode(params, dict(SLAM), domain=DOMAIN)
+    node.start()
+    test = DdsNode("crlam_test_clock", domain=DOMAIN)
+    col = Collector(test)
+    col.read("/clock", m.Clock, qos.reliable(1))
+    col.read("/tf", m.TFMessage, qos.reliable(100))
+    try:
+        stats = play_bag(bag, rate=float("inf"), lockstep=True, clock=True, domain=DOMAIN, timeout=120)
+        node.wait_idle()
+    finally:
+        node.stop(save=False)
+    assert col.events["/clock"].wait(30) and col.events["/tf"].wait(30)
+    test.close()
+    assert stats.clock_messages == sum(stats.published.values())
+    ns = lambda t: t.sec * 1_000_000_000 + t.nanosec  # noqa: E731
+    clocks = [ns(c.clock) for c in col.samples["/clock"]]
+    assert set(clocks) <= bag_times and clocks == sorted(clocks)
+    stamps = [ns(tr.header.stamp) for s in col.samples["/tf"] for tr in s.transforms if tr.child_frame_id == "odom"]
+    assert stamps and set(stamps) <= bag_times | {0}
+    assert any(s > 0 for s in stamps)

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from crlam.cli.conventions import add_output_options, deprecated_alias, group, print_settings, say, world_arg
+from crlam.cli.live import add_foxglove_options, announce_live_view, hold_for_clients, open_live_view
 from crlam.cli.options import finite_float, positive_float, positive_int, staged_output
 
 __all__ = ["add_parser", "cmd_explore"]
@@ -37,9 +38,23 @@ def cmd_explore(args: argparse.Namespace) -> int:
     start = tuple(args.start) + (0.0,) if args.start else default_start(world, cfg.resolution)
     print_settings(args, explore_settings=cfg)
     say(args, f"exploring {world.name} from ({start[0]:.1f}, {start[1]:.1f}) with {cfg.function} ...")
-    run = explore(world, (start[0], start[1], start[2]), cfg, progress=not args.quiet, verbose=args.verbose)
-    with output as stage:
-        files = write_explore_folder(run, stage, gif=not args.no_gif)
+    with open_live_view(args, "crlam explore") as view:
+        feed = None
+        if view is not None:
+            from crlam.experiments.explore_live_view import ExploreLiveFeed
+
+            feed = ExploreLiveFeed(view)
+            announce_live_view(view)
+            if args.foxglove_wait:
+                print("foxglove: waiting for a client to subscribe to /map", flush=True)
+                view.wait_for_subscriber("/map")
+        run = explore(world, (start[0], start[1], start[2]), cfg, progress=not args.quiet, verbose=args.verbose, on_event=feed)
+        with output as stage:
+            files = write_explore_folder(run, stage, gif=not args.no_gif)
+        if view is not None and view.republish("/map"):  # the last decision's map, once the folder is in place
+            print(f"foxglove: final map published on {view.url}", flush=True)
+        if view is not None and args.foxglove_wait:
+            hold_for_clients(view, f"the run is written to {args.out}")
     last = run.decisions[-1] if run.decisions else {}
     print(
         f"stopped ({run.stop}) after {len(run.decisions)} decisions, {run.distance:.1f} m; "
@@ -100,6 +115,7 @@ def add_parser(subparsers: Any) -> argparse.ArgumentParser:
     slam.add_argument("--seed", type=int, default=0, help="seed of the sensor noise and candidate sampling")
     out = add_output_options(p)
     out.add_argument("--no-gif", action="store_true", help="skip the animation")
+    add_foxglove_options(p)
     deprecated_alias(p, "--world-resolution", "--resolution")
     deprecated_alias(p, "--particles", "--ucrmi-particles")
     p.set_defaults(func=cmd_explore)

@@ -7,6 +7,7 @@ import math
 from typing import Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, map_file, print_settings
+from crlam.cli.live import add_foxglove_options, announce_live_view, hold_for_clients, open_live_view
 from crlam.cli.options import (
     add_bag_options,
     bag_options,
@@ -116,6 +117,11 @@ def cmd_localize(args: argparse.Namespace) -> int:
     if args.trials:
         from crlam.experiments.localize_trials import run_global_trials
 
+        if args.foxglove is not None:
+            from crlam.errors import ConfigError
+
+            raise ConfigError("--foxglove shows one localization as it runs, not --trials: drop one of them")
+
         if pose is not None:
             from crlam.errors import ConfigError
 
@@ -150,22 +156,37 @@ def cmd_localize(args: argparse.Namespace) -> int:
         raise ConfigError("--resume continues --trials; a single localization is run whole (--force replaces it)")
     if pose is None:
         print("no --initial-pose: global localization (particles over the map's free space)")
-    with staged_output(args) as stage:
-        res = run_localize_log(
-            args.log,
-            args.map,
-            stage,
-            config,
-            initial_pose=pose,
-            initial_cov=cov,
-            nav2_prior=prior,
-            relations=args.relations,
-            reference=args.reference,
-            max_scans=args.max_scans,
-            progress=not args.quiet,
-            bag_options=bag_options(args),
-            time_offset=args.time_offset,
-        )
+    with open_live_view(args, "crlam localize") as view:
+        feed = None
+        if view is not None:
+            from crlam.experiments.slam_live_view import SlamLiveFeed
+
+            feed = SlamLiveFeed(view)
+            announce_live_view(view)
+            if args.foxglove_wait:
+                print("foxglove: waiting for a client to subscribe to /map", flush=True)
+                view.wait_for_subscriber("/map")
+        with staged_output(args) as stage:
+            res = run_localize_log(
+                args.log,
+                args.map,
+                stage,
+                config,
+                initial_pose=pose,
+                initial_cov=cov,
+                nav2_prior=prior,
+                relations=args.relations,
+                reference=args.reference,
+                max_scans=args.max_scans,
+                progress=not args.quiet,
+                bag_options=bag_options(args),
+                time_offset=args.time_offset,
+                live_feed=feed,
+            )
+        if feed is not None and feed.publish_final():
+            print(f"foxglove: final path published on {view.url}", flush=True)
+            if args.foxglove_wait:
+                hold_for_clients(view, f"the run is written to {args.out}")
     m = res.metrics
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, {m['scans_per_s']:.1f} scans/s "
@@ -388,5 +409,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         "--reference", type=input_file, help="TUM trajectory in the map's frame: report errors against it (and judge --trials)"
     )
     add_bag_options(p)
+    add_foxglove_options(p)
     p.set_defaults(func=cmd_localize)
     return p

@@ -14,6 +14,7 @@ import threading
 from typing import Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, say
+from crlam.cli.live import add_foxglove_options, announce_live_view, open_live_view
 
 __all__ = ["add_parser", "cmd_ros_explore", "cmd_ros_localize", "cmd_ros_play", "cmd_ros_slam"]
 
@@ -131,11 +132,14 @@ def _spin(args: argparse.Namespace, node: Any) -> int:
 
     signal.signal(signal.SIGINT, on_signal)
     signal.signal(signal.SIGTERM, on_signal)
-    node.start()
     name = f"crlam ros {args.ros_command}"
-    say(args, f"{name}: running on DDS domain {node.dds.domain} ({node.dds.config_description}); Ctrl-C to stop")
-    done.wait()
-    node.stop(save=True)
+    with open_live_view(args, name) as view:
+        node.live_view = view
+        node.start()
+        announce_live_view(view)
+        say(args, f"{name}: running on DDS domain {node.dds.domain} ({node.dds.config_description}); Ctrl-C to stop")
+        done.wait()
+        node.stop(save=True)
     say(args, f"{name}: stopped; {node.counters}")
     return 0
 
@@ -177,6 +181,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         required=False,
     )
     _dds_options(slam)
+    add_foxglove_options(slam, wait=False)
     slam.set_defaults(func=cmd_ros_slam)
 
     exp = rs.add_parser("explore", help="crlam ros slam that publishes /goal_pose chosen by CRMI or UCRMI on the live map")
@@ -190,6 +195,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         required=False,
     )
     _dds_options(exp)
+    add_foxglove_options(exp, wait=False)
     exp.set_defaults(func=cmd_ros_explore)
 
     loc = rs.add_parser("localize", help="Monte Carlo localization on a known map, /initialpose from RViz")
@@ -207,5 +213,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         required=False,
     )
     _dds_options(loc)
+    add_foxglove_options(loc, wait=False)
     loc.set_defaults(func=cmd_ros_localize)
     return p

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, print_settings
+from crlam.cli.live import add_foxglove_options, announce_live_view, hold_for_clients, open_live_view
 from crlam.cli.options import (
     SLAM_FLAGS,
     add_bag_options,
@@ -69,8 +70,6 @@ def slam_input_of(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
 
 
 def cmd_slam(args: argparse.Namespace) -> int:
-    from crlam.experiments.slam_run import run_slam_log
-
     prior = None
     saved_settings = False
     if args.continue_from is not None:
@@ -90,6 +89,48 @@ def cmd_slam(args: argparse.Namespace) -> int:
         raise ConfigError(f"--out {args.out} is the run being continued: write the continued run to a new folder")
     input_options, odometry = slam_input_of(args)
     print_settings(args, slam_settings=config, input_options=input_options | {"odometry": odometry, "max_scans": max_scans})
+    with open_live_view(args, "crlam slam") as view:
+        feed = None
+        if view is not None:
+            from crlam.experiments.slam_live_view import SlamLiveFeed
+
+            feed = SlamLiveFeed(view)
+            announce_live_view(view)
+            if args.foxglove_wait:
+                print("foxglove: waiting for a client to subscribe to /map", flush=True)
+                view.wait_for_subscriber("/map")
+        res = _run(args, config, max_scans, input_options, odometry, prior, feed)
+        if feed is not None and feed.publish_final():
+            print(f"foxglove: final map published on {view.url}", flush=True)
+            if args.foxglove_wait:
+                hold_for_clients(view, f"the run is written to {args.out}")
+    m = res.metrics
+    print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
+    deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
+    print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
+    print(
+        f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
+        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['filter_peak_rss_mb']:.0f} MB filtering, "
+        f"{m['command_peak_rss_mb']:.0f} MB with the outputs -> {args.out}"
+    )
+    for key in _EVALUATIONS:
+        if key in m:
+            print(f"{key}: " + ", ".join(f"{k}={v:.4g}" for k, v in m[key].items() if isinstance(v, float)))
+    return 0
+
+
+def _run(
+    args: argparse.Namespace,
+    config: SlamConfig,
+    max_scans: int | None,
+    input_options: dict[str, Any],
+    odometry: str,
+    prior: Any,
+    feed: Any,
+) -> Any:
+    """The run into a staged ``--out`` (the folder appears whole once the run is written)."""
+    from crlam.experiments.slam_run import run_slam_log
+
     with staged_output(args) as stage:
         res = run_slam_log(
             args.log,
@@ -105,20 +146,9 @@ def cmd_slam(args: argparse.Namespace) -> int:
             prior=prior,
             verbose=args.verbose,
             laser_mount=laser_mount_mode(args),
+            live_feed=feed,
         )
-    m = res.metrics
-    print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
-    deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
-    print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
-    print(
-        f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
-        f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['filter_peak_rss_mb']:.0f} MB filtering, "
-        f"{m['command_peak_rss_mb']:.0f} MB with the outputs -> {args.out}"
-    )
-    for key in _EVALUATIONS:
-        if key in m:
-            print(f"{key}: " + ", ".join(f"{k}={v:.4g}" for k, v in m[key].items() if isinstance(v, float)))
-    return 0
+    return res
 
 
 def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # type: ignore[type-arg]
@@ -176,5 +206,6 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
     )
     add_bag_options(p)
     add_odometry_options(p)
+    add_foxglove_options(p)
     p.set_defaults(func=cmd_slam)
     return p

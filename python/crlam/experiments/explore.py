@@ -192,13 +192,22 @@ def _resample(points: NDArray[np.float64], step: float) -> NDArray[np.float64]:
 
 
 def explore(
-    world: World, start: tuple[float, float, float], cfg: ExploreConfig, *, progress: bool = False, verbose: bool = False
+    world: World,
+    start: tuple[float, float, float],
+    cfg: ExploreConfig,
+    *,
+    progress: bool = False,
+    verbose: bool = False,
+    on_event: Any = None,
 ) -> ExploreRun:
     """Runs an exploration of ``world`` from ``start`` (x, y, theta) with known poses. ``progress``
     shows a bar of the distance travelled against the budget (tqdm, on stderr); ``verbose`` prints
     a line per decision. Raises
     ``RuntimeError`` if the robot ever stands in an occupied cell of the world (a bug guard), and
-    ``ConfigError`` if ``start`` is not finite or not in the world's free space."""
+    ``ConfigError`` if ``start`` is not finite or not in the world's free space. ``on_event``
+    (e.g. :class:`crlam.experiments.explore_live_view.ExploreLiveFeed`) has ``scan(estimate,
+    angles, ranges, max_range)`` called after every scan and ``decision(maps, origin, resolution,
+    candidates, scores, best, estimates)`` after every decision."""
     res = cfg.resolution
     if len(start) != 3 or not all(math.isfinite(float(v)) for v in start):
         raise ConfigError(f"start must be three finite numbers (x, y, theta), got {tuple(start)!r}")
@@ -263,6 +272,8 @@ def explore(
             _, e, _, _ = slam_filter.process(odom, angles, np.ascontiguousarray(z), np.zeros(3))
             est = np.array(e)
         estimates.append(est)
+        if on_event is not None:
+            on_event.scan(est, angles, z, cfg.sensor_range)
         return est
 
     pose = np.array(start, dtype=np.float64)
@@ -356,6 +367,8 @@ def explore(
             score = gains / np.power(cost, cfg.cost_weight) if cfg.cost_weight > 0 else gains
         best = int(np.argmax(score))
         decision_ms = 1e3 * (time.perf_counter() - t0)
+        if on_event is not None:
+            on_event.decision(dm, origin, res, cand, score, best, np.array(estimates))
         row: dict[str, Any] = {
             "decision": k,
             "distance_m": round(travelled, 4),

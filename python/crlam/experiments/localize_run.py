@@ -191,6 +191,7 @@ def run_localize_log(
     figures: bool = True,
     bag_options: dict[str, Any] | None = None,
     time_offset: str | float = "auto",
+    live_feed: Any = None,
 ) -> LocalizeResult:
     """Localizes the log's scans on the map and writes the run folder (module docstring).
 
@@ -198,7 +199,8 @@ def run_localize_log(
     corrected stamp (:mod:`crlam.time_offset`); ``metrics.json`` records it (``time_offset``).
     Without ``initial_pose`` the localization is global. ``relations`` (a Kuemmerle relations
     file) and ``reference`` (a TUM trajectory in the map's frame) add their errors to
-    ``metrics.json``.
+    ``metrics.json``. ``live_feed`` (a :class:`crlam.experiments.slam_live_view.SlamLiveFeed`)
+    serves the map, scans, particles and pose on a Foxglove WebSocket while the run goes.
     """
     config = config or LocalizeConfig()
     out = Path(out_dir)
@@ -225,10 +227,15 @@ def run_localize_log(
         if loc is None:
             loc = Localizer(loc_map, config, initial_pose=initial_pose, initial_cov=initial_cov, laser_max_range=rec.max_range)
             endpoints = EndpointCounter(loc)
+            if live_feed is not None:
+                live_feed.publish_known_map(loc_map.expected_occupancy())
         if max_scans is not None and loc.n_scans >= max_scans:
             break
         angles, ranges = _scan_inputs(rec)
         step = loc.step(rec.odom, angles, ranges, rec.laser_offset, rec.timestamp)
+        if live_feed is not None:
+            particles = np.asarray(loc.particles()[0], dtype=np.float64) if step.processed else None
+            live_feed.scan(loc, rec, step.processed, step.estimate, particles, spread=(step.spread_xy, step.spread_theta))
         assert endpoints is not None
         k, n = endpoints.fraction(step.estimate, rec) if step.processed else (0, 0)
         near.append(k)
@@ -246,6 +253,8 @@ def run_localize_log(
     # readers expect increasing stamps). A stable sort keeps the file order of equal stamps.
     order = np.argsort(stamps, kind="stable")
     stamps, poses = np.asarray(stamps)[order], np.asarray(poses)[order]
+    if live_feed is not None:
+        live_feed.finish_path(stamps, poses)
     mode = "global" if initial_pose is None else "initial pose"
     write_tum(
         out / "trajectory.tum", stamps, poses, header=f"crlam localize ({mode}) of {Path(log_path).name} on {loc_map.source}"

@@ -180,6 +180,7 @@ def run_slam_log(
     odometry: str = "auto",
     verbose: bool = False,
     laser_mount: str = "auto",
+    live_feed: Any = None,
 ) -> SlamResult:
     """Runs ``config`` on a CARMEN log or a ROS bag and writes the run folder (see the module docstring).
 
@@ -195,7 +196,9 @@ def run_slam_log(
     (:mod:`crlam.slam_continue`): its folder is only read, and must not be ``out_dir``.
     ``laser_mount`` is ``auto`` (check the mount against the odometry, :mod:`crlam.lidar_check`),
     ``data`` (the data's mount unchecked) or ``given`` (set by ``bag_options``); with
-    ``config.body_mask = "auto"`` the body beams are found by the same pre-pass."""
+    ``config.body_mask = "auto"`` the body beams are found by the same pre-pass. ``live_feed``
+    (a :class:`crlam.experiments.slam_live_view.SlamLiveFeed`) serves the run on a Foxglove
+    WebSocket while it runs, and its final map once the run folder is written."""
     if config is None:
         config = SlamConfig.from_preset()
     out = Path(out_dir)
@@ -258,7 +261,18 @@ def run_slam_log(
         recorder = SlamMcapRecorder(out / "run.mcap")
     try:
         run_wall = _run_filter(
-            records, config, log_path, max_scans, progress, recorder, t0, prior, verbose, bag_options=bag_options, lidar=lidar
+            records,
+            config,
+            log_path,
+            max_scans,
+            progress,
+            recorder,
+            t0,
+            prior,
+            verbose,
+            bag_options=bag_options,
+            lidar=lidar,
+            live_feed=live_feed,
         )
     except BaseException:
         if recorder is not None:
@@ -281,6 +295,7 @@ def run_slam_log(
         prior,
         offset.to_dict(),
         map_range=map_range,
+        live_feed=live_feed,
     )
 
 
@@ -304,6 +319,7 @@ def _run_filter(
     *,
     bag_options: dict[str, Any] | None = None,
     lidar: LidarSetup | None = None,
+    live_feed: Any = None,
 ) -> tuple[SlamRun, float]:
     """Feeds the log's scans to a filter for ``config``; returns the run and its wall time since ``t0`` (s).
     ``verbose`` prints a line per processed scan (estimate, N_eff, resampling)."""
@@ -328,10 +344,13 @@ def _run_filter(
             rec = lidar.correct(rec)
         angles, ranges = _scan_inputs(rec, readings)
         step = run.step(rec.odom, angles, ranges, rec.laser_offset, rec.timestamp)
-        if recorder is not None:
+        if recorder is not None or live_feed is not None:
             assert run.filter is not None
             particles = np.asarray(run.filter.particle_poses(), dtype=np.float64) if step.processed else None
-            recorder.scan(rec, step.processed, step.estimate, particles)
+            if recorder is not None:
+                recorder.scan(rec, step.processed, step.estimate, particles)
+            if live_feed is not None:
+                live_feed.scan(run, rec, step.processed, step.estimate, particles)
         if verbose and step.processed:
             x, y, th = (float(v) for v in step.estimate)
             tqdm.write(
@@ -367,6 +386,7 @@ def _write_outputs(
     prior: SlamPrior | None = None,
     time_offset: dict[str, Any] | None = None,
     map_range: MapRangeChoice | None = None,
+    live_feed: Any = None,
 ) -> SlamResult:
     run, wall = run_wall
     # The filter's own high-water mark: taken when filtering has finished, before any output.
@@ -516,8 +536,17 @@ def _write_outputs(
         write_belief_archive(
             out / "belief.npz", best, estimate=estimate, estimate_cov=pose_covariance(*run.filter.weighed_set(), estimate)
         )
-    products = map_products(best, grids=recorder is not None)
+    products = map_products(best, grids=recorder is not None or live_feed is not None)
     del best
+    if live_feed is not None:
+        assert products.grid is not None
+        live_feed.finish(
+            stamps[order],
+            poses[order],
+            GridInfo(products.shape, products.origin, products.resolution),
+            products.grid,
+            products.confidence_grid,
+        )
     if recorder is not None:
         try:
             assert products.grid is not None

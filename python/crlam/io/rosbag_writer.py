@@ -38,6 +38,7 @@ __all__ = [
     "POSE_ARRAY",
     "TF_MESSAGE",
     "McapBagWriter",
+    "RosMessageBuilder",
     "yaw_quaternion",
 ]
 
@@ -80,83 +81,12 @@ def yaw_quaternion(yaw: float) -> tuple[float, float, float, float]:
     return (0.0, 0.0, z, w)
 
 
-class McapBagWriter:
-    """A ROS 2 bag with MCAP storage; connections are added on a topic's first message.
+class RosMessageBuilder:
+    """Builds ROS 2 messages (rosbags' classes of ``types``) from crlam's poses and scans:
+    what :class:`McapBagWriter` writes and :mod:`crlam.live_view` serves."""
 
-    Parameters
-    ----------
-    path : str or PathLike
-        A folder to create (it must not exist), or a file ending in ``.mcap`` (overwritten).
-
-    Use it as a context manager. :meth:`write` takes the topic, the message type, the receive
-    time in integer nanoseconds and the message built from :attr:`types`.
-    """
-
-    def __init__(self, path: str | os.PathLike[str]) -> None:
-        try:
-            from rosbags.rosbag2 import StoragePlugin, Writer
-            from rosbags.typesys import Stores, get_typestore
-        except ImportError as exc:  # pragma: no cover - rosbags is a dependency
-            raise ConfigError("writing ROS bags needs the 'rosbags' package (pip install rosbags)") from exc
-        self.path = Path(path)
-        self.typestore = get_typestore(Stores.ROS2_HUMBLE)
-        self.types: dict[str, Any] = self.typestore.types
-        self._single_file = self.path.suffix.lower() == ".mcap"
-        self._tmp: Path | None = None
-        if self._single_file:
-            self.path.parent.mkdir(parents=True, exist_ok=True)
-            self._tmp = Path(tempfile.mkdtemp(prefix=".crlam-mcap-", dir=self.path.parent))
-            folder = self._tmp / self.path.stem
-        else:
-            if self.path.exists():
-                raise ConfigError(f"{self.path} exists already: a bag is written to a new folder")
-            folder = self.path
-        writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
-        writer.open()
-        self._writer: Any = writer
-        self._folder = folder
-        self._conns: dict[str, Any] = {}
-        self.counts: dict[str, int] = {}
-
-    def __enter__(self) -> Self:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close(keep=exc_type is None)
-
-    def close(self, keep: bool = True) -> None:
-        """Finish the bag (with ``keep=False``, after an error, a single-file output is dropped)."""
-        if self._writer is None:
-            return
-        self._writer.close()
-        self._writer = None
-        if self._tmp is not None:
-            if keep:
-                files = sorted(self._folder.glob("*.mcap"))
-                if len(files) != 1:  # pragma: no cover - rosbags writes one file without splitting
-                    raise ConfigError(f"expected one .mcap file in {self._folder}, found {len(files)}")
-                os.replace(files[0], self.path)
-            shutil.rmtree(self._tmp, ignore_errors=True)
-
-    def write(self, topic: str, msgtype: str, t_ns: int, msg: Any, *, latched: bool = False) -> None:
-        """Write ``msg`` on ``topic``; ``latched`` topics are offered as transient-local (like
-        ``/tf_static`` and ``/map``), so a late subscriber of ``ros2 bag play`` still gets them."""
-        if self._writer is None:
-            raise ConfigError(f"bag writer for {self.path} is closed")
-        conn = self._conns.get(topic)
-        if conn is None:
-            qos = [_latched_qos()] if latched else []
-            conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore, offered_qos_profiles=qos)
-            self._conns[topic] = conn
-        self._writer.write(conn, int(t_ns), self.typestore.serialize_cdr(msg, msgtype))
-        self.counts[topic] = self.counts.get(topic, 0) + 1
-
-    # -- message builders ----------------------------------------------------------------------
+    def __init__(self, types: dict[str, Any]) -> None:
+        self.types = types
 
     def header(self, t: float, frame: str) -> Any:
         sec, nsec = ros_time(t)
@@ -222,6 +152,83 @@ class McapBagWriter:
                 covariance=np.zeros(36),
             ),
         )
+
+
+class McapBagWriter(RosMessageBuilder):
+    """A ROS 2 bag with MCAP storage; connections are added on a topic's first message.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A folder to create (it must not exist), or a file ending in ``.mcap`` (overwritten).
+
+    Use it as a context manager. :meth:`write` takes the topic, the message type, the receive
+    time in integer nanoseconds and the message built from :attr:`types`.
+    """
+
+    def __init__(self, path: str | os.PathLike[str]) -> None:
+        try:
+            from rosbags.rosbag2 import StoragePlugin, Writer
+            from rosbags.typesys import Stores, get_typestore
+        except ImportError as exc:  # pragma: no cover - rosbags is a dependency
+            raise ConfigError("writing ROS bags needs the 'rosbags' package (pip install rosbags)") from exc
+        self.path = Path(path)
+        self.typestore = get_typestore(Stores.ROS2_HUMBLE)
+        super().__init__(self.typestore.types)
+        self._single_file = self.path.suffix.lower() == ".mcap"
+        self._tmp: Path | None = None
+        if self._single_file:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self._tmp = Path(tempfile.mkdtemp(prefix=".crlam-mcap-", dir=self.path.parent))
+            folder = self._tmp / self.path.stem
+        else:
+            if self.path.exists():
+                raise ConfigError(f"{self.path} exists already: a bag is written to a new folder")
+            folder = self.path
+        writer = Writer(folder, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer.open()
+        self._writer: Any = writer
+        self._folder = folder
+        self._conns: dict[str, Any] = {}
+        self.counts: dict[str, int] = {}
+
+    def __enter__(self) -> Self:
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close(keep=exc_type is None)
+
+    def close(self, keep: bool = True) -> None:
+        """Finish the bag (with ``keep=False``, after an error, a single-file output is dropped)."""
+        if self._writer is None:
+            return
+        self._writer.close()
+        self._writer = None
+        if self._tmp is not None:
+            if keep:
+                files = sorted(self._folder.glob("*.mcap"))
+                if len(files) != 1:  # pragma: no cover - rosbags writes one file without splitting
+                    raise ConfigError(f"expected one .mcap file in {self._folder}, found {len(files)}")
+                os.replace(files[0], self.path)
+            shutil.rmtree(self._tmp, ignore_errors=True)
+
+    def write(self, topic: str, msgtype: str, t_ns: int, msg: Any, *, latched: bool = False) -> None:
+        """Write ``msg`` on ``topic``; ``latched`` topics are offered as transient-local (like
+        ``/tf_static`` and ``/map``), so a late subscriber of ``ros2 bag play`` still gets them."""
+        if self._writer is None:
+            raise ConfigError(f"bag writer for {self.path} is closed")
+        conn = self._conns.get(topic)
+        if conn is None:
+            qos = [_latched_qos()] if latched else []
+            conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore, offered_qos_profiles=qos)
+            self._conns[topic] = conn
+        self._writer.write(conn, int(t_ns), self.typestore.serialize_cdr(msg, msgtype))
+        self.counts[topic] = self.counts.get(topic, 0) + 1
 
 
 def ros_time(t: float) -> tuple[int, int]:

@@ -113,29 +113,46 @@ class DdsNode:
         self.participant: Any = DomainParticipant(self.domain, qos=Qos(Policy.EntityName(name)))
         self._topics: dict[str, Any] = {}
         self._entities: list[Any] = []
+        #: Each writer's (ROS topic, ROS type name ``pkg/msg/Type``, transient local), by ``id(writer)``.
+        self.writer_topics: dict[int, tuple[str, str, bool]] = {}
+        #: Called with (ROS topic, ROS type name) of each new writer (the live view advertises it).
+        self.on_new_writer: Callable[[str, str], None] | None = None
 
-    def _topic(self, topic: str, cls: type) -> Any:
+    def _topic(self, topic: str, cls: type, raw: bool = False) -> Any:
         from cyclonedds.topic import Topic
 
-        dds = dds_topic_name(topic)
+        dds = topic if raw else dds_topic_name(topic)
         if dds not in self._topics:
             self._topics[dds] = Topic(self.participant, dds, cls)
         return self._topics[dds]
 
-    def writer(self, topic: str, cls: type, qos: Any) -> Any:
-        """A DataWriter of ``cls`` on ROS topic ``topic``."""
+    def writer(self, topic: str, cls: type, qos: Any, *, raw: bool = False) -> Any:
+        """A DataWriter of ``cls`` on ROS topic ``topic`` (``raw``: ``topic`` is the DDS topic's
+        own name, such as a service's ``rr/NODE/SERVICEReply``)."""
+        from cyclonedds.core import Policy
         from cyclonedds.pub import DataWriter
 
-        w = DataWriter(self.participant, self._topic(topic, cls), qos=qos)
+        from crlam.live_view import ros_type_name
+
+        w = DataWriter(self.participant, self._topic(topic, cls, raw), qos=qos)
         self._entities.append(w)
+        if raw:
+            return w
+        msgtype = ros_type_name(cls.__idl_typename__)  # type: ignore[attr-defined]
+        self.writer_topics[id(w)] = (topic, msgtype, Policy.Durability.TransientLocal in qos)
+        if self.on_new_writer is not None:
+            self.on_new_writer(topic, msgtype)
         return w
 
-    def reader(self, topic: str, cls: type, qos: Any, on_sample: Callable[[Any], None] | None = None) -> Any:
-        """A DataReader of ``cls`` on ROS topic ``topic``; ``on_sample`` is called with each sample."""
+    def reader(
+        self, topic: str, cls: type, qos: Any, on_sample: Callable[[Any], None] | None = None, *, raw: bool = False
+    ) -> Any:
+        """A DataReader of ``cls`` on ROS topic ``topic`` (``raw``: the DDS topic's own name);
+        ``on_sample`` is called with each sample."""
         from cyclonedds.core import Listener
         from cyclonedds.sub import DataReader
 
-        r = DataReader(self.participant, self._topic(topic, cls), qos=qos)
+        r = DataReader(self.participant, self._topic(topic, cls, raw), qos=qos)
         self._entities.append(r)
         if on_sample is not None:
             lock = threading.Lock()  # the drain below and Cyclone's thread never interleave samples

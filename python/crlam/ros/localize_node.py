@@ -178,14 +178,14 @@ class LocalizeNode(SlamNode):
         conv = None if loc is None else loc.convergence
         return {"converged": int(conv is not None), "converged_at_scan": -1 if conv is None else conv.scan_index}
 
-    def _save(self, request: str) -> None:
+    def _save(self, request: str) -> bool | None:
         from crlam.io.tum import write_tum
         from crlam.run_folder import staged_folder
 
         target = request or self.params.output_folder
         if not target or self.localizer is None or not self.localizer.steps:
             print(f"crlam ros localize: nothing to save to {target or '(no folder)'}", flush=True)
-            return
+            return None if not target else False
         with self.lock:
             self._resolve(final=True)
             scans, self.ready = list(self.ready), type(self.ready)()
@@ -207,3 +207,4 @@ class LocalizeNode(SlamNode):
             (stage / "metrics.json").write_text(json.dumps(metrics, indent=2, default=str) + "\n")
         self.saved.append(Path(target))
         print(f"crlam ros localize: saved {self.localizer.n_scans} scans to {target}", flush=True)
+        return True

@@ -18,10 +18,13 @@ def _table(header: tuple[str, ...], rows: Sequence[tuple[str, ...]]) -> str:
 def ros_reference() -> str:
     """Markdown: the nodes' topics, their parameters and the slam_toolbox / AMCL names."""
     from crlam.experiments.explore import ExploreConfig
+    from crlam.experiments.explore_live_view import TOPICS as EXPLORE_VIEW_TOPICS
+    from crlam.experiments.slam_live_view import TOPICS as OFFLINE_VIEW_TOPICS
     from crlam.localize import LocalizeConfig
     from crlam.ros.explore_node import EXPLORE_TOPICS
     from crlam.ros.localize_node import AMCL_NAMES, LOCALIZE_TOPICS
     from crlam.ros.params import ROS_NAMES, NodeParameters
+    from crlam.ros.save_map_service import SERVICES
     from crlam.ros.slam_node import SLAM_TOPICS
     from crlam.slam import SlamConfig
 
@@ -46,6 +49,24 @@ def ros_reference() -> str:
             [tuple(f"`{c}`" if i < 2 else c for i, c in enumerate(r)) for r in EXPLORE_TOPICS],
         )
     )
+    out += ["", "### Services (every node; `<node>`: `crlam_slam`, `crlam_localize`, `crlam_explore`)", ""]
+    out.append(
+        _table(
+            ("service", "type", "DDS topics", "what"),
+            [tuple(f"`{c}`" if i < 3 else c for i, c in enumerate(r)) for r in SERVICES],
+        )
+    )
+    out += ["", "### Live view (`--foxglove`): the Foxglove WebSocket's topics", ""]
+    node_view = ", ".join(f"`{t}`" for t, _, io, _, _ in SLAM_TOPICS + EXPLORE_TOPICS if io == "out")
+    out.append(
+        f"The nodes serve every output topic ({node_view}), latched where DDS has it transient local, and the inputs "
+        "the filter used: `/scan` (each scan it took), `/tf` `odom -> base_link` at those scans, `/tf_static`. "
+        "`crlam slam` and `crlam localize` serve:"
+    )
+    out += [""]
+    out.append(_table(("topic", "type"), [(f"`{t}`", f"`{ty}`") for t, ty in OFFLINE_VIEW_TOPICS.items()]))
+    out += ["", "`crlam explore` (a simulated exploration; stamps: 0.1 s of simulated time per scan) serves:", ""]
+    out.append(_table(("topic", "type"), [(f"`{t}`", f"`{ty}`") for t, ty in EXPLORE_VIEW_TOPICS.items()]))
     out += ["", "### Node parameters (every node)", ""]
     rows = [(f"`{f.name}`", f"`{f.default!r}`", f.metadata.get("help", "")) for f in dataclasses.fields(NodeParameters)]
     out.append(_table(("parameter", "default", "what"), rows))

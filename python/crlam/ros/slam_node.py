@@ -15,7 +15,12 @@ expected occupancy x 100 and the occupancy's standard deviation x 200, -1 unknow
 take a lock for microseconds); one worker thread runs the filter on the newest matched scan
 (a matched scan that another replaces before the worker takes it is *dropped* and counted: the
 filter's own update triggers would have skipped most of them anyway), and a timer thread
-publishes map -> odom at a steady rate. A save (request or shutdown) writes a crlam run folder
+publishes map -> odom at a steady rate. With a :class:`crlam.live_view.LiveView` as
+:attr:`SlamNode.live_view` (``--foxglove``), every output also goes, as the same CDR bytes, to the
+Foxglove WebSocket, with the scans the filter took, ``odom -> base_link`` at those scans and
+``/tf_static``; a message is serialised for it only while a client subscribes to its topic, and
+the server drops a slow client's oldest messages: the view never holds up the filter.
+A save (request or shutdown) writes a crlam run folder
 (trajectory, maps, belief, config) plus the Nav2 map through :func:`crlam.run_folder.staged_folder`:
 the folder appears whole or not at all.
 """
@@ -33,8 +38,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crlam.errors import CrlamError
+from crlam.ros.live_view_mirror import LiveViewMirror
 from crlam.ros.odometry_buffer import OdometryBuffer, PendingScan
 from crlam.ros.params import NodeParameters
+from crlam.ros.save_map_service import SaveMapService
 
 __all__ = ["DIAGNOSTIC_NAME", "SLAM_TOPICS", "SlamNode"]
 
@@ -105,7 +112,7 @@ def scan_ranges(msg: Any) -> NDArray[np.float64]:
     return r
 
 
-class SlamNode:
+class SlamNode(SaveMapService, LiveViewMirror):
     """The node; :meth:`start` makes its readers, writers and threads, :meth:`stop` ends them.
 
     Parameters
@@ -152,11 +159,14 @@ class SlamNode:
         self.last_map_t = -math.inf
         self.path_poses: list[Any] = []
         self.stop_event = threading.Event()
-        self.save_requests: deque[str] = deque()
+        #: Save requests: (folder, the service request's (client id, sequence number) to reply to, or None).
+        self.save_requests: deque[tuple[str, tuple[int, int] | None]] = deque()
         self.saved: list[Path] = []
         self.busy = False
         self.threads: list[threading.Thread] = []
         self.t_first_wall: float | None = None
+        #: A :class:`crlam.live_view.LiveView` to mirror the outputs to (set before :meth:`start`), or None.
+        self.live_view: Any = None
 
     #: The node's name (DDS participant, parameter file section, diagnostics).
     NODE_NAME = "crlam_slam"
@@ -183,6 +193,12 @@ class SlamNode:
         p = self.params
         self.dds = DdsNode(self.NODE_NAME, domain=self.domain, dds_config=self.dds_config)
         d = self.dds
+        view = self.live_view
+        if view is not None:
+            # Every output is advertised at once (a client can subscribe before its first message),
+            # and so are the inputs the view mirrors.
+            d.on_new_writer = lambda topic, msgtype: view.announce({topic: msgtype})
+            view.announce({"/scan": "sensor_msgs/msg/LaserScan", "/tf_static": "tf2_msgs/msg/TFMessage"})
         self.w_map = d.writer("/map", m.OccupancyGrid, qos.latched())
         self.w_conf = d.writer("/map_confidence", m.OccupancyGrid, qos.latched())
         self.w_meta = d.writer("/map_metadata", m.MapMetaData, qos.latched())
@@ -201,6 +217,7 @@ class SlamNode:
         else:
             d.reader(p.scan_topic, m.LaserScan, qos.sensor_data(10), self._on_scan)
         d.reader(p.save_map_topic, m.String, qos.reliable(), self._on_save)
+        self._serve_save_map()
         if p.use_sim_time:
             d.reader("/clock", m.Clock, qos.reliable(1), self._on_clock)
         for target, name in ((self._work, "crlam-slam-worker"), (self._publish_tf_loop, "crlam-slam-tf")):
@@ -211,9 +228,16 @@ class SlamNode:
 
     def _write(self, writer: Any, msg: Any) -> None:
         """Every write goes through one lock: the binding serialises a type into a buffer it
-        shares between writers, so two threads must never write at once."""
+        shares between writers, so two threads must never write at once. The live view gets the
+        same bytes (transient-local topics latched)."""
         with self.write_lock:
             writer.write(msg)
+            view = self.live_view
+            entry = None if view is None else self.dds.writer_topics.get(id(writer))  # None: a service's reply
+            if entry is not None:
+                topic, msgtype, latched = entry
+                if latched or view.has_subscriber(topic, msgtype):
+                    view.publish_cdr(topic, msgtype, msg.serialize(), latched=latched)
 
     def now(self) -> float:
         """The time output is stamped with: /clock with use_sim_time, else the wall clock (s)."""
@@ -228,6 +252,9 @@ class SlamNode:
         with self.lock:
             for tr in msg.transforms:
                 self.static[(tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/"))] = tr.transform
+            static = list(self.static.items())
+        if self.live_view is not None:
+            self._view_static(static)
 
     def _mount_of(self, laser_frame: str) -> tuple[NDArray[np.float64], bool] | None:
         """The laser's mount in the base frame from /tf_static (None until it is known)."""
@@ -314,7 +341,7 @@ class SlamNode:
 
     def _on_save(self, msg: Any) -> None:
         with self.lock:
-            self.save_requests.append(msg.data.strip())
+            self.save_requests.append((msg.data.strip(), None))
             self.wake.notify_all()
 
     def _resolve(self, final: bool) -> None:
@@ -346,14 +373,17 @@ class SlamNode:
                     return  # stop
                 scan = self.ready.popleft() if self.ready else None
                 self.busy = scan is not None or request is not None
+            saved: bool | None = None
             try:
                 if scan is not None:
                     self._step(scan)
                 if request is not None:
-                    self._save(request)
-            except CrlamError as exc:
+                    saved = self._save(request[0])
+            except (CrlamError, OSError) as exc:
                 print(f"crlam ros slam: error: {exc}", flush=True)
             finally:
+                if request is not None and request[1] is not None:
+                    self._reply_save(request[1], saved)
                 with self.lock:
                     self.busy = False
                     self.wake.notify_all()
@@ -410,6 +440,8 @@ class SlamNode:
             self.t_first_wall = time.perf_counter()
         angles, ranges, rmax = self._scan_inputs(scan.payload)
         processed, est, particles, spread = self._filter_step(scan, angles, ranges, rmax)
+        if self.live_view is not None:
+            self._view_scan(scan)
         # map -> odom = estimate (map) composed with the inverse odometry pose (odom).
         c, s = math.cos(scan.odom[2]), math.sin(scan.odom[2])
         inv = np.array([-(c * scan.odom[0] + s * scan.odom[1]), s * scan.odom[0] - c * scan.odom[1], -scan.odom[2]])
@@ -528,14 +560,15 @@ class SlamNode:
 
     # --- saving -------------------------------------------------------------------------------
 
-    def _save(self, request: str) -> None:
-        """Writes the run folder ``request`` (or ``output_folder``) whole, or not at all."""
+    def _save(self, request: str) -> bool | None:
+        """Writes the run folder ``request`` (or ``output_folder``) whole, or not at all: True once
+        written, False with nothing to save yet, None without a folder to write."""
         from crlam.run_folder import staged_folder
 
         target = request or self.params.output_folder
         if not target:
             print("crlam ros slam: save request without a folder and no output_folder parameter: ignored", flush=True)
-            return
+            return None
         with self.lock:
             self._resolve(final=True)
             scans, self.ready = list(self.ready), deque()
@@ -543,7 +576,7 @@ class SlamNode:
             self._step(scan)
         if self.run is None or not self.run.particle_sets:
             print(f"crlam ros slam: nothing to save to {target} yet (no scan processed)", flush=True)
-            return
+            return False
         from crlam.experiments.slam_run import write_slam_outputs
 
         p = self.params
@@ -563,11 +596,12 @@ class SlamNode:
         self._publish_map(self.run.stamps[-1])
         self.saved.append(Path(target))
         print(f"crlam ros slam: saved {self.run.n_scans} scans to {target}", flush=True)
+        return True
 
     def request_save(self, folder: str = "") -> None:
         """Queues a save (as a message on the save topic does)."""
         with self.lock:
-            self.save_requests.append(folder)
+            self.save_requests.append((folder, None))
             self.wake.notify_all()
 
     def wait_idle(self) -> None:
