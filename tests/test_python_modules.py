@@ -27,7 +27,8 @@ LAYERS: list[set[str]] = [
     {"limits", "pose"},
     {"crlam"},  # the package's __init__: its version and the errors and limits it re-exports
     # run_folder records the version in each run folder's markers.
-    {"io", "run_folder"},
+    # live_view serves ROS messages' bytes on a Foxglove WebSocket: it reads no crlam module.
+    {"io", "run_folder", "live_view"},
     # Reading checks and the odometry's re-attachment at corrected stamps: below the maps and slam.
     {"body_mask", "laser_mount", "odometry_retime", "map_range"},
     # Maps and the simulator read and write through io; fill and grid_alignment are pose maths.

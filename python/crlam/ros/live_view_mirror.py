@@ -28,7 +28,7 @@ class LiveViewMirror:
 
     def _view_scan(self, scan: PendingScan) -> None:
         """The live view's scan and ``odom -> base_link`` at its stamp (the odometry it was matched with)."""
-        from crlam.ros.slam_node import ros_messages, yaw_quaternion
+        from crlam.ros.message_helpers import ros_messages, yaw_quaternion
 
         m = ros_messages()
 
@@ -47,7 +47,7 @@ class LiveViewMirror:
 
     def _view_static(self, static: list[tuple[tuple[str, str], Any]]) -> None:
         """The laser mount (every static transform known: ((parent, child), Transform)), latched."""
-        from crlam.ros.slam_node import ros_messages
+        from crlam.ros.message_helpers import ros_messages
 
         m = ros_messages()
         transforms = [
