@@ -248,7 +248,15 @@ def test_an_interrupted_sweep_resumes(tmp_path: Path, cluster: Any) -> None:
         control.run(_hold_runs_but, "clam_run00", str(gate))
         try:
             env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p)}
-            client = subprocess.Popen([sys.executable, "-m", "crlam.cli", *argv], env=env, stderr=subprocess.PIPE, text=True)
+            # SIGINT at its default in the client: a shell running pytest in the background (no job
+            # control) starts it ignored, and Python then installs no KeyboardInterrupt handler.
+            client = subprocess.Popen(
+                [sys.executable, "-m", "crlam.cli", *argv],
+                env=env,
+                stderr=subprocess.PIPE,
+                text=True,
+                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+            )
             _wait_for(lambda: (out / "runs" / "clam_run00" / "COMPLETE").exists() or client.poll() is not None, "run 0")
             assert client.poll() is None, "the sweep ended while three of its runs were held"
             client.send_signal(signal.SIGINT)

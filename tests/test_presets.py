@@ -17,6 +17,7 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
+import crlam.preset_files as preset_files
 import crlam.presets as presets
 from crlam.cli import build_parser, main, slam_config_of
 from crlam.errors import ConfigError
@@ -168,15 +169,15 @@ def test_overrides_win_and_unknown_names_are_errors() -> None:
 def test_a_bad_preset_file_names_the_file_and_the_key(
     body: str, key: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(presets, "_DIR", tmp_path)
-    presets._load_preset.cache_clear()
+    monkeypatch.setattr(preset_files, "_DIR", tmp_path)  # where crlam.presets reads its files
+    preset_files._load_preset.cache_clear()
     (tmp_path / "bad.toml").write_text(body)
     try:
         with pytest.raises(ConfigError) as e:
             presets.resolve("bad", {})
         assert str(tmp_path / "bad.toml") in str(e.value) and key in str(e.value), e.value
     finally:
-        presets._load_preset.cache_clear()
+        preset_files._load_preset.cache_clear()
 
 
 def test_a_bad_config_file_names_the_file_and_the_key(tmp_path: Path) -> None:

@@ -1,4 +1,5 @@
-//! Python class for the RBPF-CLAM particle filter.
+//! Python classes of the particle filters (RBPF-CLAM, RBPF-OGM) and their argument conversions;
+//! the scan matcher of scan-matching odometry is in `local_matcher`.
 
 use crlam_core::crm::{BatchKernel, CrmConfig, LevelPlacement, ScanUpdateMode};
 use crlam_core::grid::{CellRect, GridGeometry};
@@ -7,9 +8,9 @@ use crlam_core::ogm::LogOddsParams;
 use crlam_core::rbpf::MatchRange;
 use crlam_core::rbpf::{
     mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamPrior, ClamProposal,
-    CorrelativeSettings, FilterStep, LocalMapMatcher as CoreLocalMapMatcher, MatcherParams,
-    ModeBandwidth, MotionDraws, OgmFilterConfig, ParticleFilter, ProposalParams, ProposalPose,
-    RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings, ScanMatchWeight, UpdateTrigger,
+    CorrelativeSettings, FilterStep, MatcherParams, ModeBandwidth, MotionDraws, OgmFilterConfig,
+    ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings,
+    ScanMatchWeight, UpdateTrigger,
 };
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
@@ -607,105 +608,3 @@ filter_pymethods!(OgmFilter {
         LogOddsMap::from_core(self.inner.best_map().clone())
     }
 });
-
-/// One scan matcher on one GMapping-style grid: match a scan from a start pose, insert a scan
-/// at a pose (the building block of `crlam.scan_odometry`).
-#[pyclass(module = "crlam._native")]
-pub struct LocalMapMatcher {
-    inner: CoreLocalMapMatcher,
-}
-
-#[pymethods]
-impl LocalMapMatcher {
-    #[new]
-    #[pyo3(signature = (*, resolution=0.05, usable_range=8.0, score_sigma=0.05, lstep=0.05, astep=0.05, iterations=5, kernel_size=1, beam_stride=1))]
-    fn new(
-        resolution: f64,
-        usable_range: f64,
-        score_sigma: f64,
-        lstep: f64,
-        astep: f64,
-        iterations: usize,
-        kernel_size: usize,
-        beam_stride: usize,
-    ) -> PyResult<Self> {
-        guard("LocalMapMatcher.new", || {
-            let params = MatcherParams {
-                score_sigma,
-                lstep,
-                astep,
-                iterations,
-                kernel_size,
-                beam_stride,
-                ..MatcherParams::default()
-            };
-            Ok(Self {
-                inner: CoreLocalMapMatcher::new(resolution, usable_range, params).py_err()?,
-            })
-        })
-    }
-
-    /// Hill-climbs the scan from the robot pose `start`: (pose, score, matched beams, used beams).
-    fn match_scan(
-        &self,
-        py: Python<'_>,
-        start: PyReadonlyArray1<'_, f64>,
-        angles: PyReadonlyArray1<'_, f64>,
-        ranges: PyReadonlyArray1<'_, f64>,
-        laser_offset: PyReadonlyArray1<'_, f64>,
-    ) -> PyResult<((f64, f64, f64), f64, usize, usize)> {
-        guard("LocalMapMatcher.match_scan", || {
-            let (s, a, r, o) = (
-                pose3(&start)?,
-                slice1(&angles, "angles")?,
-                slice1(&ranges, "ranges")?,
-                pose3(&laser_offset)?,
-            );
-            let inner = &self.inner;
-            let m = py.allow_threads(|| inner.match_scan(s, a, r, o)).py_err()?;
-            Ok((
-                (m.pose[0], m.pose[1], m.pose[2]),
-                m.score,
-                m.matched,
-                m.used,
-            ))
-        })
-    }
-
-    /// Integrates the scan with the robot at `pose`.
-    fn insert(
-        &mut self,
-        py: Python<'_>,
-        pose: PyReadonlyArray1<'_, f64>,
-        angles: PyReadonlyArray1<'_, f64>,
-        ranges: PyReadonlyArray1<'_, f64>,
-        laser_offset: PyReadonlyArray1<'_, f64>,
-    ) -> PyResult<()> {
-        guard("LocalMapMatcher.insert", || {
-            let (p, a, r, o) = (
-                pose3(&pose)?,
-                slice1(&angles, "angles")?,
-                slice1(&ranges, "ranges")?,
-                pose3(&laser_offset)?,
-            );
-            let inner = &mut self.inner;
-            py.allow_threads(|| inner.insert(p, a, r, o)).py_err()
-        })
-    }
-
-    /// Forgets every inserted scan.
-    fn clear(&mut self) {
-        self.inner.clear();
-    }
-
-    /// Scans inserted since the last `clear`.
-    #[getter]
-    fn n_inserted(&self) -> usize {
-        self.inner.n_inserted()
-    }
-
-    /// The grid (a copy-on-write copy; log-odds of the hit-rate cells).
-    fn map(&self) -> LogOddsMap {
-        LogOddsMap::from_core(self.inner.map().clone())
-    }
-}

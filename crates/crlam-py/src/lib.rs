@@ -10,6 +10,7 @@ mod dispatch;
 mod filters;
 mod info;
 mod info_state;
+mod local_matcher;
 mod localize;
 mod maps;
 mod planner;
@@ -57,7 +58,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<maps::LogOddsMap>()?;
     m.add_class::<filters::ClamFilter>()?;
     m.add_class::<filters::OgmFilter>()?;
-    m.add_class::<filters::LocalMapMatcher>()?;
+    m.add_class::<local_matcher::LocalMapMatcher>()?;
     m.add_class::<localize::MclFilter>()?;
     m.add_class::<info_state::OccupancyLattice>()?;
     m.add_class::<info_state::GpVarianceMap>()?;

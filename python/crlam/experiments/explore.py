@@ -31,6 +31,7 @@ from tqdm import tqdm
 
 from crlam import _native
 from crlam.errors import ConfigError
+from crlam.experiments.explore_candidates import pick_candidates
 from crlam.experiments.explore_window import decision_maps
 from crlam.experiments.pool import write_atomic
 from crlam.info import make_function
@@ -173,13 +174,6 @@ def _path(pred: NDArray[np.int64], goal: int, nx: int) -> list[tuple[int, int]]:
     return cells[::-1]
 
 
-def _sorted_unique(a: NDArray[np.int64]) -> NDArray[np.int64]:
-    """``np.unique(a)`` for a 1-D integer array. numpy >= 2.3's ``unique`` imports ``numpy.ma`` on
-    its first call (~50 ms, which would land in the first decision's time)."""
-    s = np.sort(a)
-    return s[np.concatenate([[True], s[1:] != s[:-1]])] if s.size else s
-
-
 def _resample(points: NDArray[np.float64], step: float) -> NDArray[np.float64]:
     """Points every ``step`` metres along a polyline (the last point included)."""
     if len(points) < 2:
@@ -305,22 +299,10 @@ def explore(
         reach = np.isfinite(dist) & (dist >= 2 * res)
         # Frontier: reachable cells as close to unknown space as the clearance allows.
         frontier = reach & (dm.to_unknown < cfg.robot_radius + 1.5 * res)
-        # Window cells (wy, wx) in row-major order, the order of the whole map's cells.
-        wy, wx = np.nonzero(reach)
-        cy, cx = wy + dm.iy0, wx + dm.ix0
-        centres = np.column_stack([origin[0] + (cx + 0.5) * res, origin[1] + (cy + 0.5) * res])
-        within = np.hypot(*(centres - est[:2]).T) <= cfg.radius_m
-        # Up to n_candidates in all: half reachable cells within the radius, half frontier cells
-        # (anywhere reachable), each half topped up from the other when it runs short.
-        pick = np.flatnonzero(within)
-        fr = np.flatnonzero(frontier[wy, wx])
-        n_fr = min(len(fr), max(cfg.n_candidates // 2, cfg.n_candidates - len(pick)))
-        n_near = min(len(pick), cfg.n_candidates - n_fr)
-        if len(pick) > n_near:
-            pick = rng.choice(pick, n_near, replace=False)
-        if len(fr) > n_fr:
-            fr = rng.choice(fr, n_fr, replace=False)
-        idx = _sorted_unique(np.concatenate([pick, fr]).astype(np.int64))
+        # Up to n_candidates: half near the robot, half on the frontier (explore_candidates).
+        idx, wy, wx, centres = pick_candidates(
+            reach, frontier, (dm.iy0, dm.ix0), origin, res, est, cfg.radius_m, cfg.n_candidates, rng
+        )
         # Animation frames keep the map as 8-bit levels (a 90 m map is 200 kB a frame).
         frame = {"decision": k, "poses": np.array(estimates), "mean": dm.mean_uint8()}
         if idx.size == 0:

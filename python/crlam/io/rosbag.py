@@ -69,7 +69,6 @@ import os
 from bisect import bisect_left
 from collections import deque
 from collections.abc import Iterator, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -78,9 +77,11 @@ from numpy.typing import NDArray
 
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.bag_open import bag_errors, check_bag_input, library_errors, open_any_reader
-from crlam.io.carmen_types import CarmenStats, ImuReading, LaserScan, LogRecord, OdometryReading
+from crlam.io.carmen_types import ImuReading, LaserScan, LogRecord, OdometryReading
 from crlam.io.message_checks import MessagePlace, check_scan_header, check_translation
+from crlam.io.rosbag_scans import ECHOES, BagStats, scan_ranges
 from crlam.io.rosbag_tf import FixedTransforms, TransformTree, planar, transform_matrix, wrap, yaw_of
+from crlam.io.rosbag_topics import IMU_TYPE, LASER_TYPES, ODOMETRY_TYPE, TF_TYPE, pick_imu, pick_odom, pick_scan, topics_text
 from crlam.pose import compose
 
 # Kept under their former private names (the writer's tests compare against the reader's yaw).
@@ -99,12 +100,6 @@ __all__ = [
     "read_bag",
 ]
 
-LASER_TYPES = ("sensor_msgs/msg/LaserScan", "sensor_msgs/msg/MultiEchoLaserScan")
-ODOMETRY_TYPE = "nav_msgs/msg/Odometry"
-TF_TYPE = "tf2_msgs/msg/TFMessage"
-IMU_TYPE = "sensor_msgs/msg/Imu"
-#: Which return of a MultiEchoLaserScan beam is the range.
-ECHOES = ("first", "last", "strongest")
 #: /tf messages read to find a fixed base -> laser transform there when /tf_static has none.
 _TF_MOUNT_PROBE = 500
 
@@ -122,84 +117,10 @@ def is_bag(path: str | os.PathLike[str]) -> bool:
     return p.suffix.lower() in (".bag", ".mcap")
 
 
-@dataclass
-class BagStats(CarmenStats):
-    """What a :class:`RosbagReader` saw (the CARMEN counters plus the bag's own).
-
-    Attributes
-    ----------
-    scan_topic, odom_topic : str
-        The topics read (``odom_topic`` is ``"/tf"`` when odometry came from TF).
-    odom_frame, base_frame, laser_frame : str
-        Frames: odometry's parent frame, the robot's base frame, the scan's ``frame_id``.
-    laser_offset : tuple of float
-        The laser mount used (x, y, yaw in the base frame).
-    upside_down : bool
-        True when the beam bearings were mirrored.
-    mount_source : str
-        ``"tf_static"``, ``"tf"`` (a fixed transform published on ``/tf``), ``"user"``,
-        ``"same frame"`` or ``"none (laser at the base frame's origin)"``.
-    echo : str
-        The return of a MultiEchoLaserScan beam used (``"first"``, ``"last"``, ``"strongest"``).
-    imu_topic : str
-        The IMU topic read ("" when none was).
-    n_inf_ranges, n_nan_ranges, n_above_max_ranges, n_below_min_ranges : int
-        Readings made no-returns, per cause (``n_nonpositive_ranges`` counts 0 and negative ones).
-    skipped_before_odometry, skipped_after_odometry : int
-        Scans skipped because no odometry reading was close enough before/after them.
-    skipped_stamp_backwards, skipped_stamp_repeated : int
-        Scans skipped because they were stamped before, or at, the previous scan of the topic.
-    skipped_odom_repeated : int
-        Odometry readings skipped because they repeat the stamp of one already read.
-    """
-
-    scan_topic: str = ""
-    odom_topic: str = ""
-    odom_frame: str = ""
-    base_frame: str = ""
-    laser_frame: str = ""
-    laser_offset: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    upside_down: bool = False
-    mount_source: str = ""
-    echo: str = "first"
-    imu_topic: str = ""
-    n_inf_ranges: int = 0
-    n_nan_ranges: int = 0
-    n_above_max_ranges: int = 0
-    n_below_min_ranges: int = 0
-    skipped_before_odometry: int = 0
-    skipped_after_odometry: int = 0
-    skipped_stamp_backwards: int = 0
-    skipped_stamp_repeated: int = 0
-    skipped_odom_repeated: int = 0
-
-    def describe(self) -> dict[str, Any]:
-        """The topics, frames and mount used, for a run's ``config.toml``."""
-        return {
-            "scan_topic": self.scan_topic,
-            "odom_topic": self.odom_topic,
-            "odom_frame": self.odom_frame,
-            "base_frame": self.base_frame,
-            "laser_frame": self.laser_frame,
-            "laser_mount": [float(v) for v in self.laser_offset],
-            "upside_down": self.upside_down,
-            "mount_source": self.mount_source,
-            "echo": self.echo,
-            "imu_topic": self.imu_topic,
-        }
-
-
 def _stamp(header: Any) -> float:
     # Integer nanoseconds divided exactly (Python's int / int is correctly rounded): the float
     # nearest the stamp, so a stamp written from a float with up to 9 decimals reads back equal.
     return (int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)) / 1_000_000_000
-
-
-def _topics_text(connections: Sequence[Any]) -> str:
-    seen: dict[str, str] = {}
-    for c in connections:
-        seen.setdefault(c.topic, c.msgtype)
-    return ", ".join(f"{t} ({ty})" for t, ty in sorted(seen.items())) or "(none)"
 
 
 def _library_errors() -> tuple[type[BaseException], ...]:
@@ -309,64 +230,18 @@ class RosbagReader:
         return MessagePlace(str(self.path), conn.topic, index)
 
     def _error(self, message: str, connections: Sequence[Any]) -> DataFormatError:
-        return DataFormatError(f"{message}; the bag's topics: {_topics_text(connections)}", path=str(self.path))
+        return DataFormatError(f"{message}; the bag's topics: {topics_text(connections)}", path=str(self.path))
 
+    # The topics read: crlam.io.rosbag_topics.
     def _pick_scan(self, conns: Sequence[Any]) -> list[Any]:
-        if self.scan_topic is not None:
-            sel = [c for c in conns if c.topic == self.scan_topic]
-            if not sel:
-                raise self._error(f"scan topic {self.scan_topic!r} not in the bag", conns)
-            if sel[0].msgtype not in LASER_TYPES:
-                raise self._error(f"scan topic {self.scan_topic!r} is a {sel[0].msgtype}, not a LaserScan", conns)
-            return sel
-        topics = sorted({c.topic for c in conns if c.msgtype in LASER_TYPES})
-        if not topics:
-            raise self._error("no sensor_msgs/msg/LaserScan topic in the bag", conns)
-        if len(topics) > 1:
-            raise self._error(f"several laser topics ({', '.join(topics)}): choose one with --scan-topic", conns)
-        return [c for c in conns if c.topic == topics[0]]
+        return pick_scan(conns, self.scan_topic, self._error)
 
     def _pick_odom(self, conns: Sequence[Any]) -> tuple[list[Any], bool]:
         """The odometry connections and whether they are TF (True) or Odometry messages."""
-        tf = [c for c in conns if c.topic in ("/tf", "tf") and c.msgtype == TF_TYPE]
-        if self.odom_topic is not None:
-            sel = [c for c in conns if c.topic == self.odom_topic]
-            if not sel:
-                raise self._error(f"odometry topic {self.odom_topic!r} not in the bag", conns)
-            if sel[0].msgtype == TF_TYPE:
-                return sel, True
-            if sel[0].msgtype != ODOMETRY_TYPE:
-                raise self._error(f"odometry topic {self.odom_topic!r} is a {sel[0].msgtype}, not nav_msgs/msg/Odometry", conns)
-            return sel, False
-        topics = sorted({c.topic for c in conns if c.msgtype == ODOMETRY_TYPE})
-        if len(topics) > 1:
-            preferred = [t for t in topics if t in ("/odom", "odom")]
-            if not preferred:
-                raise self._error(f"several odometry topics ({', '.join(topics)}): choose one with --odom-topic", conns)
-            topics = preferred[:1]
-        if topics:
-            return [c for c in conns if c.topic == topics[0]], False
-        if tf:
-            return tf, True
-        raise self._error(
-            "no odometry: neither a nav_msgs/msg/Odometry topic nor /tf (give --odom-topic, or take scan-matching "
-            "odometry: crlam slam --odometry scan_match)",
-            conns,
-        )
+        return pick_odom(conns, self.odom_topic, self._error)
 
     def _pick_imu(self, conns: Sequence[Any]) -> list[Any]:
-        """The IMU connections: the given topic, else the only Imu topic, else none."""
-        if self.imu_topic is not None:
-            sel = [c for c in conns if c.topic == self.imu_topic]
-            if not sel:
-                raise self._error(f"IMU topic {self.imu_topic!r} not in the bag", conns)
-            if sel[0].msgtype != IMU_TYPE:
-                raise self._error(f"IMU topic {self.imu_topic!r} is a {sel[0].msgtype}, not {IMU_TYPE}", conns)
-            return sel
-        topics = sorted({c.topic for c in conns if c.msgtype == IMU_TYPE})
-        if len(topics) > 1:
-            raise self._error(f"several IMU topics ({', '.join(topics)}): choose one with --imu-topic", conns)
-        return [c for c in conns if c.topic in topics]
+        return pick_imu(conns, self.imu_topic, self._error)
 
     def scan_count(self) -> int:
         """The scan messages the bag's index lists on the scan topic this reader would pick (read
@@ -522,50 +397,9 @@ class RosbagReader:
         return offset, down or self.upside_down
 
     def _scan_ranges(self, msg: Any) -> NDArray[np.float64]:
-        raw = msg.ranges
-        if hasattr(raw, "__len__") and len(raw) and hasattr(raw[0], "echoes"):  # MultiEchoLaserScan
-            r = self._echo_ranges(raw, msg.intensities)
-        else:
-            r = np.asarray(raw, dtype=np.float64).copy()
-        st = self.stats
-        rmax, rmin = float(msg.range_max), float(msg.range_min)
-        nan = np.isnan(r)
-        inf = np.isposinf(r)
-        nonpos = ~nan & (r <= 0.0)  # includes -inf
-        below = ~nan & ~nonpos & (r < rmin)
-        above = ~inf & (r > rmax)
-        st.n_nan_ranges += int(nan.sum())
-        st.n_inf_ranges += int(inf.sum())
-        st.n_nonpositive_ranges += int(nonpos.sum())
-        st.n_below_min_ranges += int(below.sum())
-        st.n_above_max_ranges += int(above.sum())
-        st.n_nonfinite_ranges += int((nan | ~np.isfinite(r)).sum())
-        r[nan | inf | nonpos | below | above] = rmax
-        st.n_no_return_ranges += int(np.count_nonzero(r >= rmax))
-        return r
-
-    def _echo_ranges(self, ranges: Any, intensities: Any) -> NDArray[np.float64]:
-        """One range per beam of a MultiEchoLaserScan: the first, last or strongest echo (NaN,
-        a no-return, for a beam without echoes)."""
-        out = np.full(len(ranges), np.nan)
-        for i, beam in enumerate(ranges):
-            echoes = np.asarray(beam.echoes, dtype=np.float64)
-            if not len(echoes):
-                continue
-            if self.echo == "first":
-                out[i] = echoes[0]
-            elif self.echo == "last":
-                out[i] = echoes[-1]
-            else:
-                strength = np.asarray(intensities[i].echoes, dtype=np.float64) if i < len(intensities) else np.zeros(0)
-                if len(strength) != len(echoes):
-                    raise DataFormatError(
-                        f"--echo strongest needs an intensity per echo; beam {i} has {len(echoes)} echoes and "
-                        f"{len(strength)} intensities",
-                        path=str(self.path),
-                    )
-                out[i] = echoes[int(np.argmax(strength))]
-        return out
+        """The message's ranges, invalid readings made no-returns and counted
+        (:func:`crlam.io.rosbag_scans.scan_ranges`)."""
+        return scan_ranges(msg, self.echo, self.stats, str(self.path))
 
     def _imu_rotation(self, reader: Any, imu_conns: Sequence[Any], tree: TransformTree, base: str) -> NDArray[np.float64]:
         """The rotation from the IMU's frame to the base frame (identity when the fixed

@@ -35,7 +35,8 @@ def choose_goal(crm: Any, estimate: NDArray[np.float64], cfg: Any, seed: int, be
     ``estimate`` (x, y, theta) with the settings ``cfg`` (:class:`crlam.experiments.explore.ExploreConfig`:
     function, radius_m, n_candidates, cost_weight, threshold, robot_radius, free_threshold,
     sensor_range, alpha, particles). ``belief`` (UCRMI) is the filter's weighed particle set."""
-    from crlam.experiments.explore import _sorted_unique, geodesic
+    from crlam.experiments.explore import geodesic
+    from crlam.experiments.explore_candidates import pick_candidates
     from crlam.experiments.explore_window import decision_maps
     from crlam.info import make_function
 
@@ -49,20 +50,10 @@ def choose_goal(crm: Any, estimate: NDArray[np.float64], cfg: Any, seed: int, be
     dist, _ = geodesic(dm.traversable, (here[0] - dm.iy0, here[1] - dm.ix0), res)
     reach = np.isfinite(dist) & (dist >= 2 * res)
     frontier = reach & (dm.to_unknown < cfg.robot_radius + 1.5 * res)
-    wy, wx = np.nonzero(reach)
-    cy, cx = wy + dm.iy0, wx + dm.ix0
-    centres = np.column_stack([ox + (cx + 0.5) * res, oy + (cy + 0.5) * res])
-    within = np.hypot(*(centres - estimate[:2]).T) <= cfg.radius_m
     rng = np.random.default_rng(seed)
-    pick = np.flatnonzero(within)
-    fr = np.flatnonzero(frontier[wy, wx])
-    n_fr = min(len(fr), max(cfg.n_candidates // 2, cfg.n_candidates - len(pick)))
-    n_near = min(len(pick), cfg.n_candidates - n_fr)
-    if len(pick) > n_near:
-        pick = rng.choice(pick, n_near, replace=False)
-    if len(fr) > n_fr:
-        fr = rng.choice(fr, n_fr, replace=False)
-    idx = _sorted_unique(np.concatenate([pick, fr]).astype(np.int64))
+    idx, wy, wx, centres = pick_candidates(
+        reach, frontier, (dm.iy0, dm.ix0), (ox, oy), res, estimate, cfg.radius_m, cfg.n_candidates, rng
+    )
     if idx.size == 0:
         return Decision(np.zeros((0, 2)), np.zeros(0), -1, "no_candidates")
     cand = centres[idx]

@@ -112,7 +112,7 @@ pub struct LikelihoodField {
 
 impl LikelihoodField {
     /// The field of the cells of `rect` that `occupied` (row-major over `rect`) marks, with
-    /// levels up to `depth` (at most [`MAX_DEPTH`]).
+    /// levels up to `depth` (at most `MAX_DEPTH`, 5).
     pub fn new(
         geometry: GridGeometry,
         rect: CellRect,
