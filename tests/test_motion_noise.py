@@ -134,6 +134,13 @@ def test_a_log_with_too_little_motion_keeps_gmappings_defaults_and_says_so(tmp_p
 def test_estimate_needs_gmappings_model() -> None:
     with pytest.raises(ConfigError, match="motion_noise"):
         SlamConfig(motion_noise="estimate", motion="thrun")
+    # The robust preset's estimate gives way to another motion model chosen over it...
+    thrun = SlamConfig.from_preset(motion="thrun")
+    assert thrun.motion == "thrun" and thrun.motion_noise == "model"
+    assert SlamConfig.from_preset().motion_noise == "estimate"
+    # ... but not when the noise is asked for too.
+    with pytest.raises(ConfigError, match="motion_noise"):
+        SlamConfig.from_preset(motion="thrun", motion_noise="estimate")
     with pytest.raises(ConfigError, match="motion_noise"):
         SlamConfig(motion_noise="guess")
 

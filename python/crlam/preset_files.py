@@ -221,6 +221,11 @@ def resolve_preset(config_class: type[C], preset: str | None, overrides: dict[st
     if unknown:
         raise ConfigError(f"unknown {name} setting(s) {unknown} (fields: {', '.join(sorted(known))})")
     settings = base | overrides
+    # The class may settle what a preset's value means under the overrides (a setting that only
+    # applies to a value another override replaced).
+    settle = getattr(config_class, "settle_preset_settings", None)
+    if settle is not None:
+        settings = settle(base, overrides)
     try:
         make: Any = config_class  # a dataclass with a ``preset`` field (C is unconstrained for mypy)
         return make(**settings, preset=preset)  # type: ignore[no-any-return]

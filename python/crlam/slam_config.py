@@ -305,6 +305,21 @@ class SlamConfig:
         defaults. Raises :class:`ConfigError` for an unknown preset or field, or a bad value."""
         return resolve_preset(cls, DEFAULT_PRESET if name is None else name, overrides)
 
+    @staticmethod
+    def settle_preset_settings(preset: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
+        """A preset's settings with ``overrides`` on top, where a preset's ``motion_noise =
+        "estimate"`` (a fit of GMapping's odometry model) becomes ``"model"`` when the overrides
+        choose another motion model and say nothing of the noise: ``--motion thrun`` on the
+        ``robust`` preset runs Thrun's model with its parameters rather than failing."""
+        settings = preset | overrides
+        if (
+            preset.get("motion_noise") == "estimate"
+            and "motion_noise" not in overrides
+            and settings.get("motion", "gmapping") != "gmapping"
+        ):
+            settings["motion_noise"] = "model"
+        return settings
+
     def __post_init__(self) -> None:
         self.validate()
 
