@@ -19,7 +19,10 @@ discovers peers only there and sends nothing elsewhere.)
 from __future__ import annotations
 
 import os
+import queue
+import sys
 import threading
+import traceback
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -117,6 +120,15 @@ class DdsNode:
         self.writer_topics: dict[int, tuple[str, str, bool]] = {}
         #: Called with (ROS topic, ROS type name) of each new writer (the live view advertises it).
         self.on_new_writer: Callable[[str, str], None] | None = None
+        # Samples go from Cyclone's listeners to one dispatcher thread, which calls the readers'
+        # callbacks. A listener runs in the thread that delivers the sample, for a reader of the
+        # same process the writer's own thread, inside Cyclone's write: a callback that waited
+        # there for a lock of the node (held by a thread that is itself writing) deadlocked the
+        # two writes. Queued, a listener only takes the samples and returns.
+        self._inbox: queue.SimpleQueue[tuple[Callable[[Any], None], Any] | None] = queue.SimpleQueue()
+        self._dispatcher: threading.Thread | None = None
+        self._delivery = threading.Condition()
+        self._queued = self._delivered = 0
 
     def _topic(self, topic: str, cls: type, raw: bool = False) -> Any:
         from cyclonedds.topic import Topic
@@ -155,6 +167,7 @@ class DdsNode:
         r = DataReader(self.participant, self._topic(topic, cls, raw), qos=qos)
         self._entities.append(r)
         if on_sample is not None:
+            self._start_dispatcher()
             lock = threading.Lock()  # the drain below and Cyclone's thread never interleave samples
 
             def available(_: Any = None) -> None:
@@ -163,7 +176,9 @@ class DdsNode:
                         for sample in samples:
                             info = getattr(sample, "sample_info", None)
                             if info is None or info.valid_data:
-                                on_sample(sample)
+                                with self._delivery:
+                                    self._queued += 1
+                                self._inbox.put((on_sample, sample))
 
             # The listener is set once the reader exists (a transient-local sample can arrive while
             # it is being made, before Cyclone can name it); what came before is drained here.
@@ -171,15 +186,50 @@ class DdsNode:
             available()
         return r
 
+    def _start_dispatcher(self) -> None:
+        if self._dispatcher is None:
+            self._dispatcher = threading.Thread(target=self._dispatch, name=f"{self.name}-dds-dispatch", daemon=True)
+            self._dispatcher.start()
+
+    def _dispatch(self) -> None:
+        """Calls each queued sample's callback in arrival order until :meth:`close`."""
+        while (item := self._inbox.get()) is not None:
+            on_sample, sample = item
+            try:
+                on_sample(sample)
+            except Exception:  # a callback's bug must not stop every other topic's samples
+                print(f"crlam: a DDS callback of {self.name} failed:\n{traceback.format_exc()}", file=sys.stderr, flush=True)
+            finally:
+                with self._delivery:
+                    self._delivered += 1
+                    self._delivery.notify_all()
+
+    def wait_delivered(self) -> None:
+        """Returns once every sample taken so far has been handed to its callback (call it
+        without holding a lock that a callback takes)."""
+        if self._dispatcher is None or threading.current_thread() is self._dispatcher:
+            return
+        with self._delivery:
+            target = self._queued
+            while self._delivered < target and self._dispatcher is not None:
+                self._delivery.wait(0.5)
+
     def close(self) -> None:
         """Deletes the participant (and with it every reader and writer). Listeners are removed
         first: deleting a reader whose listener is set crashes the binding (a use after free in
-        Cyclone DDS Python 11) when another participant of the process uses the same type."""
+        Cyclone DDS Python 11) when another participant of the process uses the same type. The
+        samples already taken are handed to their callbacks before this returns (unless a
+        callback itself closes the node)."""
         from cyclonedds.sub import DataReader
 
         for e in self._entities:
             if isinstance(e, DataReader):
                 e.set_listener(None)
+        if self._dispatcher is not None:
+            self._inbox.put(None)
+            if threading.current_thread() is not self._dispatcher:
+                self._dispatcher.join()
+            self._dispatcher = None
         self._entities.clear()
         self._topics.clear()
         self.participant = None

@@ -575,7 +575,9 @@ class SlamNode(SaveMapService, LiveViewMirror):
             self.wake.notify_all()
 
     def wait_idle(self) -> None:
-        """Returns once no scan or save is waiting or being handled."""
+        """Returns once every message received so far has been handed over and no scan or save is
+        waiting or being handled."""
+        self.dds.wait_delivered()
         with self.lock:
             while self.ready or self.save_requests or self.busy:
                 self.wake.wait()
