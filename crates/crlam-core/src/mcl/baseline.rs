@@ -16,8 +16,8 @@
 //!   p = z_hit · exp(−d² / 2σ²) + z_rand / z_max;
 //! - beam: the expected range r* is where the ray enters the first obstacle cell (or leaves the
 //!   map, or z_max); readings at or below z_min, and no-returns, read z_max; with e = z − r*,
-//!   p = z_hit · exp(−e² / 2σ²) + [e < 0] · z_short · λ · exp(−λ z) + [z = z_max] · z_max_w
-//!   + [z < z_max] · z_rand / z_max.
+//!   p = z_hit · exp(−e² / 2σ²) + \[e < 0\] · z_short · λ · exp(−λ z) + \[z = z_max\] · z_max_w
+//!   + \[z < z_max\] · z_rand / z_max.
 //!
 //! The Gaussian is AMCL's, unnormalised (peak 1). The scan's log-likelihood is Σ log p over the
 //! beams: AMCL's `likelihood_field_prob` combines beams so (its plain models use the heuristic
