@@ -81,6 +81,21 @@ def announce_live_view(view: Any) -> None:
         print(f"foxglove: serving on {view.url} (port {view.port})", flush=True)
 
 
+def slam_live_feed(args: argparse.Namespace, view: Any) -> Any:
+    """The :class:`~crlam.experiments.slam_live_view.SlamLiveFeed` of ``view`` (None without a
+    view), announced; with ``--foxglove-wait`` once a client subscribes to ``/map``."""
+    if view is None:
+        return None
+    from crlam.experiments.slam_live_view import SlamLiveFeed
+
+    feed = SlamLiveFeed(view)
+    announce_live_view(view)
+    if args.foxglove_wait:
+        print("foxglove: waiting for a client to subscribe to /map", flush=True)
+        view.wait_for_subscriber("/map")
+    return feed
+
+
 def hold_for_clients(view: Any, what: str) -> None:
     """Blocks while a client subscribes to anything of ``view`` (or until SIGINT/SIGTERM)."""
     stop = threading.Event()

@@ -7,7 +7,7 @@ import math
 from typing import Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, map_file, print_settings
-from crlam.cli.live import add_foxglove_options, announce_live_view, hold_for_clients, open_live_view
+from crlam.cli.live import add_foxglove_options, hold_for_clients, open_live_view, slam_live_feed
 from crlam.cli.options import (
     add_bag_options,
     bag_options,
@@ -157,15 +157,7 @@ def cmd_localize(args: argparse.Namespace) -> int:
     if pose is None:
         print("no --initial-pose: global localization (particles over the map's free space)")
     with open_live_view(args, "crlam localize") as view:
-        feed = None
-        if view is not None:
-            from crlam.experiments.slam_live_view import SlamLiveFeed
-
-            feed = SlamLiveFeed(view)
-            announce_live_view(view)
-            if args.foxglove_wait:
-                print("foxglove: waiting for a client to subscribe to /map", flush=True)
-                view.wait_for_subscriber("/map")
+        feed = slam_live_feed(args, view)
         with staged_output(args) as stage:
             res = run_localize_log(
                 args.log,

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from crlam.cli.conventions import add_output_options, group, input_file, print_settings
-from crlam.cli.live import add_foxglove_options, announce_live_view, hold_for_clients, open_live_view
+from crlam.cli.live import add_foxglove_options, hold_for_clients, open_live_view, slam_live_feed
 from crlam.cli.options import (
     SLAM_FLAGS,
     add_bag_options,
@@ -90,15 +90,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
     input_options, odometry = slam_input_of(args)
     print_settings(args, slam_settings=config, input_options=input_options | {"odometry": odometry, "max_scans": max_scans})
     with open_live_view(args, "crlam slam") as view:
-        feed = None
-        if view is not None:
-            from crlam.experiments.slam_live_view import SlamLiveFeed
-
-            feed = SlamLiveFeed(view)
-            announce_live_view(view)
-            if args.foxglove_wait:
-                print("foxglove: waiting for a client to subscribe to /map", flush=True)
-                view.wait_for_subscriber("/map")
+        feed = slam_live_feed(args, view)
         res = _run(args, config, max_scans, input_options, odometry, prior, feed)
         if feed is not None and feed.publish_final():
             print(f"foxglove: final map published on {view.url}", flush=True)

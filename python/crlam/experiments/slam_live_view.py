@@ -162,17 +162,7 @@ class SlamLiveFeed:
         self._publish_path(t, stamps, poses)
 
     def _grid_msg(self, t: float, layer: GridInfo, data: NDArray[np.int8]) -> Any:
-        T, b = self.view.types, self.msgs
-        sec, nsec = ros_time(max(t, 0.0))
-        ny, nx = layer.shape
-        info = T["nav_msgs/msg/MapMetaData"](
-            map_load_time=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-            resolution=float(layer.resolution),
-            width=nx,
-            height=ny,
-            origin=b.pose((layer.origin[0], layer.origin[1], 0.0)),
-        )
-        return T[OCCUPANCY_GRID](header=b.header(t, MAP_FRAME), info=info, data=np.asarray(data, dtype=np.int8))
+        return self.msgs.occupancy_grid(t, MAP_FRAME, layer.shape, layer.origin, layer.resolution, data)
 
     def _publish_grids(self, t: float, grid: GridInfo, data: NDArray[np.int8], confidence: NDArray[np.int8] | None) -> None:
         t_ns = self._ns(t)

@@ -119,17 +119,7 @@ class SlamMcapRecorder:
             bag.write("/particles", POSE_ARRAY, t_ns, pa)
 
     def _grid(self, t: float, layer: GridInfo, data: NDArray[np.int8]) -> Any:
-        T = self.bag.types
-        sec, nsec = ros_time(max(t, 0.0))
-        ny, nx = layer.shape
-        info = T["nav_msgs/msg/MapMetaData"](
-            map_load_time=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-            resolution=float(layer.resolution),
-            width=nx,
-            height=ny,
-            origin=self.bag.pose((layer.origin[0], layer.origin[1], 0.0)),
-        )
-        return T[OCCUPANCY_GRID](header=self.bag.header(t, MAP_FRAME), info=info, data=data)
+        return self.bag.occupancy_grid(t, MAP_FRAME, layer.shape, layer.origin, layer.resolution, data)
 
     def finish(
         self,

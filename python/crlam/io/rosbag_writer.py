@@ -119,6 +119,24 @@ class RosMessageBuilder:
     def tf(self, transforms: list[Any]) -> Any:
         return self.types[TF_MESSAGE](transforms=transforms)
 
+    def occupancy_grid(
+        self, t: float, frame: str, shape: tuple[int, int], origin: ArrayLike, resolution: float, data: ArrayLike
+    ) -> Any:
+        """An OccupancyGrid of ``data`` (int8, row-major ``shape`` = (rows, columns)) whose cell
+        (0, 0) has its corner at ``origin`` (x, y; m), ``resolution`` m per cell."""
+        T = self.types
+        sec, nsec = ros_time(max(t, 0.0))
+        ny, nx = shape
+        ox, oy = (float(v) for v in np.asarray(origin, dtype=np.float64)[:2])
+        info = T["nav_msgs/msg/MapMetaData"](
+            map_load_time=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+            resolution=float(resolution),
+            width=nx,
+            height=ny,
+            origin=self.pose((ox, oy, 0.0)),
+        )
+        return T[OCCUPANCY_GRID](header=self.header(t, frame), info=info, data=np.asarray(data, dtype=np.int8))
+
     def laser_scan(
         self, t: float, frame: str, ranges: ArrayLike, angle_min: float, angle_increment: float, max_range: float
     ) -> Any:
