@@ -264,8 +264,8 @@ def _reader_specs(tmp: Path) -> list[tuple[str, Callable[..., Any], dict[str, An
     from crlam.io.belief import load_belief
     from crlam.io.logs import open_log, read_records
     from crlam.planner import IigTree
-    from crlam.presets import load_config_file
     from crlam.sim.world import World
+    from crlam.slam.presets import load_config_file
 
     good = tmp / "good.log"
     good.write_text("ODOM 0 0 0 0 0 0 1.0 h 1.0\n")

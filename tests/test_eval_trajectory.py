@@ -21,9 +21,9 @@ from crlam.eval.trajectory import (
     reference_errors,
     relations_error,
 )
-from crlam.fill import fill_skipped
 from crlam.io.relations import Relations, read_relations
 from crlam.pose import between, compose, wrap_angle
+from crlam.slam.fill import fill_skipped
 
 coord = st.floats(-100.0, 100.0, allow_nan=False)
 angle = st.floats(-10.0, 10.0, allow_nan=False)
@@ -202,7 +202,7 @@ def test_interpolated_fill_is_crlam_fills_rule_after_the_first_processed_scan(tm
     # Exact odometry: nothing to correct, every pose is recovered either way.
     exact = fill_trajectory(np.array(stamps)[keep], true[keep], log, fill="interpolate")
     np.testing.assert_allclose(exact.poses, fill_trajectory(np.array(stamps)[keep], true[keep], log).poses, atol=1e-9)
-    # Estimates that disagree with the odometry: after the first processed scan the rule of crlam.fill.
+    # Estimates that disagree with the odometry: after the first processed scan the rule of crlam.slam.fill.
     est = true[keep] + np.random.default_rng(4).normal(0.0, 0.05, (keep.size, 3))
     got = fill_trajectory(np.array(stamps)[keep], est, log, fill="interpolate", updates=(0.5, 0.25))
     processed = np.zeros(40, dtype=bool)

@@ -1,4 +1,4 @@
-"""The poses of the scans a filter skips (crlam.fill) and how SlamRun records them."""
+"""The poses of the scans a filter skips (crlam.slam.fill) and how SlamRun records them."""
 
 from __future__ import annotations
 
@@ -12,12 +12,12 @@ from hypothesis import strategies as st
 
 from crlam.cli import main
 from crlam.errors import CrlamError
-from crlam.fill import FILLS, fill_rule, fill_skipped
 from crlam.io.carmen import read_scans
 from crlam.io.tum import read_tum
 from crlam.pose import between, compose, wrap_angle
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 from crlam.slam import SlamConfig, SlamRun
+from crlam.slam.fill import FILLS, fill_rule, fill_skipped
 
 
 def _straight(n: int, step: float = 0.1) -> tuple[np.ndarray, np.ndarray]:

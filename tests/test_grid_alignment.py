@@ -1,4 +1,4 @@
-"""The dominant wall direction of a scan (crlam.grid_alignment)."""
+"""The dominant wall direction of a scan (crlam.slam.grid_alignment)."""
 
 from __future__ import annotations
 
@@ -15,7 +15,11 @@ from hypothesis import strategies as st
 from crlam.cli import main
 from crlam.errors import DataFormatError
 from crlam.experiments.slam_run import run_slam_log
-from crlam.grid_alignment import (
+from crlam.io.tum import read_tum
+from crlam.pose import compose
+from crlam.sim.simulate import SimulatedLog, SimulationConfig, simulate, write_simulation
+from crlam.slam import SlamConfig, SlamRun
+from crlam.slam.grid_alignment import (
     MIN_CONCENTRATION,
     frame_from_record,
     from_map_frame,
@@ -23,10 +27,6 @@ from crlam.grid_alignment import (
     map_frame,
     wall_direction,
 )
-from crlam.io.tum import read_tum
-from crlam.pose import compose
-from crlam.sim.simulate import SimulatedLog, SimulationConfig, simulate, write_simulation
-from crlam.slam import SlamConfig, SlamRun
 
 
 def _room_scan(turn: float, *, n: int = 361) -> tuple[np.ndarray, np.ndarray]:

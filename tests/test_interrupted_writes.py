@@ -3,7 +3,7 @@ the output folder is checked: the old folder is untouched or the new one complet
 else left is clearly marked incomplete; the next run clears it.
 
 The child counts every file it opens for writing under the staging folder and the two steps of
-the final rename (audit events of :mod:`crlam.run_folder`), and kills itself at the k-th."""
+the final rename (audit events of :mod:`crlam.io.run_folder`), and kills itself at the k-th."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from crlam.run_folder import COMPLETE, INCOMPLETE
+from crlam.io.run_folder import COMPLETE, INCOMPLETE
 
 pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="SIGKILL and audit hooks of a Linux child")
 

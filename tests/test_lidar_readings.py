@@ -1,5 +1,5 @@
 """Real-lidar readings: the no-return policy, body beams and the laser mount (crlam.io.readings,
-crlam.body_mask, crlam.laser_mount, crlam.lidar_check)."""
+crlam.preflight.body_mask, crlam.preflight.laser_mount, crlam.preflight.lidar_check)."""
 
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from crlam.io.carmen_types import LaserScan
 from crlam.io.readings import ReadingFilter
 from crlam.io.rosbag import RosbagReader
 from crlam.io.rosbag_writer import McapBagWriter
-from crlam.lidar_check import LidarSetup, check_lidar
 from crlam.mapping import ConfidenceRichMap, MappingConfig
+from crlam.preflight.lidar_check import LidarSetup, check_lidar
 from crlam.slam import SlamConfig
 
 

@@ -21,7 +21,7 @@ pytest.importorskip("websockets", reason="the websockets package (the test's Fox
 
 from crlam.cli import main  # noqa: E402
 from crlam.errors import ConfigError  # noqa: E402
-from crlam.run_folder import is_complete  # noqa: E402
+from crlam.io.run_folder import is_complete  # noqa: E402
 from foxglove_client import FoxgloveClient  # noqa: E402
 
 TIMEOUT = 120.0

@@ -1,4 +1,4 @@
-"""The map's reach chosen from a log's readings (crlam.map_range, SlamConfig.map_range)."""
+"""The map's reach chosen from a log's readings (crlam.preflight.map_range, SlamConfig.map_range)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 from crlam.cli import main
 from crlam.errors import ConfigError
 from crlam.io.carmen import LaserScan
-from crlam.map_range import MAX_READINGS_RANGE, SAMPLE_SCANS, map_range_from_readings
+from crlam.preflight.map_range import MAX_READINGS_RANGE, SAMPLE_SCANS, map_range_from_readings
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 from crlam.slam import SlamConfig
 

@@ -1,4 +1,4 @@
-"""GMapping's odometry noise fitted to a log's own scans (crlam.motion_noise)."""
+"""GMapping's odometry noise fitted to a log's own scans (crlam.slam.motion_noise)."""
 
 from __future__ import annotations
 
@@ -16,8 +16,8 @@ import pytest
 
 from crlam.cli import main
 from crlam.errors import ConfigError, DataFormatError
-from crlam.motion_noise import fit_gmapping_noise, gmapping_sigmas
 from crlam.slam import SlamConfig
+from crlam.slam.motion_noise import fit_gmapping_noise, gmapping_sigmas
 
 
 def _synthetic(params: tuple[float, float, float, float], n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -55,7 +55,7 @@ def test_a_heavy_tail_widens_the_fit_until_it_covers_the_residuals() -> None:
     than that cannot follow a slip), and a Gaussian residual is left as it was fitted."""
     from statistics import NormalDist
 
-    from crlam.motion_noise import TAIL_COVERAGE
+    from crlam.slam.motion_noise import TAIL_COVERAGE
 
     params = (0.03, 0.01, 0.03, 0.03)
     u, r = _synthetic(params, 4000, seed=7)
@@ -74,7 +74,7 @@ def test_the_pre_pass_restarts_its_map_and_skips_the_pair_across_the_restart(
 ) -> None:
     """A long log's whole map at 0.05 m exceeds the cell limit: the matcher starts a fresh map
     every WINDOW_STEPS processed scans, and the step across a restart is no residual."""
-    import crlam.motion_noise as motion_noise
+    import crlam.slam.motion_noise as motion_noise
     from crlam.io import open_log
     from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 
@@ -122,8 +122,8 @@ def test_too_few_steps_is_an_error() -> None:
 
 def test_a_log_with_too_little_motion_keeps_gmappings_defaults_and_says_so(tmp_path: Path) -> None:
     from crlam.io import open_log
-    from crlam.motion_noise import GMAPPING_DEFAULT, estimate_gmapping_noise
     from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
+    from crlam.slam.motion_noise import GMAPPING_DEFAULT, estimate_gmapping_noise
 
     write_simulation(simulate(SimulationConfig(world="office", n_scans=60, seed=1, sensor="sick")), tmp_path)
     est = estimate_gmapping_noise(open_log(tmp_path / "log.clf"), linear_update=0.5, angular_update=0.25, max_range=8.0)

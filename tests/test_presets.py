@@ -17,8 +17,8 @@ if sys.version_info >= (3, 11):
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
 
-import crlam.preset_files as preset_files
-import crlam.presets as presets
+import crlam.slam.preset_files as preset_files
+import crlam.slam.presets as presets
 from crlam.cli import build_parser, main, slam_config_of
 from crlam.errors import ConfigError
 from crlam.experiments.slam_run import run_slam_log
@@ -169,7 +169,7 @@ def test_overrides_win_and_unknown_names_are_errors() -> None:
 def test_a_bad_preset_file_names_the_file_and_the_key(
     body: str, key: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setattr(preset_files, "_DIR", tmp_path)  # where crlam.presets reads its files
+    monkeypatch.setattr(preset_files, "_DIR", tmp_path)  # where crlam.slam.presets reads its files
     preset_files._load_preset.cache_clear()
     (tmp_path / "bad.toml").write_text(body)
     try:

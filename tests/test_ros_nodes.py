@@ -21,6 +21,7 @@ import pytest
 pytest.importorskip("cyclonedds", reason="crlam[ros] (cyclonedds) is not installed")
 
 from corridor_bag import corridor_bag as _synthetic_bag  # noqa: E402
+from crlam.io.run_folder import is_complete  # noqa: E402
 from crlam.io.tum import read_tum  # noqa: E402
 from crlam.ros import messages as m  # noqa: E402
 from crlam.ros import qos  # noqa: E402
@@ -28,7 +29,6 @@ from crlam.ros.dds import LOOPBACK_CONFIG, DdsNode  # noqa: E402
 from crlam.ros.params import NodeParameters, load_params_file, split_parameters  # noqa: E402
 from crlam.ros.play import play_bag  # noqa: E402
 from crlam.ros.slam_node import SlamNode  # noqa: E402
-from crlam.run_folder import is_complete  # noqa: E402
 
 #: One domain per test process (pid-based), so parallel runs on one machine do not meet.
 DOMAIN = 100 + os.getpid() % 100
@@ -102,7 +102,7 @@ def _run_offline(bag: Path, out: Path, **options: Any) -> Any:
     checks that read the whole log ahead (time offset, body mask, laser mount, the map's range
     from the readings, the odometry noise's fit), so the offline run does too."""
     from crlam.experiments.slam_run import run_slam_log
-    from crlam.presets import resolve
+    from crlam.slam.presets import resolve
 
     without_look_ahead = {"time_offset": "off", "body_mask": "off", "map_range": "fixed", "motion_noise": "model"}
     config = resolve("robust", {**SLAM, **without_look_ahead})
@@ -199,7 +199,7 @@ def test_node_process_saves_whole_on_sigterm_and_nothing_when_killed(tmp_path: P
     finally:
         proc.kill()
     assert not out2.exists() or is_complete(out2)
-    from crlam.run_folder import INCOMPLETE, staging_path
+    from crlam.io.run_folder import INCOMPLETE, staging_path
 
     stage = staging_path(out2)
     assert not stage.exists() or (stage / INCOMPLETE).is_file()  # a staging folder says it is incomplete

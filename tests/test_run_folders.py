@@ -14,7 +14,7 @@ import pytest
 
 from crlam.cli import main
 from crlam.errors import ConfigError
-from crlam.run_folder import COMPLETE, INCOMPLETE, check_output, staged_file, staged_folder, staging_path
+from crlam.io.run_folder import COMPLETE, INCOMPLETE, check_output, staged_file, staged_folder, staging_path
 
 
 def _log(path: Path, n: int = 4, *, bad_line_at: int | None = None) -> Path:

@@ -1,4 +1,4 @@
-"""Scan-matching odometry (``crlam.scan_odometry``, ``crlam slam --odometry``): a simulated log
+"""Scan-matching odometry (``crlam.slam.scan_odometry``, ``crlam slam --odometry``): a simulated log
 with its odometry withheld, and bags written here without an odometry topic, with and without an
 IMU."""
 
@@ -17,12 +17,13 @@ import pytest
 from crlam import _native
 from crlam.cli import main
 from crlam.errors import ConfigError, DataFormatError
-from crlam.grid_alignment import frame_from_record, from_map_frame
 from crlam.io import ImuReading, LaserScan, open_log, read_scans_any
 from crlam.io.rosbag_writer import McapBagWriter
 from crlam.io.tum import read_tum
 from crlam.pose import between, compose
-from crlam.scan_odometry import (
+from crlam.slam import SlamConfig
+from crlam.slam.grid_alignment import frame_from_record, from_map_frame
+from crlam.slam.scan_odometry import (
     SCAN_MATCH_MOTION_PARAMS,
     ImuYaw,
     ScanMatchOdometry,
@@ -31,7 +32,6 @@ from crlam.scan_odometry import (
     scan_match_filter_config,
     scan_match_odometry,
 )
-from crlam.slam import SlamConfig
 
 if sys.version_info >= (3, 11):
     import tomllib

@@ -71,7 +71,7 @@ def test_laser_lag_on_real_scans_is_undone_by_the_time_offset(data_dir: Path, tm
     of the instant the scan was taken."""
     from crlam.experiments.semireal import write_semireal
     from crlam.experiments.stress_variants import load_records
-    from crlam.time_offset import retime_odometry
+    from crlam.slam.time_offset import retime_odometry
 
     log = data_dir / "corrected" / "intel-corrected.log.gz"
     summary = write_semireal(log, tmp_path / "semi", SemiRealSettings(laser_lag=0.15, stamps="synthetic"), max_scans=300)

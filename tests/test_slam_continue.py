@@ -15,7 +15,7 @@ from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import FORMAT_VERSION, BeliefArchive, load_belief, save_belief
 from crlam.io.tum import read_tum
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
-from crlam.slam_continue import load_slam_prior, pose_covariance
+from crlam.slam.prior import load_slam_prior, pose_covariance
 
 
 def _archive(**extra: object) -> BeliefArchive:

@@ -10,11 +10,11 @@ import pytest
 
 from crlam.cli import main
 from crlam.eval.trajectory import relations_error
-from crlam.fill import FILLS, fill_skipped
 from crlam.io.carmen import read_scans
 from crlam.io.relations import read_relations
-from crlam.presets import DEFAULT_PRESET
 from crlam.slam import SlamConfig
+from crlam.slam.fill import FILLS, fill_skipped
+from crlam.slam.presets import DEFAULT_PRESET
 
 
 @pytest.mark.realdata

@@ -93,7 +93,7 @@ def test_mount_variants_turn_and_mirror_the_endpoints(records: list[CarmenRecord
 
 def test_odom_shift_attaches_the_earlier_odometry(records: list[CarmenRecord]) -> None:
     from crlam.experiments.stress_variants import odometry_series
-    from crlam.time_offset import interpolate_pose
+    from crlam.slam.time_offset import interpolate_pose
 
     original = _scans(records)
     out = build_variant(records, "odom_shift", StressSettings(odom_shift_s=0.15))

@@ -1,4 +1,4 @@
-"""The laser-to-odometry time offset (``crlam.time_offset``, ``crlam slam --time-offset``): the
+"""The laser-to-odometry time offset (``crlam.slam.time_offset``, ``crlam slam --time-offset``): the
 estimate recovers an injected offset on a simulated log and on the real logs, refuses what it
 cannot identify, and the re-attached odometry is the odometry at the corrected stamp."""
 
@@ -16,7 +16,7 @@ from crlam.errors import ConfigError
 from crlam.experiments.stress_variants import StressSettings, build_variant, load_records
 from crlam.io.carmen_types import CarmenRecord, LaserScan, OdometryReading
 from crlam.slam import SlamConfig
-from crlam.time_offset import (
+from crlam.slam.time_offset import (
     RetimeStats,
     TimeOffsetSettings,
     estimate_time_offset,

@@ -17,11 +17,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 from crlam.experiments.known_poses import unknown_mask
-from crlam.grid_alignment import frame_from_record, from_map_frame
 from crlam.io.belief import load_belief
 from crlam.io.nav2 import read_nav2_map, read_pgm
 from crlam.io.tum import read_tum
 from crlam.mapping import ConfidenceRichMap
+from crlam.slam.grid_alignment import frame_from_record, from_map_frame
 from crlam.viz.maps import metric_axes, save_crm_figure, save_figure
 
 

@@ -14,7 +14,7 @@ __all__ = ["add_parser", "cmd_bench"]
 
 def cmd_bench(args: argparse.Namespace) -> int:
     from crlam.bench import run_benchmarks, write_json
-    from crlam.run_folder import staged_file
+    from crlam.io.run_folder import staged_file
 
     output = check_file_output(args)
     print_settings(args)

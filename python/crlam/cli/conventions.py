@@ -105,7 +105,7 @@ def check_file_output(args: argparse.Namespace) -> Path | None:
     if not args.out:
         return None
     from crlam.errors import ConfigError
-    from crlam.run_folder import check_output
+    from crlam.io.run_folder import check_output
 
     if Path(args.out).is_dir():
         raise ConfigError(f"output {args.out} is a folder; -o/--out takes the name of a file")

@@ -13,7 +13,7 @@ __all__ = ["add_parser", "cmd_convert"]
 def cmd_convert(args: argparse.Namespace) -> int:
     from crlam.errors import ConfigError
     from crlam.io.convert import convert
-    from crlam.run_folder import check_output, staged_file
+    from crlam.io.run_folder import check_output, staged_file
 
     target = args.out
     if args.legacy_output is not None:

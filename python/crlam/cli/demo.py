@@ -13,7 +13,7 @@ __all__ = ["add_parser", "cmd_demo"]
 
 def cmd_demo(args: argparse.Namespace) -> int:
     from crlam.experiments.demo import run_demo
-    from crlam.run_folder import moved
+    from crlam.io.run_folder import moved
 
     print_settings(args)
     with staged_output(args) as stage:

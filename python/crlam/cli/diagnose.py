@@ -58,7 +58,7 @@ def cmd_likelihood_bias(args: argparse.Namespace) -> int:
 
     if (args.reference is None) == (not args.log_poses):
         raise ConfigError("give either --reference TRAJ.tum or --log-poses")
-    from crlam.run_folder import moved
+    from crlam.io.run_folder import moved
 
     output = staged_output(args)  # the output is checked before the run, written after it
     missing = 0

@@ -106,7 +106,7 @@ def cmd_eval(args: argparse.Namespace) -> int:
         relations_error,
     )
     from crlam.io.relations import read_relations
-    from crlam.run_folder import staged_file
+    from crlam.io.run_folder import staged_file
 
     if args.tolerance < 0 or not math.isfinite(args.tolerance):
         raise ConfigError(f"--tolerance must be a finite number >= 0, got {args.tolerance}")
@@ -289,7 +289,7 @@ def _odometry_frame(trajectory: Path, poses: NDArray[np.float64]) -> tuple[float
     odometry starts lives: (the turn in deg, the poses). The run's ``metrics.json`` sits beside
     the file or one folder up (``estimates/``); without one, or without a turn, (0, poses)."""
     from crlam.experiments.resume import load_json_dict
-    from crlam.grid_alignment import frame_from_record, from_map_frame
+    from crlam.slam.grid_alignment import frame_from_record, from_map_frame
 
     if trajectory.suffix != ".tum" or not trajectory.is_file():
         return 0.0, poses

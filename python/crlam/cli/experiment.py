@@ -28,7 +28,7 @@ from crlam.cli.options import (
     positive_int,
     slam_overrides,
 )
-from crlam.presets import DEFAULT_PRESET, PAPER_PRESET
+from crlam.slam.presets import DEFAULT_PRESET, PAPER_PRESET
 
 __all__ = ["add_parser", "cmd_experiment"]
 
@@ -77,7 +77,7 @@ def _base_method(methods: list[str]) -> str:
 
 
 def cmd_experiment(args: argparse.Namespace) -> int:
-    from crlam.presets import resolve
+    from crlam.slam.presets import resolve
 
     out = Path(args.out)
     executor = executor_from_args(args)
@@ -395,7 +395,7 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
 def _cmd_stress(args: argparse.Namespace, out: Path, sweep_options: dict[str, Any]) -> int:
     from crlam.experiments.stress import run_stress
     from crlam.experiments.stress_variants import StressSettings
-    from crlam.presets import load_config_file, resolve
+    from crlam.slam.presets import load_config_file, resolve
 
     if args.config is not None:
         stored = load_config_file(args.config)

@@ -16,7 +16,7 @@ __all__ = ["add_parser", "cmd_explore"]
 def cmd_explore(args: argparse.Namespace) -> int:
     """Explore the world and write the run folder."""
     from crlam.experiments.explore import ExploreConfig, default_start, explore, write_explore_folder
-    from crlam.run_folder import moved
+    from crlam.io.run_folder import moved
     from crlam.sim.worlds import get_world
 
     output = staged_output(args)  # the output is checked before the run, written after it

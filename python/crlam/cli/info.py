@@ -19,8 +19,8 @@ def cmd_info(args: argparse.Namespace) -> int:
     from crlam.errors import ConfigError
     from crlam.info import compute_surface, load_map_prior, make_function, prior_from_crm_mean
     from crlam.io.belief import load_belief
+    from crlam.io.run_folder import moved
     from crlam.mapping import ConfidenceRichMap
-    from crlam.run_folder import moved
     from crlam.viz.info import save_surface
 
     if (args.map is None) == (args.belief is None):

@@ -38,7 +38,7 @@ def _mapping_config(args: argparse.Namespace):  # type: ignore[no-untyped-def]
 
 def cmd_map(args: argparse.Namespace) -> int:
     from crlam.experiments.known_poses import map_log
-    from crlam.run_folder import moved
+    from crlam.io.run_folder import moved
 
     config = _mapping_config(args)
     print_settings(args, mapping_settings=config)

@@ -93,8 +93,8 @@ def nonnegative_int(text: str) -> int:
 
 
 def time_offset(text: str) -> str | float:
-    """``--time-offset``: ``auto``, ``off`` or seconds (:func:`crlam.time_offset.parse_time_offset`)."""
-    from crlam.time_offset import parse_time_offset
+    """``--time-offset``: ``auto``, ``off`` or seconds (:func:`crlam.slam.time_offset.parse_time_offset`)."""
+    from crlam.slam.time_offset import parse_time_offset
 
     return parse_time_offset(text)
 
@@ -265,7 +265,7 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
     "--map-range": (
         "map and sensor",
         dict(
-            choices=("fixed", "readings"),  # crlam.map_range.MAP_RANGES
+            choices=("fixed", "readings"),  # crlam.preflight.map_range.MAP_RANGES
             help="z_max: fixed (--max-range) or readings: the range within which 90 %% of the log's returns lie, "
             f"rounded up to a metre, between --max-range and 20 m; metrics.json records the choice ({FROM_PRESET})",
         ),
@@ -273,7 +273,7 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
     "--grid-alignment": (
         "map and sensor",
         dict(
-            choices=("none", "walls"),  # crlam.grid_alignment.GRID_ALIGNMENTS
+            choices=("none", "walls"),  # crlam.slam.grid_alignment.GRID_ALIGNMENTS
             help="the map's frame: the first odometry pose's (none, paper) or that frame turned about the first pose "
             "so that the grid runs along the walls of the first scan (walls); estimates are written in the map's "
             f"frame, metrics.json records the turn ({FROM_PRESET})",
@@ -386,8 +386,8 @@ def add_slam_flags(parser: argparse.ArgumentParser, names: Sequence[str], **chan
 
 
 def add_preset_option(parser: argparse._ActionsContainer, default: str) -> None:
-    """``--preset NAME``: the named settings (:mod:`crlam.presets`) that the SLAM flags override."""
-    from crlam.presets import list_presets, preset_description
+    """``--preset NAME``: the named settings (:mod:`crlam.slam.presets`) that the SLAM flags override."""
+    from crlam.slam.presets import list_presets, preset_description
 
     names = list_presets()
     parser.add_argument(
@@ -397,7 +397,7 @@ def add_preset_option(parser: argparse._ActionsContainer, default: str) -> None:
         metavar="NAME",
         help=f"named SLAM settings ({'; '.join(f'{n}: {preset_description(n)}' for n in names)}); every SLAM flag "
         f"given overrides the preset's value, every one not given keeps it (default: {default}; the values are in "
-        "the package's crlam/presets/NAME.toml)",
+        "the package's crlam/slam/presets/NAME.toml)",
     )
 
 
@@ -598,9 +598,9 @@ def apply_limit_options(args: argparse.Namespace) -> None:
 
 
 def staged_output(args: argparse.Namespace, out: str | None = None):  # type: ignore[no-untyped-def]
-    """The staging folder of the command's ``--out`` (see :mod:`crlam.run_folder`), after the
+    """The staging folder of the command's ``--out`` (see :mod:`crlam.io.run_folder`), after the
     up-front check: a context manager yielding the folder to write into."""
-    from crlam.run_folder import check_output, staged_folder
+    from crlam.io.run_folder import check_output, staged_folder
 
     path = check_output(out if out is not None else args.out, force=getattr(args, "force", False))
     return staged_folder(path, command=f"crlam {args.command}")

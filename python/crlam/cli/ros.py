@@ -33,7 +33,7 @@ def _dds_options(p: argparse.ArgumentParser) -> None:
 
 def _check_out(args: argparse.Namespace) -> None:
     """An existing -o/--out is refused without --force (the node's saves then replace it)."""
-    from crlam.run_folder import check_output
+    from crlam.io.run_folder import check_output
 
     check_output(args.out, force=args.force, what="output folder")
 

@@ -14,7 +14,7 @@ __all__ = ["add_parser", "cmd_simulate"]
 
 def cmd_simulate(args: argparse.Namespace) -> int:
     from crlam.experiments.simulate import simulate_to_folder
-    from crlam.run_folder import moved
+    from crlam.io.run_folder import moved
 
     print_settings(args)
     with staged_output(args) as stage:

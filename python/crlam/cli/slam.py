@@ -21,7 +21,7 @@ from crlam.cli.options import (
     staged_output,
     stored_input_options,
 )
-from crlam.presets import DEFAULT_PRESET
+from crlam.slam.presets import DEFAULT_PRESET
 
 if TYPE_CHECKING:
     from crlam.slam import SlamConfig
@@ -39,7 +39,7 @@ _EVALUATIONS = tuple(
 def slam_config_of(args: argparse.Namespace) -> tuple[SlamConfig, int | None]:
     """``crlam slam``'s configuration and scan limit: the preset (``--preset``, default robust) or
     the settings of ``--config FILE``, with every SLAM flag given on top."""
-    from crlam.presets import load_config_file, resolve
+    from crlam.slam.presets import load_config_file, resolve
 
     preset: str | None = args.preset
     settings: dict[str, object] = {}
@@ -56,7 +56,7 @@ def slam_config_of(args: argparse.Namespace) -> tuple[SlamConfig, int | None]:
 def slam_input_of(args: argparse.Namespace) -> tuple[dict[str, Any], str]:
     """``crlam slam``'s bag options and odometry choice: those of ``--config FILE``'s ``[input]``
     table (how that run read its log), with every bag flag given on top."""
-    from crlam.presets import load_config_file
+    from crlam.slam.presets import load_config_file
 
     options: dict[str, Any] = {}
     odometry = None
@@ -73,7 +73,7 @@ def cmd_slam(args: argparse.Namespace) -> int:
     prior = None
     saved_settings = False
     if args.continue_from is not None:
-        from crlam.slam_continue import load_slam_prior
+        from crlam.slam.prior import load_slam_prior
 
         prior = load_slam_prior(args.continue_from)
         # The continued run keeps the saved run's settings unless a preset or a config is given.

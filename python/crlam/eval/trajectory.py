@@ -22,10 +22,10 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam.errors import DataFormatError
 from crlam.eval.align import Se2Alignment, align_se2, ape_statistics
-from crlam.fill import fill_skipped
 from crlam.io.logs import read_scans_any
 from crlam.io.relations import Relations
 from crlam.pose import between, compose, wrap_angle
+from crlam.slam.fill import fill_skipped
 
 __all__ = [
     "DEFAULT_TOLERANCE",
@@ -220,7 +220,7 @@ def fill_trajectory(
         Fill the scans before the first processed one backwards from it (default). With False
         they are left out (``n_omitted``), as in the README oracles.
     fill : {"odometry", "interpolate"}
-        The rule for the scans after the first processed one (:mod:`crlam.fill`): the last
+        The rule for the scans after the first processed one (:mod:`crlam.slam.fill`): the last
         processed pose carried by the raw odometry (default, the data README's rule), or that
         plus the share of the next processed pose's correction to the odometry's prediction,
         the share measured with the update triggers ``updates``.

@@ -9,7 +9,7 @@ The guarantees are those of the local executor:
 
 - no shared file system is needed: each run's input files are sent to the workers (once per
   worker), and each finished run's files come back to this process, which writes them through a
-  staging folder (:mod:`crlam.run_folder`), so a run folder appears only whole; maps
+  staging folder (:mod:`crlam.io.run_folder`), so a run folder appears only whole; maps
   (``RunLayout.maps``) come back only with ``keep_maps``;
 - a rerun skips finished runs (the sweep loop checks the markers before anything is sent);
 - a worker killed mid-run costs only the runs it held: the scheduler starts them elsewhere, up to
@@ -53,11 +53,11 @@ def _distributed() -> Any:
 
 
 def write_run_files(folder: Path, files: dict[str, bytes]) -> None:
-    """Writes a run's files into ``folder`` through a staging folder (:mod:`crlam.run_folder`):
+    """Writes a run's files into ``folder`` through a staging folder (:mod:`crlam.io.run_folder`):
     the folder appears, replacing an older unfinished or corrupt one, only when every file is
     written, whenever this process stops. The worker's own markers are not copied; the staging
     writes its own ``COMPLETE`` last."""
-    from crlam.run_folder import COMPLETE, INCOMPLETE, staged_folder
+    from crlam.io.run_folder import COMPLETE, INCOMPLETE, staged_folder
 
     with staged_folder(folder, command="crlam experiment (run sent back by a Dask worker)") as stage:
         for rel in sorted(files):

@@ -19,10 +19,10 @@ from tqdm import tqdm
 
 from crlam.eval.maps import MapScores, score_map, world_coverage
 from crlam.experiments.known_poses import KnownPoseScan, MappingRun, map_scans, write_map_folder
-from crlam.grid_alignment import from_map_frame, into_map_frame
 from crlam.mapping import ConfidenceRichMap, MapLayer, MappingConfig
 from crlam.sim.simulate import SimulatedLog, SimulationConfig, simulate, write_simulation
 from crlam.slam import SlamConfig, SlamRun
+from crlam.slam.grid_alignment import from_map_frame, into_map_frame
 
 __all__ = ["DEMO_PRESET", "run_demo"]
 

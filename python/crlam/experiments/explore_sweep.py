@@ -22,7 +22,7 @@ from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.explore import FUNCTIONS, ExploreConfig, default_start, explore
 from crlam.experiments.pool import run_jobs, write_atomic
 from crlam.experiments.resume import close_experiment, input_digest, load_json_dict, open_experiment
-from crlam.run_folder import staged_folder
+from crlam.io.run_folder import staged_folder
 from crlam.sim.worlds import WORLD_NAMES
 
 __all__ = ["ExploreSweep", "run_explore_experiment", "run_one_exploration", "variant_label"]

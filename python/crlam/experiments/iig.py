@@ -24,8 +24,8 @@ from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs, write_atomic
 from crlam.experiments.resume import close_experiment, input_digest, load_json_dict, open_experiment
 from crlam.info import InformationFunction, load_map_prior, make_function
+from crlam.io.run_folder import staged_folder
 from crlam.planner import IigSettings, IigTree, check_start, plan_iig
-from crlam.run_folder import staged_folder
 
 __all__ = ["FUNCTIONS", "LABELS", "IigExperiment", "function_for", "run_iig_experiment", "run_one"]
 

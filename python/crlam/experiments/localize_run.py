@@ -196,7 +196,7 @@ def run_localize_log(
     """Localizes the log's scans on the map and writes the run folder (module docstring).
 
     ``time_offset`` (``auto``, ``off`` or seconds) re-attaches the odometry at each scan's
-    corrected stamp (:mod:`crlam.time_offset`); ``metrics.json`` records it (``time_offset``).
+    corrected stamp (:mod:`crlam.slam.time_offset`); ``metrics.json`` records it (``time_offset``).
     Without ``initial_pose`` the localization is global. ``relations`` (a Kuemmerle relations
     file) and ``reference`` (a TUM trajectory in the map's frame) add their errors to
     ``metrics.json``. ``live_feed`` (a :class:`crlam.experiments.slam_live_view.SlamLiveFeed`)
@@ -206,7 +206,7 @@ def run_localize_log(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     loc_map = load_localization_map(map_path, nav2_prior=nav2_prior)
-    from crlam.time_offset import apply_time_offset, report, resolve_time_offset
+    from crlam.slam.time_offset import apply_time_offset, report, resolve_time_offset
 
     offset = resolve_time_offset(time_offset, log_path, bag_options=bag_options, max_scans=max_scans)
     if progress or (time_offset == "auto" and not offset.identified):

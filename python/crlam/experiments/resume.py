@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from crlam.errors import ConfigError
-from crlam.run_folder import COMPLETE, INCOMPLETE, check_output
+from crlam.io.run_folder import COMPLETE, INCOMPLETE, check_output
 
 __all__ = ["SETTINGS_FILE", "close_experiment", "file_digest", "input_digest", "load_json_dict", "open_experiment"]
 

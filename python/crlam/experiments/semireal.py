@@ -29,7 +29,7 @@ Laser lag
 ``laser_lag`` (s, >= 0): the laser stamps each scan that much after it was taken (on arrival).
 The scan's stamp is ``t + laser_lag``; the odometry record of that instant is stamped ``t``; the
 scan's odometry field is the odometry at its (late) stamp, as a logger that trusts the stamps
-attaches it. The log's time offset (:mod:`crlam.time_offset`) is then ``-laser_lag``.
+attaches it. The log's time offset (:mod:`crlam.slam.time_offset`) is then ``-laser_lag``.
 
 Output (:func:`write_semireal`): ``log.clf`` (an ``ODOM`` line per scan, then the scan),
 ``groundtruth.tum`` (the corrected poses at the scans' stamps), ``odometry.tum`` (the odometry at
@@ -172,7 +172,7 @@ def make_semireal(scans: list[LaserScan], settings: SemiRealSettings | None = No
     stamps = t_true + s.laser_lag
     out_scans: list[LaserScan] = []
     records: list[OdometryReading] = []
-    from crlam.odometry_retime import interpolate_pose
+    from crlam.preflight.odometry_retime import interpolate_pose
 
     for k, sc in enumerate(scans):
         # The logger attaches the odometry at the scan's stamp, which is late by the lag.

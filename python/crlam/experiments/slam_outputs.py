@@ -37,15 +37,15 @@ from numpy.typing import NDArray
 
 from crlam import __version__, _native
 from crlam.eval.trajectory import ReferenceErrors, RelationsErrors, reference_errors, relations_error
-from crlam.fill import fill_rule
-from crlam.grid_alignment import into_map_frame
 from crlam.io.logs import input_description
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
-from crlam.map_range import MapRangeChoice
-from crlam.motion_noise import MotionNoiseEstimate
+from crlam.preflight.map_range import MapRangeChoice
 from crlam.slam import SlamRun
-from crlam.slam_continue import SlamPrior, pose_covariance
+from crlam.slam.fill import fill_rule
+from crlam.slam.grid_alignment import into_map_frame
+from crlam.slam.motion_noise import MotionNoiseEstimate
+from crlam.slam.prior import SlamPrior, pose_covariance
 
 __all__ = [
     "ESTIMATES",
@@ -129,7 +129,7 @@ def write_toml(path: Path, sections: dict[str, dict[str, Any]]) -> None:
     """A TOML file of ``[section]`` tables written with tomli-w.
 
     A None value cannot be a TOML value: it is written as the comment line ``# name = (unset)``
-    at the end of its table, which :mod:`crlam.presets` and the sweeps read back as None (a key
+    at the end of its table, which :mod:`crlam.slam.presets` and the sweeps read back as None (a key
     that is absent altogether means "the preset's value", which is not the same).
     """
     import tomli_w

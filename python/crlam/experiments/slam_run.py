@@ -35,9 +35,9 @@ from crlam.experiments.slam_outputs import (
 from crlam.io.carmen import LaserScan
 from crlam.io.logs import open_log
 from crlam.io.readings import ReadingFilter
-from crlam.lidar_check import LidarSetup
+from crlam.preflight.lidar_check import LidarSetup
 from crlam.slam import SlamConfig, SlamRun
-from crlam.slam_continue import SlamPrior
+from crlam.slam.prior import SlamPrior
 
 # The run folder's writers live in crlam.experiments.slam_outputs; re-exported here, where the
 # run's callers (localize_run, the ROS SLAM node, the benches) import them from.
@@ -103,13 +103,13 @@ def run_slam_log(
     ``bag_options`` go to the bag reader (:func:`crlam.io.logs.open_log`: ``scan_topic``,
     ``odom_topic``, ``base_frame``, ``laser_mount``, ``upside_down``). ``mcap`` also writes
     ``run.mcap`` (:mod:`crlam.experiments.slam_mcap`: scans, TF, particles, path and map as
-    standard ROS 2 messages). ``odometry`` is the motion input (:mod:`crlam.scan_odometry`):
+    standard ROS 2 messages). ``odometry`` is the motion input (:mod:`crlam.slam.scan_odometry`):
     ``wheel`` (the log's odometry), ``scan_match`` (scan-matching odometry; the log's odometry is
-    not read, and the filter takes :func:`~crlam.scan_odometry.scan_match_filter_config`'s motion
+    not read, and the filter takes :func:`~crlam.slam.scan_odometry.scan_match_filter_config`'s motion
     noise) or ``auto`` (``scan_match`` when the input has no odometry); ``config.toml`` and
     ``metrics.json`` record which was used and why. ``prior`` continues a saved run
-    (:mod:`crlam.slam_continue`): its folder is only read, and must not be ``out_dir``.
-    ``laser_mount`` is ``auto`` (check the mount against the odometry, :mod:`crlam.lidar_check`),
+    (:mod:`crlam.slam.prior`): its folder is only read, and must not be ``out_dir``.
+    ``laser_mount`` is ``auto`` (check the mount against the odometry, :mod:`crlam.preflight.lidar_check`),
     ``data`` (the data's mount unchecked) or ``given`` (set by ``bag_options``); with
     ``config.body_mask = "auto"`` the body beams are found by the same pre-pass. ``live_feed``
     (a :class:`crlam.experiments.slam_live_view.SlamLiveFeed`) serves the run on a Foxglove
@@ -122,19 +122,19 @@ def run_slam_log(
     out.mkdir(parents=True, exist_ok=True)
     # The wall time includes the odometry-noise pre-pass, which is part of the run.
     t0 = time.perf_counter()
-    from crlam.scan_odometry import resolve_odometry, scan_match_filter_config
+    from crlam.slam.scan_odometry import resolve_odometry, scan_match_filter_config
 
     source = resolve_odometry(log_path, odometry, bag_options)
     if source[0] == "scan_match":
         config = scan_match_filter_config(config)
-    from crlam.lidar_check import check_lidar_of_log
+    from crlam.preflight.lidar_check import check_lidar_of_log
 
     lidar = check_lidar_of_log(log_path, bag_options, laser_mount, config.body_mask, wheel=source[0] == "wheel")
     map_range = None
     if config.map_range == "readings":
         from dataclasses import replace
 
-        from crlam.map_range import map_range_from_readings
+        from crlam.preflight.map_range import map_range_from_readings
 
         readings_log = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
         map_range = map_range_from_readings(lidar.corrected(readings_log), config.max_range, max_scans=max_scans)
@@ -143,7 +143,7 @@ def run_slam_log(
     if config.motion_noise == "estimate" and config.motion_params is None:
         from dataclasses import replace
 
-        from crlam.motion_noise import estimate_gmapping_noise
+        from crlam.slam.motion_noise import estimate_gmapping_noise
 
         noise_estimate = estimate_gmapping_noise(
             lidar.corrected(open_log(log_path, **(bag_options or {}))),
@@ -156,7 +156,7 @@ def run_slam_log(
         config = replace(config, motion_params=noise_estimate.params)
         if progress or not noise_estimate.fitted:
             print(noise_estimate.describe(), file=sys.stderr)
-    from crlam.time_offset import apply_time_offset, report, resolve_time_offset
+    from crlam.slam.time_offset import apply_time_offset, report, resolve_time_offset
 
     offset = resolve_time_offset(config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0])
     if progress or (config.time_offset == "auto" and not offset.identified and source[0] != "scan_match"):
@@ -165,7 +165,7 @@ def run_slam_log(
     records: Any = apply_time_offset(reader, offset)
     front_end = None
     if source[0] == "scan_match":
-        from crlam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig, scan_match_odometry
+        from crlam.slam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig, scan_match_odometry
 
         front_end = ScanMatchOdometry(ScanOdometryConfig())
         records = scan_match_odometry(reader, front_end=front_end)

@@ -12,10 +12,10 @@ odometry fields agree); the scans' odometry fields are the variant's odometry.
     odometry field becomes the original odometry interpolated at ``t_k - 0.15`` (what a logger on
     the shifted clock attaches; a scan whose stamp is out of order with its neighbours gets its
     own pose moved by the odometry's motion from ``t_k`` to ``t_k - 0.15``). The true offset
-    (:mod:`crlam.time_offset`) is ``+0.15 s``.
+    (:mod:`crlam.slam.time_offset`) is ``+0.15 s``.
 ``turn_heading``
     The odometry's heading error tripled in turns. The reference heading change of each
-    scan-to-scan step is scan-matching odometry's (:class:`crlam.scan_odometry.ScanMatchOdometry`,
+    scan-to-scan step is scan-matching odometry's (:class:`crlam.slam.scan_odometry.ScanMatchOdometry`,
     which does not read the odometry); the odometry's heading error of the step is
     ``e = dtheta_odom - dtheta_ref``. In the steps that turn faster than ``turn_rate``
     (0.2 rad/s by the reference) the step's heading change becomes ``dtheta_odom + 2 e`` (its
@@ -118,8 +118,8 @@ def _scans(records: list[CarmenRecord]) -> list[LaserScan]:
 
 def odometry_series(scans: list[LaserScan]) -> tuple[Array, Array]:
     """(stamps, poses) of the scans' odometry, sorted by stamp, stamps out of order with both
-    file-order neighbours left out (:mod:`crlam.time_offset`)."""
-    from crlam.odometry_retime import locally_ordered
+    file-order neighbours left out (:mod:`crlam.slam.time_offset`)."""
+    from crlam.preflight.odometry_retime import locally_ordered
 
     t = np.array([s.timestamp for s in scans], dtype=np.float64)
     p = np.array([s.odom for s in scans], dtype=np.float64).reshape(-1, 3)
@@ -149,7 +149,7 @@ def _set_odom(scan: LaserScan, odom: Array) -> LaserScan:
 
 
 def _odom_shift(scans: list[LaserScan], s: StressSettings) -> list[CarmenRecord]:
-    from crlam.time_offset import interpolate_pose
+    from crlam.slam.time_offset import interpolate_pose
 
     t, p = odometry_series(scans)
     # The scan's own pose moved by the series' motion from t to t - shift: the series at t - shift
@@ -177,7 +177,7 @@ def _odom_shift(scans: list[LaserScan], s: StressSettings) -> list[CarmenRecord]
 
 def reference_headings(scans: list[LaserScan]) -> Array:
     """Scan-matching odometry's heading (rad, unwrapped) at every scan."""
-    from crlam.scan_odometry import ScanMatchOdometry
+    from crlam.slam.scan_odometry import ScanMatchOdometry
 
     fe = ScanMatchOdometry()
     out = np.empty(len(scans))

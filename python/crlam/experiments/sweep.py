@@ -21,9 +21,9 @@ from crlam.experiments.executor import Executor, RunLayout
 from crlam.experiments.pool import run_jobs
 from crlam.experiments.resume import load_json_dict
 from crlam.io.npz_check import check_npz
+from crlam.io.run_folder import staged_folder
 from crlam.io.structured import load_toml_text
 from crlam.io.tum import read_tum
-from crlam.run_folder import staged_folder
 from crlam.slam import SlamConfig
 
 __all__ = ["RunSpec", "run_is_finished", "run_sweep", "load_metrics", "stored_setting_differences"]
@@ -101,7 +101,7 @@ def stored_setting_differences(spec: RunSpec, folder: Path) -> list[str]:
         if key == "preset":
             continue  # provenance, not a setting: the values themselves are compared
         if key == "motion_params" and want is None and requested.get("motion_noise") == "estimate":
-            continue  # the run fitted them to its log and wrote them down (crlam.motion_noise)
+            continue  # the run fitted them to its log and wrote them down (crlam.slam.motion_noise)
         want = _normalised(want)
         if key in stored_slam:
             have = stored_slam[key]

@@ -23,12 +23,12 @@ from crlam.eval.trajectory import ReferenceErrors, aggregate_runs, reference_err
 from crlam.experiments.executor import Executor
 from crlam.experiments.resume import close_experiment, load_json_dict, open_experiment
 from crlam.experiments.sweep import RunSpec, run_sweep
-from crlam.grid_alignment import frame_from_record, from_map_frame, into_map_frame
 from crlam.io.belief import load_belief
 from crlam.io.tum import read_tum
 from crlam.mapping import ConfidenceRichMap
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation
 from crlam.slam import SlamConfig
+from crlam.slam.grid_alignment import frame_from_record, from_map_frame, into_map_frame
 
 __all__ = ["run_table1", "PAPER_TABLE1"]
 

@@ -144,7 +144,7 @@ class OdometryReading:
 @dataclass(eq=False)
 class ImuReading:
     """The yaw rate of one ``sensor_msgs/msg/Imu`` message of a ROS bag (only read for
-    scan-matching odometry, :mod:`crlam.scan_odometry`).
+    scan-matching odometry, :mod:`crlam.slam.scan_odometry`).
 
     Attributes
     ----------

@@ -42,7 +42,7 @@ Readings that returned at or beyond ``z_max`` (but below the sensor's maximum an
 fixed no-return value) are real echoes in both policies: the beam crossed ``z_max`` freely, so
 the map is updated as free to ``z_max`` (the ``∞`` cause), as crm-spec 2.1 states.
 
-Beams masked as hits on the robot's own body (:mod:`crlam.body_mask`) are left out in both
+Beams masked as hits on the robot's own body (:mod:`crlam.preflight.body_mask`) are left out in both
 policies.
 """
 
@@ -95,7 +95,7 @@ class ReadingStats:
     n_no_return_dropped, n_no_return_z_max : int
         No-returns left out (``drop``) or passed to the filter as the z_max atom (``z_max``).
     n_body_masked : int
-        Beams left out as hits on the robot's body (:mod:`crlam.body_mask`).
+        Beams left out as hits on the robot's body (:mod:`crlam.preflight.body_mask`).
     n_used : int
         Beams passed to the filter.
     """

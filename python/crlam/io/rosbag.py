@@ -31,7 +31,7 @@ Odometry
     yaw). A scan stamped up to ``odom_tolerance`` seconds before the first or after the last
     odometry reading takes that reading; scans further out are skipped and counted. With
     ``odometry=False`` none is read: every scan is yielded as it comes, ``odom`` and ``pose`` NaN
-    (for scan-matching odometry, :mod:`crlam.scan_odometry`).
+    (for scan-matching odometry, :mod:`crlam.slam.scan_odometry`).
 IMU
     With ``imu=True``, the yaw rate of each ``sensor_msgs/msg/Imu`` message of the IMU topic (the
     only one unless ``imu_topic`` names one) as an :class:`~crlam.io.carmen_types.ImuReading`:
@@ -157,7 +157,7 @@ class RosbagReader:
     odometry : bool
         Read the odometry (default). ``False`` reads none, whatever the bag holds: every scan is
         yielded at once with ``odom`` and ``pose`` NaN (for scan-matching odometry,
-        :mod:`crlam.scan_odometry`); the base frame is then ``base_frame``, else ``base_link`` or
+        :mod:`crlam.slam.scan_odometry`); the base frame is then ``base_frame``, else ``base_link`` or
         ``base_footprint`` when a fixed chain reaches the laser from it, else the top of the
         laser frame's chain.
     imu : bool

@@ -4,8 +4,8 @@
 up to :data:`SCANS_KEPT` with motion: the odometry moved 2 cm or turned 0.02 rad since the last one
 kept) and applies
 
-* :func:`crlam.body_mask.find_body_beams` (``SlamConfig.body_mask = "auto"``), and
-* :func:`crlam.laser_mount.estimate_mount` (``laser_mount = "auto"``, the default when neither
+* :func:`crlam.preflight.body_mask.find_body_beams` (``SlamConfig.body_mask = "auto"``), and
+* :func:`crlam.preflight.laser_mount.estimate_mount` (``laser_mount = "auto"``, the default when neither
   ``--laser-mount X Y YAW`` nor ``--upside-down`` is given).
 
 Mount rule
@@ -33,10 +33,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from crlam.body_mask import BodyMask, find_body_beams
 from crlam.io.carmen_types import LaserScan
 from crlam.io.readings import ReadingStats
-from crlam.laser_mount import MountEstimate, estimate_mount
+from crlam.preflight.body_mask import BodyMask, find_body_beams
+from crlam.preflight.laser_mount import MountEstimate, estimate_mount
 
 __all__ = ["MOUNT_MODES", "SCANS_KEPT", "SCANS_READ", "LidarSetup", "check_lidar", "check_lidar_of_log"]
 

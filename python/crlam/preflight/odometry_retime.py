@@ -1,6 +1,6 @@
 """Each scan's odometry re-attached at its corrected stamp (:func:`retime_odometry`), the
 interpolation of an odometry series (:func:`interpolate_pose`) and the test of stamps against
-their place in the file (:func:`locally_ordered`); used by :mod:`crlam.time_offset`.
+their place in the file (:func:`locally_ordered`); used by :mod:`crlam.slam.time_offset`.
 
 Each scan's odometry becomes the odometry series (the same one the estimate compared with: the
 log's odometry records, else its scans' odometry fields) interpolated at ``t + d`` (linear in x

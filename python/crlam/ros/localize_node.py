@@ -179,8 +179,8 @@ class LocalizeNode(SlamNode):
         return {"converged": int(conv is not None), "converged_at_scan": -1 if conv is None else conv.scan_index}
 
     def _save(self, request: str) -> bool | None:
+        from crlam.io.run_folder import staged_folder
         from crlam.io.tum import write_tum
-        from crlam.run_folder import staged_folder
 
         target = request or self.params.output_folder
         if not target or self.localizer is None or not self.localizer.steps:

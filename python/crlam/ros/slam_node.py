@@ -21,7 +21,7 @@ Foxglove WebSocket, with the scans the filter took, ``odom -> base_link`` at tho
 ``/tf_static``; a message is serialised for it only while a client subscribes to its topic, and
 the server drops a slow client's oldest messages: the view never holds up the filter.
 A save (request or shutdown) writes a crlam run folder
-(trajectory, maps, belief, config) plus the Nav2 map through :func:`crlam.run_folder.staged_folder`:
+(trajectory, maps, belief, config) plus the Nav2 map through :func:`crlam.io.run_folder.staged_folder`:
 the folder appears whole or not at all.
 """
 
@@ -146,7 +146,7 @@ class SlamNode(SaveMapService, LiveViewMirror):
         ahead (``motion_noise = "estimate"``): live, the motion model's own parameters are used."""
         from dataclasses import replace
 
-        from crlam.presets import resolve
+        from crlam.slam.presets import resolve
 
         config = resolve(self.params.preset, overrides)
         if config.motion_noise == "estimate" and config.motion_params is None:
@@ -533,7 +533,7 @@ class SlamNode(SaveMapService, LiveViewMirror):
     def _save(self, request: str) -> bool | None:
         """Writes the run folder ``request`` (or ``output_folder``) whole, or not at all: True once
         written, False with nothing to save yet, None without a folder to write."""
-        from crlam.run_folder import staged_folder
+        from crlam.io.run_folder import staged_folder
 
         target = request or self.params.output_folder
         if not target:

@@ -2,7 +2,7 @@
 checks of its values.
 
 :mod:`crlam.slam` re-exports everything here; the named presets read their files through
-:mod:`crlam.preset_files`, which takes this class as an argument (it sits below it).
+:mod:`crlam.slam.preset_files`, which takes this class as an argument (it sits below it).
 """
 
 from __future__ import annotations
@@ -12,11 +12,11 @@ from dataclasses import asdict, dataclass, field, fields
 from typing import Any, Literal
 
 from crlam.errors import ConfigError
-from crlam.fill import FILLS
-from crlam.grid_alignment import GRID_ALIGNMENTS
-from crlam.map_range import MAP_RANGES
 from crlam.mapping import MappingConfig
-from crlam.preset_files import DEFAULT_PRESET, NOT_DEVIATIONS, paper_settings_of, resolve_preset
+from crlam.preflight.map_range import MAP_RANGES
+from crlam.slam.fill import FILLS
+from crlam.slam.grid_alignment import GRID_ALIGNMENTS
+from crlam.slam.preset_files import DEFAULT_PRESET, NOT_DEVIATIONS, paper_settings_of, resolve_preset
 
 __all__ = [
     "SlamConfig",
@@ -92,7 +92,7 @@ class SlamConfig:
         ``"fixed"`` (paper): z_max is ``max_range``. ``"readings"``: a run of a whole log
         (:func:`crlam.experiments.slam_run.run_slam_log`, ``crlam slam``) sets ``max_range`` to
         the range within which 90 % of the returns of the log's first 2,000 scans lie, rounded
-        up to a metre, between the configured ``max_range`` and 20 m (:mod:`crlam.map_range`);
+        up to a metre, between the configured ``max_range`` and 20 m (:mod:`crlam.preflight.map_range`);
         :class:`SlamRun` fed scan by scan uses ``max_range`` as given.
     match_min_score : float
         RBPF-CLAM scan_match: a particle's scan match counts only when its endpoint score (the
@@ -173,7 +173,7 @@ class SlamConfig:
     motion_noise : str
         ``model`` (default): the motion model's parameters as given (``motion_params``, else the
         model's own). ``estimate``: GMapping's parameters fitted to the log's own odometry and
-        scans before the run (:mod:`crlam.motion_noise`; needs ``motion="gmapping"``), unless
+        scans before the run (:mod:`crlam.slam.motion_noise`; needs ``motion="gmapping"``), unless
         ``motion_params`` are given; ``crlam slam`` records the fitted values in config.toml.
     linear_update, angular_update : float
         Process a scan after this much travel (m) or rotation (rad) since the last processed one;
@@ -227,7 +227,7 @@ class SlamConfig:
     grid_alignment : str
         The map's frame. ``none`` (paper): the first odometry pose's frame. ``walls``: that frame
         turned about the first pose so that the grid runs along the walls the first scan sees
-        (:func:`crlam.grid_alignment.map_turn`): a building at an angle to the robot's first
+        (:func:`crlam.slam.grid_alignment.map_turn`): a building at an angle to the robot's first
         heading is drawn on its own axes rather than as staircases of cells. The estimates are
         in the map's frame; :meth:`SlamRun.to_odometry_frame` turns them back. Not used when
         continuing a saved run (its map keeps its frame).
@@ -237,10 +237,10 @@ class SlamConfig:
         the cells to z_max) or ``"drop"`` (left out: never clears a cell).
     body_mask : str
         ``"auto"``: beams that read the robot's own body are found in the first scans and left
-        out (:mod:`crlam.body_mask`); ``"off"`` (paper): every beam is used.
+        out (:mod:`crlam.preflight.body_mask`); ``"off"`` (paper): every beam is used.
     time_offset : str or float
         The offset (s) between the log's laser and odometry stamps, read by ``crlam slam`` and
-        :func:`crlam.experiments.slam_run.run_slam_log` (:mod:`crlam.time_offset`): ``auto``
+        :func:`crlam.experiments.slam_run.run_slam_log` (:mod:`crlam.slam.time_offset`): ``auto``
         (the ``robust`` preset's) estimates it from the log's scans and odometry and re-attaches the odometry at
         each scan's corrected stamp when the estimate is identified (else leaves it as logged);
         ``off`` (paper) leaves the odometry as the log attaches it; a number applies that offset. Input
@@ -300,7 +300,7 @@ class SlamConfig:
 
     @classmethod
     def from_preset(cls, name: str | None = None, **overrides: Any) -> SlamConfig:
-        """The settings of preset ``name`` (default ``robust``, :data:`crlam.presets.DEFAULT_PRESET`)
+        """The settings of preset ``name`` (default ``robust``, :data:`crlam.slam.presets.DEFAULT_PRESET`)
         with ``overrides`` (SlamConfig field names) on top; fields neither names keep the paper's
         defaults. Raises :class:`ConfigError` for an unknown preset or field, or a bad value."""
         return resolve_preset(cls, DEFAULT_PRESET if name is None else name, overrides)
@@ -414,7 +414,7 @@ class SlamConfig:
         if self.no_return not in ("drop", "z_max"):
             raise bad("no_return", "must be 'drop' or 'z_max' (crlam.io.readings)")
         if self.body_mask not in ("auto", "off"):
-            raise bad("body_mask", "must be 'auto' or 'off' (crlam.body_mask)")
+            raise bad("body_mask", "must be 'auto' or 'off' (crlam.preflight.body_mask)")
         if self.batch_kernel not in ("windowed", "full_ray"):
             raise bad("batch_kernel", "must be 'windowed' or 'full_ray'")
         if self.motion not in ("gaussian", "thrun", "gmapping"):

@@ -1,10 +1,10 @@
-"""The preset files (``crlam/presets/<name>.toml``) and run folders' ``config.toml`` read as the
+"""The preset files (``crlam/slam/presets/<name>.toml``) and run folders' ``config.toml`` read as the
 fields of a settings dataclass.
 
 Everything here takes that class as an argument (``config_class``: :class:`crlam.slam.SlamConfig`
 in practice), so this module sits below the class it reads settings for: ``SlamConfig.from_preset``
-and ``SlamConfig.deviations`` pass their own class, and :mod:`crlam.presets` binds the functions
-to SlamConfig for its users. The file format is described in :mod:`crlam.presets`.
+and ``SlamConfig.deviations`` pass their own class, and :mod:`crlam.slam.presets` binds the functions
+to SlamConfig for its users. The file format is described in :mod:`crlam.slam.presets`.
 """
 
 from __future__ import annotations
@@ -45,7 +45,7 @@ PAPER_PRESET = "paper"
 #: name where the settings came from: never reported as deviations from the paper.
 NOT_DEVIATIONS = frozenset({"seed", "mode_bandwidth", "smoothing_lag", "fill", "preset"})
 
-#: The folder of the preset files (the crlam.presets package, which ships them as package data).
+#: The folder of the preset files (the crlam.slam.presets package, which ships them as package data).
 _DIR = Path(__file__).resolve().parent / "presets"
 _SECTION = re.compile(r"^\s*\[([^\]]+)\]\s*(#.*)?$")
 _UNSET = re.compile(r"^\s*#\s*(\w+)\s*=\s*\(unset\)")

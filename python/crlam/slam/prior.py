@@ -20,8 +20,8 @@ from numpy.typing import NDArray
 
 from crlam.errors import ConfigError, DataFormatError
 from crlam.io.belief import load_belief
+from crlam.io.run_folder import COMPLETE, INCOMPLETE, is_complete
 from crlam.mapping import ConfidenceRichMap
-from crlam.run_folder import COMPLETE, INCOMPLETE, is_complete
 
 __all__ = ["SlamPrior", "load_slam_prior", "pose_covariance"]
 

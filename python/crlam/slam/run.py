@@ -1,7 +1,7 @@
 """SLAM with Rao-Blackwellized particle filters: RBPF-CLAM (and the RBPF-OGM baseline).
 
 :class:`SlamConfig` holds every setting with the paper's defaults (defined in
-:mod:`crlam.slam_config`, re-exported here); :func:`make_filter` builds the native filter;
+:mod:`crlam.slam.config`, re-exported here); :func:`make_filter` builds the native filter;
 :class:`SlamRun` feeds it a stream of scans and keeps one pose per scan.
 """
 
@@ -16,11 +16,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam import _native
 from crlam.errors import ConfigError, CrlamError
-from crlam.fill import fill_skipped
-from crlam.grid_alignment import WallDirection, from_map_frame, into_map_frame, map_frame, map_turn
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap
 from crlam.pose import number_pair
-from crlam.slam_config import (
+from crlam.slam.config import (
     FRONT_ENDS,
     MAX_MATCH_RANGE,
     MAX_TIME_OFFSET,
@@ -29,10 +27,12 @@ from crlam.slam_config import (
     SlamConfig,
     valid_time_offset,
 )
-from crlam.slam_continue import SlamPrior
+from crlam.slam.fill import fill_skipped
+from crlam.slam.grid_alignment import WallDirection, from_map_frame, into_map_frame, map_frame, map_turn
+from crlam.slam.prior import SlamPrior
 
-# SlamConfig and its constants live in crlam.slam_config; they are re-exported here, where the
-# users of the library import them from.
+# SlamConfig and its constants live in crlam.slam.config; they are re-exported here and by the
+# package (crlam.slam), where the users of the library import them from.
 __all__ = [
     "FRONT_ENDS",
     "MAX_MATCH_RANGE",
@@ -57,7 +57,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike, prior: SlamPrior | 
 
     RBPF-OGM takes the same particle count, seed, triggers, motion model and grid; its map range
     is ``max_range`` and its scan matcher has GMapping's settings. With a ``prior`` (a saved run,
-    :mod:`crlam.slam_continue`; RBPF-CLAM only) every particle starts with its map, at a draw
+    :mod:`crlam.slam.prior`; RBPF-CLAM only) every particle starts with its map, at a draw
     from N(prior.pose, prior.cov), and ``initial_pose`` is not used.
     """
     if not isinstance(config, SlamConfig):
@@ -257,7 +257,7 @@ class SlamRun:
 
     config: SlamConfig
     filter: NativeFilter | None = None
-    #: A saved run to continue (:mod:`crlam.slam_continue`): its map and final estimate.
+    #: A saved run to continue (:mod:`crlam.slam.prior`): its map and final estimate.
     prior: SlamPrior | None = None
     estimates: list[NDArray[np.float64]] = field(default_factory=list)
     stamps: list[float] = field(default_factory=list)
@@ -373,7 +373,7 @@ class SlamRun:
 
     def trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """(stamps (n,), poses (n, 3)), one per scan in file order: the weighted-mean estimate at
-        each processed scan, the others by the ``fill`` rule (:mod:`crlam.fill`).
+        each processed scan, the others by the ``fill`` rule (:mod:`crlam.slam.fill`).
 
         :attr:`estimates` keeps the estimates as they stood online (skipped scans: the odometry
         fill).

@@ -65,7 +65,7 @@ from crlam.io.carmen_types import ImuReading, LaserScan
 from crlam.pose import between, compose
 
 if TYPE_CHECKING:
-    from crlam.slam import SlamConfig
+    from crlam.slam.config import SlamConfig
 
 __all__ = [
     "ODOMETRY_CHOICES",
@@ -81,7 +81,7 @@ __all__ = [
 
 #: GMapping's odometry-noise parameters (srr, srt, str, stt) that a filter uses with
 #: scan-matching odometry unless ``motion_params`` are given (see ``crlam slam --odometry``):
-#: :func:`crlam.motion_noise.fit_gmapping_noise` of the front end's increments between the
+#: :func:`crlam.slam.motion_noise.fit_gmapping_noise` of the front end's increments between the
 #: filter's processed scans (0.5 m / 0.25 rad) against the ground truth's, over the four simulated
 #: development logs of the default preset (``crlam simulate --sensor sick``, museum and office,
 #: seeds 0 and 1, 3,000 scans; 1,173 steps). GMapping's defaults are 0.1, 0.2, 0.1, 0.2: the

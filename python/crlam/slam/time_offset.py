@@ -10,7 +10,7 @@ later by 0.15 s give ``d = +0.15``.
 
 Estimate (:func:`estimate_time_offset`)
 ---------------------------------------
-1. Scan-matching odometry (:class:`crlam.scan_odometry.ScanMatchOdometry`, which never reads the
+1. Scan-matching odometry (:class:`crlam.slam.scan_odometry.ScanMatchOdometry`, which never reads the
    log's odometry) gives each scan a heading ``a(t)`` in the laser's time. To bound the cost, at
    most ``max_scans`` scans are matched, in ``segments`` runs of consecutive scans spread evenly
    over the log (a fresh front end each). A scan the front end could not match, and a scan whose
@@ -51,7 +51,7 @@ why.
 
 Application
 -----------
-:func:`crlam.odometry_retime.retime_odometry` gives each scan the odometry series interpolated at
+:func:`crlam.preflight.odometry_retime.retime_odometry` gives each scan the odometry series interpolated at
 ``t + d`` (see that module). ``auto`` applies the estimate only when it is identified and at
 least ``min_apply_s``; a number given is always applied (0 included); ``off`` never.
 """
@@ -70,8 +70,8 @@ from numpy.typing import NDArray
 
 from crlam.errors import ConfigError
 from crlam.io.carmen_types import LaserScan, OdometryReading
-from crlam.odometry_retime import RetimeStats, interpolate_pose, locally_ordered, retime_odometry
-from crlam.slam import MAX_TIME_OFFSET, TIME_OFFSET_CHOICES, valid_time_offset
+from crlam.preflight.odometry_retime import RetimeStats, interpolate_pose, locally_ordered, retime_odometry
+from crlam.slam.config import MAX_TIME_OFFSET, TIME_OFFSET_CHOICES, valid_time_offset
 
 __all__ = [
     "TIME_OFFSET_CHOICES",
@@ -269,7 +269,7 @@ def _collect(
 ) -> tuple[list[_Run], Array, Array, Array, Array]:
     """Match the scans of the runs; collect the odometry records' and the scans' odometry
     (stamp, heading) series."""
-    from crlam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig
+    from crlam.slam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig
 
     starts, length = _segment_starts(n_total, settings)
     runs: list[_Run] = []

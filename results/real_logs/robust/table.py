@@ -24,8 +24,8 @@ from pathlib import Path
 import numpy as np
 
 from crlam.eval.trajectory import ScanIndex, index_scans, relations_error
-from crlam.fill import fill_skipped
 from crlam.io.relations import Relations, read_relations
+from crlam.slam.fill import fill_skipped
 
 #: The issue's accuracy targets: GMapping measured on Intel, GMapping published on ACES (m).
 LIMIT = {"Intel": 0.047, "ACES": 0.060}

@@ -13,7 +13,7 @@ presets' values are written:
 A run folder's ``config.toml`` has the same ``[slam]`` table (every field, plus the preset name
 and the derived ``sigma_hit_resolved``), so :func:`load_config_file` reads either kind of file.
 
-The reading itself is in :mod:`crlam.preset_files` (below :class:`~crlam.slam.SlamConfig`, which
+The reading itself is in :mod:`crlam.slam.preset_files` (below :class:`~crlam.slam.SlamConfig`, which
 it takes as an argument); this package binds it to SlamConfig.
 """
 
@@ -22,7 +22,8 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from crlam.preset_files import (
+from crlam.slam.config import SlamConfig
+from crlam.slam.preset_files import (
     DEFAULT_PRESET,
     NOT_DEVIATIONS,
     PAPER_PRESET,
@@ -35,7 +36,6 @@ from crlam.preset_files import (
     preset_path,
     resolve_preset,
 )
-from crlam.slam_config import SlamConfig
 
 __all__ = [
     "DEFAULT_PRESET",
