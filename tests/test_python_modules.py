@@ -1,5 +1,6 @@
 """The module graph of the Python package (python/crlam) has no import loops and respects the
-layer order of :data:`LAYERS` (the Rust core's is checked by test_rust_modules.py).
+layer order of :data:`LAYERS` between its units and of :data:`PACKAGE_LAYERS` inside each
+subpackage (the Rust core's is checked by test_rust_modules.py).
 
 Every file is a node (``crlam/info/surface.py`` is ``crlam.info.surface``, a package's
 ``__init__.py`` is the package). Every ``import`` and ``from ... import`` of ``crlam`` anywhere in
@@ -26,22 +27,19 @@ LAYERS: list[set[str]] = [
     {"errors", "_native"},
     {"limits", "pose"},
     {"crlam"},  # the package's __init__: its version and the errors and limits it re-exports
-    # run_folder records the version in each run folder's markers.
+    # io's run folders record the version in their markers.
     # live_view serves ROS messages' bytes on a Foxglove WebSocket: it reads no crlam module.
-    {"io", "run_folder", "live_view"},
-    # Reading checks and the odometry's re-attachment at corrected stamps: below the maps and slam.
-    {"body_mask", "laser_mount", "odometry_retime", "map_range"},
-    # Maps and the simulator read and write through io; fill and grid_alignment are pose maths.
-    # preset_files reads the preset TOML files as the fields of a class it is given (SlamConfig).
-    {"mapping", "sim", "fill", "grid_alignment", "motion_noise", "preset_files"},
-    {"slam_continue", "localize_map", "info"},
-    # SlamConfig reads its presets through preset_files, passing its own class.
-    {"slam_config", "planner"},
-    # The presets bind preset_files to SlamConfig; slam runs the filter a SlamConfig describes.
-    {"presets", "slam"},
-    {"scan_odometry", "localize", "eval"},
-    # The log's pre-passes: the time offset reads scan-matching odometry; the lidar check the mount.
-    {"time_offset", "lidar_check"},
+    {"io", "live_view"},
+    # What a run learns from a log before its filter runs (body beams, laser mount, map reach,
+    # re-timed odometry); the maps and the simulator read and write through io.
+    {"preflight", "mapping", "sim"},
+    {"info", "localize_map"},
+    {"planner"},
+    # The filters over the maps: slam (SlamConfig reads its map reach through preflight) and
+    # localization in a known map.
+    {"slam", "localize"},
+    # eval gives skipped scans their poses by slam's fill rule.
+    {"eval"},
     {"viz"},
     {"experiments"},
     # The live ROS 2 nodes run the experiments' SLAM runner and explorer.
@@ -52,6 +50,119 @@ LAYERS: list[set[str]] = [
     {"cli"},
     {"__main__"},
 ]
+
+# The modules of each subpackage from its ground floor up, by LAYERS' rule inside the package
+# (a subpackage of a subpackage, such as slam's presets, is one module here). Not listed: the
+# package's ``__init__``, its face, which may import any of its modules, and a ``__main__``, its
+# entry point above the face; no module of the package imports either (they import each other
+# by name, so the face cannot close a loop).
+PACKAGE_LAYERS: dict[str, list[set[str]]] = {
+    "io": [
+        # Record types, line and TOML reading, the dataset registry, run folders, bag topics.
+        {
+            "carmen_types",
+            "datasets",
+            "known_pose_scan",
+            "lines",
+            "message_checks",
+            "npz_check",
+            "readings",
+            "rosbag_topics",
+            "rosbag_writer",
+            "run_folder",
+            "structured",
+        },
+        {"bag_open", "belief", "carmen_writer", "fetch", "nav2", "relations", "rosbag_scans", "rosbag_tf", "tum"},
+        {"carmen", "rosbag"},  # the two log formats
+        {"logs"},  # either log, by its file
+        {"convert"},
+    ],
+    "preflight": [
+        {"body_mask", "laser_mount", "map_range", "odometry_retime"},
+        {"lidar_check"},  # body beams and the mount, checked on a log's first scans
+    ],
+    "sim": [
+        {"grid_ops", "odometry", "raycast", "shapes"},
+        {"layout", "world"},
+        {"lookalike", "planning", "sensor", "worlds"},
+        {"robot"},
+        {"simulate"},
+    ],
+    "info": [
+        {"functions", "prior"},
+        {"surface"},
+    ],
+    "slam": [
+        # Pose maths, the log-fitted odometry noise, the preset files read as a given class's
+        # fields, and the saved run a new one continues.
+        {"fill", "grid_alignment", "motion_noise", "preset_files", "prior"},
+        {"config"},
+        {"presets", "run", "scan_odometry"},
+        {"time_offset"},  # estimated with scan-matching odometry
+    ],
+    "eval": [
+        {"align", "likelihood_bias", "maps"},
+        {"trajectory"},
+    ],
+    "viz": [
+        {"palette"},
+        {"maps"},
+        {"explore", "iig", "info", "localization", "trajectories"},
+    ],
+    "experiments": [
+        # Executors, progress and resume bookkeeping, and the pieces the runs are made of.
+        {
+            "executor",
+            "explore_candidates",
+            "explore_window",
+            "progress",
+            "resume",
+            "simulate",
+            "slam_mcap",
+            "stress_variants",
+        },
+        {"explore_live_view", "map_outputs", "pool", "semireal"},
+        {"explore", "iig", "remote_run", "slam_live_view", "slam_outputs"},
+        {"dask_executor", "explore_sweep", "iig_demo", "slam_run"},  # slam_run: one crlam slam run
+        {"known_poses", "localize_run", "localize_trials", "sweep"},
+        {"localization", "real_logs", "stress", "table1"},  # the papers' and the project's experiments
+        {"demo"},
+    ],
+    "ros": [
+        {"dds", "explore_goal", "messages", "odometry_buffer", "params", "qos"},
+        {"message_helpers", "services"},
+        {"live_view_mirror", "save_map_service"},
+        {"slam_node"},
+        {"explore_node", "localize_node", "play"},  # the nodes built on the SLAM node
+        {"bench", "reference"},
+    ],
+    "cli": [
+        {"conventions", "failures"},
+        {"data", "live", "options"},
+        # One module per command.
+        {
+            "bench",
+            "convert",
+            "demo",
+            "diagnose",
+            "eval",
+            "executor",
+            "explore",
+            "info",
+            "localize",
+            "map",
+            "ros",
+            "semireal",
+            "simulate",
+            "slam",
+        },
+        {"experiment"},  # runs the experiments through the executor's flags
+    ],
+}
+
+#: The modules of a package that PACKAGE_LAYERS leaves out: its face and its entry point.
+FACE = "__init__"
+ENTRY = "__main__"
 
 #: Loops and upward edges that are known and not yet untied: (importer, imported) files. Each
 #: must still exist (test_the_known_exceptions_still_exist), so the list cannot go stale.
@@ -113,6 +224,22 @@ def _unit(module: Module) -> str:
 
 def _layer_of() -> dict[str, int]:
     return {unit: i for i, layer in enumerate(LAYERS) for unit in layer}
+
+
+def _packages() -> set[str]:
+    """The subpackages of crlam (the units that are folders)."""
+    return {_unit(m) for m in _modules() if (PKG / _unit(m)).is_dir()}
+
+
+def _member(module: Module) -> str:
+    """The module's name inside its subpackage (``crlam.slam.presets.x`` is ``presets``; the
+    package itself is its ``__init__``)."""
+    parts = module.split(".")
+    return parts[2] if len(parts) > 2 else FACE
+
+
+def _package_layer_of(package: str) -> dict[str, int]:
+    return {member: i for i, layer in enumerate(PACKAGE_LAYERS[package]) for member in layer}
 
 
 def _loops(graph: dict[Module, set[Module]]) -> list[list[Module]]:
@@ -185,6 +312,34 @@ def test_imports_point_down_the_layers() -> None:
     assert not upward, "\n".join(upward)
 
 
+def test_every_package_module_has_a_layer() -> None:
+    assert set(PACKAGE_LAYERS) == _packages(), f"packages: {sorted(_packages())}; in PACKAGE_LAYERS: {sorted(PACKAGE_LAYERS)}"
+    for package, layers in PACKAGE_LAYERS.items():
+        members = {_member(m) for m in _modules() if _unit(m) == package} - {FACE, ENTRY}
+        named = set().union(*layers)
+        assert members == named, f"{package}: not in PACKAGE_LAYERS: {sorted(members - named)}; gone: {sorted(named - members)}"
+        assert sum(len(layer) for layer in layers) == len(named), f"{package}: a module in two layers"
+
+
+def test_imports_inside_a_package_point_down_its_layers() -> None:
+    wrong = []
+    for a, edges in sorted(_graph().items()):
+        package = _unit(a)
+        if package not in PACKAGE_LAYERS or _member(a) in (FACE, ENTRY):
+            continue
+        layer = _package_layer_of(package)
+        for b in sorted(edges):
+            if _unit(b) != package or (a, b) in KNOWN_UPWARD:
+                continue
+            if _member(b) in (FACE, ENTRY):
+                wrong.append(f"{a} imports its own package's {_member(b)} ({b}): import the module that defines the name")
+            elif _member(b) == _member(a) or not {_member(a), _member(b)} <= layer.keys():
+                continue  # inside one module (a subpackage's files), or unlisted: see the test above
+            elif layer[_member(b)] >= layer[_member(a)]:
+                wrong.append(f"{a} (layer {layer[_member(a)]} of {package}) imports {b} (layer {layer[_member(b)]})")
+    assert not wrong, "\n".join(wrong)
+
+
 def test_the_known_exceptions_still_exist() -> None:
     graph = _graph()
     gone = sorted(edge for edge in KNOWN_UPWARD if edge[1] not in graph[edge[0]])
@@ -203,6 +358,8 @@ def test_the_known_exceptions_still_exist() -> None:
         ("from .prior import MapPrior\n", {"crlam.info.prior"}),
         ("import crlam.io.tum\n", {"crlam.io.tum"}),
         ("from crlam import _native\n", {"crlam._native"}),
+        ("from crlam.slam.config import SlamConfig\n", {"crlam.slam.config"}),
+        ("from crlam.slam.presets import resolve\n", {"crlam.slam.presets"}),
     ],
 )
 def test_the_graph_sees_every_kind_of_import(source: str, edges: set[str]) -> None:
