@@ -167,7 +167,7 @@ def test_live_slam_node_serves_its_map_on_foxglove(tmp_path: Path) -> None:
 def test_offline_localize_serves_the_known_map_particles_and_path(tmp_path: Path) -> None:
     from crlam.experiments.slam_mcap import occupancy_grid_values
     from crlam.io.tum import read_tum
-    from crlam.localize_map import load_localization_map
+    from crlam.localize.map import load_localization_map
 
     assert main(["simulate", "--scans", "30", "--world", "office", "--out", str(tmp_path / "sim"), "--quiet"]) == 0
     world = tmp_path / "sim" / "world.yaml"

@@ -25,7 +25,7 @@ from crlam.io.belief import save_belief
 from crlam.io.carmen import LaserScan, read_scans
 from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer, converged_at
-from crlam.localize_map import LocalizationMap, Nav2Prior, load_localization_map
+from crlam.localize.map import LocalizationMap, Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between, compose
 from crlam.sim.lookalike import INTEL_SCALE, lookalike_world

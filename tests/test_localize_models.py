@@ -24,7 +24,7 @@ from crlam.io.carmen import read_scans
 from crlam.io.nav2 import write_nav2_map
 from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer
-from crlam.localize_map import Nav2Prior, load_localization_map
+from crlam.localize.map import Nav2Prior, load_localization_map
 from crlam.mapping import ConfidenceRichMap, MappingConfig
 from crlam.pose import between
 from crlam.sim.lookalike import lookalike_world

@@ -22,7 +22,7 @@ from hypothesis.extra import numpy as hnp
 from crlam.errors import CrlamError, InternalError
 from crlam.io.nav2 import Nav2Map
 from crlam.localize import LocalizeConfig, Localizer
-from crlam.localize_map import LocalizationMap, crm_from_nav2
+from crlam.localize.map import LocalizationMap, crm_from_nav2
 
 PROPERTY = settings(
     max_examples=int(os.environ.get("CRLAM_FUZZ_EXAMPLES", "150")) // 3,

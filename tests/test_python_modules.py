@@ -33,7 +33,7 @@ LAYERS: list[set[str]] = [
     # What a run learns from a log before its filter runs (body beams, laser mount, map reach,
     # re-timed odometry); the maps and the simulator read and write through io.
     {"preflight", "mapping", "sim"},
-    {"info", "localize_map"},
+    {"info"},
     {"planner"},
     # The filters over the maps: slam (SlamConfig reads its map reach through preflight) and
     # localization in a known map.
@@ -44,8 +44,7 @@ LAYERS: list[set[str]] = [
     {"experiments"},
     # The live ROS 2 nodes run the experiments' SLAM runner and explorer.
     {"ros"},
-    # The SLAM benchmark runs the experiments' SLAM runner; bench runs it among the others.
-    {"bench_slam"},
+    # The benchmarks run the experiments' SLAM runner and the ROS 2 nodes.
     {"bench"},
     {"cli"},
     {"__main__"},
@@ -100,6 +99,10 @@ PACKAGE_LAYERS: dict[str, list[set[str]]] = {
         {"presets", "run", "scan_odometry"},
         {"time_offset"},  # estimated with scan-matching odometry
     ],
+    "localize": [
+        {"map"},
+        {"run"},
+    ],
     "eval": [
         {"align", "likelihood_bias", "maps"},
         {"trajectory"},
@@ -135,6 +138,10 @@ PACKAGE_LAYERS: dict[str, list[set[str]]] = {
         {"slam_node"},
         {"explore_node", "localize_node", "play"},  # the nodes built on the SLAM node
         {"bench", "reference"},
+    ],
+    "bench": [
+        {"slam"},  # whole crlam slam runs
+        {"suite"},  # the micro-benchmarks, and the SLAM figures among them
     ],
     "cli": [
         {"conventions", "failures"},

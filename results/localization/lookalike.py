@@ -43,7 +43,7 @@ import numpy as np
 from crlam.io.carmen import read_scans
 from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer, converged_at
-from crlam.localize_map import load_localization_map
+from crlam.localize.map import load_localization_map
 from crlam.pose import between
 from crlam.sim.lookalike import INTEL_SCALE, lookalike_world
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation

@@ -39,7 +39,7 @@ from scipy import ndimage
 from crlam.io.carmen import LaserScan, read_scans
 from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer
-from crlam.localize_map import load_localization_map
+from crlam.localize.map import load_localization_map
 from crlam.pose import between, compose
 from crlam.sim.lookalike import lookalike_world
 from crlam.sim.simulate import SimulationConfig, simulate, write_simulation

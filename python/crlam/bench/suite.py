@@ -2,7 +2,7 @@
 
 Each micro-benchmark is timed inside the Rust core on one thread (no Python in the timed loop);
 the ``slam_*_sick`` figures time whole ``crlam slam`` runs of the default filter and of GMapping's
-setting on a simulated real-log-like workload (:mod:`crlam.bench_slam`). Ratios between figures of
+setting on a simulated real-log-like workload (:mod:`crlam.bench.slam`). Ratios between figures of
 the same run are machine-independent enough to compare across machines.
 """
 
@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from crlam import __version__, _native
-from crlam.bench_slam import SLAM_BENCHES, slam_pipeline_figures
+from crlam.bench.slam import SLAM_BENCHES, slam_pipeline_figures
 
 __all__ = ["BENCHMARKS", "BenchSpec", "machine_info", "run_benchmarks", "simd_info"]
 
@@ -202,7 +202,7 @@ def run_benchmarks(
             done(name)
     if pipeline:
         # Whole `crlam slam` runs of the default preset and GMapping's setting on a simulated
-        # SICK log with readings beyond 8 m (crlam.bench_slam); each in its own process.
+        # SICK log with readings beyond 8 m (crlam.bench.slam); each in its own process.
         slam_figures, slam_details = slam_pipeline_figures(quick=quick, repeats=1 if quick else max(1, repeats))
         figures.update(slam_figures)
         details.update(slam_details)

@@ -103,7 +103,7 @@ def _initial(args: argparse.Namespace) -> tuple[Any, Any]:
 
 
 def cmd_localize(args: argparse.Namespace) -> int:
-    from crlam.localize_map import Nav2Prior
+    from crlam.localize.map import Nav2Prior
 
     config = localize_config_of(args)
     pose, cov = _initial(args)

@@ -35,7 +35,7 @@ from crlam.io.logs import input_description, open_log
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
 from crlam.localize import LocalizeConfig, Localizer, LocalizeStep
-from crlam.localize_map import LocalizationMap, Nav2Prior, load_localization_map
+from crlam.localize.map import LocalizationMap, Nav2Prior, load_localization_map
 
 __all__ = ["LocalizeResult", "ENDPOINT_DISTANCE", "endpoint_fractions", "run_localize_log"]
 

@@ -35,7 +35,7 @@ from crlam.io.carmen import LaserScan
 from crlam.io.logs import open_log
 from crlam.io.tum import read_tum
 from crlam.localize import LocalizeConfig, Localizer
-from crlam.localize_map import Nav2Prior, load_localization_map
+from crlam.localize.map import Nav2Prior, load_localization_map
 from crlam.pose import between
 
 __all__ = ["CORRECT_THETA", "CORRECT_XY", "TrialScan", "run_global_trials"]

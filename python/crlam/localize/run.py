@@ -27,7 +27,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from crlam import _native
 from crlam.errors import ConfigError
-from crlam.localize_map import LocalizationMap
+from crlam.localize.map import LocalizationMap
 from crlam.pose import between
 
 MODELS = ("crm", "crm-exact", "likelihood_field", "beam")

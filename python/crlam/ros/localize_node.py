@@ -1,7 +1,7 @@
 """``crlam ros localize --map MAP``: Monte Carlo localization on a known map as a live ROS 2 node.
 
 The map is a Nav2 ``.yaml``, a crlam run folder or a ``belief.npz``
-(:func:`crlam.localize_map.load_localization_map`); it is published once on ``/map``
+(:func:`crlam.localize.map.load_localization_map`); it is published once on ``/map``
 (transient local, so RViz and Nav2 get it whenever they start). Without an initial pose the
 localization is global; ``/initialpose`` (geometry_msgs/PoseWithCovarianceStamped, what RViz's
 "2D Pose Estimate" sends) starts it again around the pose given, with its covariance, at the
@@ -91,7 +91,7 @@ class LocalizeNode(SlamNode):
         domain: int | None = None,
         dds_config: str = "loopback",
     ) -> None:
-        from crlam.localize_map import Nav2Prior, load_localization_map
+        from crlam.localize.map import Nav2Prior, load_localization_map
 
         opts = dict(map_options or {})
         prior_args: dict[str, Any] = {
