@@ -1,7 +1,7 @@
 """SLAM with Rao-Blackwellized particle filters: RBPF-CLAM (and the RBPF-OGM baseline).
 
 :class:`SlamConfig` holds every setting with the paper's defaults (defined in
-:mod:`crlam.slam.config`, re-exported here); :func:`make_filter` builds the native filter;
+:mod:`crlam.slam.config`); :func:`make_filter` builds the native filter;
 :class:`SlamRun` feeds it a stream of scans and keeps one pose per scan.
 """
 
@@ -18,29 +18,14 @@ from crlam import _native
 from crlam.errors import ConfigError, CrlamError
 from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap
 from crlam.pose import number_pair
-from crlam.slam.config import (
-    FRONT_ENDS,
-    MAX_MATCH_RANGE,
-    MAX_TIME_OFFSET,
-    TIME_OFFSET_CHOICES,
-    Method,
-    SlamConfig,
-    valid_time_offset,
-)
+from crlam.slam.config import SlamConfig
 from crlam.slam.fill import fill_skipped
 from crlam.slam.grid_alignment import WallDirection, from_map_frame, into_map_frame, map_frame, map_turn
 from crlam.slam.prior import SlamPrior
 
-# SlamConfig and its constants live in crlam.slam.config; they are re-exported here and by the
-# package (crlam.slam), where the users of the library import them from.
+# The package (crlam.slam) re-exports these with SlamConfig and its constants (crlam.slam.config);
+# the users of the library import them from there.
 __all__ = [
-    "FRONT_ENDS",
-    "MAX_MATCH_RANGE",
-    "MAX_TIME_OFFSET",
-    "TIME_OFFSET_CHOICES",
-    "Method",
-    "valid_time_offset",
-    "SlamConfig",
     "SlamStep",
     "SlamRun",
     "ParticleSetRecord",
