@@ -9,12 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from crlam import presets
 from crlam.cli import main
 from crlam.errors import ConfigError
 from crlam.io.tum import read_tum
 from crlam.sim import SimulationConfig, simulate, write_simulation
-from crlam.slam import SlamConfig
+from crlam.slam import SlamConfig, presets
 
 if sys.version_info >= (3, 11):
     import tomllib
