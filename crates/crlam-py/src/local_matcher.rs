@@ -1,4 +1,4 @@
-//! Python class of one scan matcher on one GMapping-style grid (`crlam.scan_odometry`).
+//! Python class of one scan matcher on one GMapping-style grid (`crlam.slam.scan_odometry`).
 
 use crlam_core::rbpf::{LocalMapMatcher as CoreLocalMapMatcher, MatcherParams};
 use numpy::PyReadonlyArray1;
@@ -8,7 +8,7 @@ use crate::convert::{guard, pose3, slice1, IntoPy};
 use crate::maps::LogOddsMap;
 
 /// One scan matcher on one GMapping-style grid: match a scan from a start pose, insert a scan
-/// at a pose (the building block of `crlam.scan_odometry`).
+/// at a pose (the building block of `crlam.slam.scan_odometry`).
 #[pyclass(module = "crlam._native")]
 pub struct LocalMapMatcher {
     inner: CoreLocalMapMatcher,

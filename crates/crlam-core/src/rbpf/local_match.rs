@@ -1,5 +1,5 @@
 //! One scan matcher on one grid, without particles: the building block of the scan-matching
-//! odometry front end (Python's `crlam.scan_odometry`, which decides which scans the local map
+//! odometry front end (Python's `crlam.slam.scan_odometry`, which decides which scans the local map
 //! holds and where each match starts).
 //!
 //! The grid and the matcher are GMapping's, as in RBPF-OGM with `map_model = "gmapping"`
