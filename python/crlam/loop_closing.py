@@ -254,6 +254,9 @@ class LoopCloser:
 
     resolution: float
     settings: LoopClosingSettings = field(default_factory=LoopClosingSettings)
+    #: The map a continued run started from (:mod:`crlam.slam_continue`): a rebuilt map starts
+    #: from a copy of it, since its scans are not in the graph.
+    base_map: _native.CrmMap | None = None
     #: Graph poses (n, 3) of the processed scans, in order.
     _poses: list[Array] = field(default_factory=list)
     _travel: list[float] = field(default_factory=list)
@@ -434,7 +437,7 @@ class LoopCloser:
 
     def rebuild_map(self, filt: _native.ClamFilter) -> _native.CrmMap:
         """A CRM of every processed scan at its graph pose, mapped as the filter maps a particle's."""
-        m = filt.empty_map()
+        m = filt.empty_map() if self.base_map is None else self.base_map.copy()
         for pose, (angles, ranges, offset) in zip(self._poses, self._scans, strict=True):
             filt.map_scan(
                 m,

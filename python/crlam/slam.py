@@ -326,7 +326,8 @@ class SlamRun:
         if self.filter is None:
             self.filter = make_filter(self.config, odom, self.prior)
             if self.config.loop_closing == "graph":
-                self.loops = LoopCloser(resolution=self.config.resolution)
+                base = None if self.prior is None else self.prior.map.native.copy()
+                self.loops = LoopCloser(resolution=self.config.resolution, base_map=base)
         angles = np.ascontiguousarray(angles, dtype=np.float64)
         ranges = np.ascontiguousarray(ranges, dtype=np.float64)
         laser_offset = np.ascontiguousarray(laser_offset, dtype=np.float64)
