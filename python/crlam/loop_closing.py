@@ -21,13 +21,15 @@ is (every particle keeps a CRM and its CRM-likelihood weight):
    look-alike or a door seen twice rarely agrees with itself twice. Verified matches become
    edges of the graph, with a Cauchy loss so that a wrong one that slips through is outvoted.
 4. **Correction.** The graph is solved by Gauss-Newton over its sparse normal equations
-   (:func:`optimize_pose_graph`). When the current node moves by more than two cells or 0.6 deg,
+   (:func:`optimize_pose_graph`). When the current node moves by more than 0.4 m or 2 deg,
    the map is rebuilt from every processed scan at its corrected pose, with the filter's own
    mapping model, and every particle takes that map and moves by the current node's correction
    (``ClamFilter.reanchor``): their spread and weights stay.
 
-The run's trajectory is then the graph's (every processed scan's corrected pose); the online
-estimates stay in :attr:`crlam.slam.SlamRun.particle_sets`.
+Once the graph has re-anchored the filter, the run's trajectory is the graph's (every processed
+scan's corrected pose); the online estimates stay in :attr:`crlam.slam.SlamRun.particle_sets`.
+Until then the graph has found nothing beyond the filter's own reach, and the trajectory stays
+the filter's.
 """
 
 from __future__ import annotations
@@ -82,6 +84,9 @@ class LoopClosingSettings:
     #: explain at most ``max_second_share`` of what the match explains.
     exclusion_radius: float = 1.0
     max_second_share: float = 0.8
+    #: A match whose guess already explains this share of what the match explains finds the
+    #: loop closed (the particles closed it): it adds no edge.
+    closed_share: float = 0.85
     #: Fewest endpoints of a scan worth a search.
     min_endpoints: int = 40
     #: Two matches agree when the corrections they imply move the current pose within these.
@@ -99,10 +104,12 @@ class LoopClosingSettings:
     chain_theta_per_rad: float = 0.02
     #: The Cauchy loss's scale on a loop edge's whitened residual.
     cauchy_scale: float = 2.0
-    #: A correction of the current node beyond these (cells of the filter's grid, rad) rebuilds
-    #: the map and re-anchors the particles.
-    reanchor_cells: float = 2.0
-    reanchor_theta: float = math.radians(0.6)
+    #: A correction of the current node beyond these (m, rad) rebuilds the map and re-anchors
+    #: the particles: beyond the reach of the filter's own pose search (the correlative front
+    #: end's +-0.4 m; 2 deg moves an endpoint 8 m away by 0.3 m). Smaller errors the particles'
+    #: scan match corrects itself, and their maps keep their diversity.
+    reanchor_xy: float = 0.4
+    reanchor_theta: float = math.radians(2.0)
 
 
 def search_window(travel: float, settings: LoopClosingSettings) -> tuple[float, float]:
@@ -268,10 +275,13 @@ class LoopCloser:
     #: What happened, for metrics.json.
     searches: int = 0
     ambiguous: int = 0
+    already_closed: int = 0
     matches: int = 0
     loops_closed: int = 0
     reanchors: int = 0
     largest_correction_m: float = 0.0
+    #: Each re-anchoring: the node (processed scan, from 0) and how far its pose moved.
+    reanchorings: list[dict[str, float]] = field(default_factory=list)
     _optimised_since_rebuild: bool = False
 
     @property
@@ -372,7 +382,7 @@ class LoopCloser:
         if len(points) < s.min_endpoints:
             return None
         self.searches += 1
-        pose, explained, _, _ = _native.loop_match(
+        pose, explained, explained_at_guess, _ = _native.loop_match(
             np.ascontiguousarray(points),
             np.ascontiguousarray(ends),
             np.ascontiguousarray(guess),
@@ -381,6 +391,11 @@ class LoopCloser:
             angular_window=ang,
         )
         if explained < s.min_explained:
+            return None
+        if explained_at_guess >= s.closed_share * explained:
+            # The graph already puts the scan where the old scans saw it: this loop is closed
+            # (by the particles or by an earlier correction), and the match adds nothing.
+            self.already_closed += 1
             return None
         fine, explained_fine, _, _ = _native.loop_match(
             np.ascontiguousarray(points),
@@ -426,10 +441,11 @@ class LoopCloser:
         moved = math.hypot(new[0] - online[0], new[1] - online[1])
         turned = abs(float(wrap_angle(new[2] - online[2])))
         self.largest_correction_m = max(self.largest_correction_m, moved)
-        if moved <= s.reanchor_cells * self.resolution and turned <= s.reanchor_theta:
+        if moved <= s.reanchor_xy and turned <= s.reanchor_theta:
             return None
         correction = compose(new, inverse(online))
         filt.reanchor(self.rebuild_map(filt), np.ascontiguousarray(correction))
+        self.reanchorings.append({"node": self.n_nodes - 1, "moved_m": moved, "turned_deg": math.degrees(turned)})
         self._last_online = compose(correction, self._last_online) if self._last_online is not None else None
         self.reanchors += 1
         self._optimised_since_rebuild = False
@@ -459,11 +475,13 @@ class LoopCloser:
             "nodes": self.n_nodes,
             "searches": self.searches,
             "ambiguous": self.ambiguous,
+            "already_closed": self.already_closed,
             "matches": self.matches,
             "loops_closed": self.loops_closed,
             "reanchors": self.reanchors,
             "largest_correction_m": self.largest_correction_m,
             "loop_edges": int(sum(1 for e in self._edges if e[4])),
+            "reanchorings": self.reanchorings,
         }
 
 

@@ -386,7 +386,7 @@ class SlamRun:
         """
         if not self.particle_sets or not self.processed[0]:
             return np.array(self.stamps), np.array(self.estimates).reshape(-1, 3)
-        if self.loops is not None and self.loops.loops_closed > 0:
+        if self.loops is not None and self.loops.reanchors > 0:
             return self._fill_path(self.loops.poses(), "pose graph")
         return self.online_trajectory()
 

@@ -130,7 +130,7 @@ fn points_n2(a: &PyReadonlyArray2<'_, f64>, name: &str) -> PyResult<Vec<[f64; 2]
 /// ±`linear_window` m and ±`angular_window` rad of `guess` at which `endpoints` (n, 2; robot
 /// frame) fall best on the cells of `world_points` (m, 2; world frame) on a `resolution` grid.
 /// With `exclude` ((x, y), radius; m), the best pose farther than the radius from (x, y).
-/// Returns (pose, explained share, penalised score, lattice poses evaluated).
+/// Returns (pose, explained share, the share explained at the guess, lattice poses evaluated).
 #[pyfunction]
 #[pyo3(signature = (world_points, endpoints, guess, *, resolution, linear_window, angular_window, penalty=0.0, exclude=None))]
 #[allow(clippy::too_many_arguments)]
@@ -171,7 +171,7 @@ pub fn loop_match(
         Ok((
             (m.pose[0], m.pose[1], m.pose[2]),
             m.explained,
-            m.score,
+            m.guess_score,
             m.evaluated,
         ))
     })

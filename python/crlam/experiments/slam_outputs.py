@@ -217,7 +217,7 @@ def write_run_outputs(
             lag = "full" if config.smoothing_lag is None else f"lag {config.smoothing_lag}"
             rel = f"estimates/smoothed{suffix}.tum"
             save(rel, traj[1], f"crlam {config.method} lineage smoother ({lag}, {what}) over {name}", ESTIMATES[rel])
-    if run.loops is not None and run.loops.loops_closed > 0:
+    if run.loops is not None and run.loops.reanchors > 0:
         _, online_poses = run.online_trajectory()
         save(
             "estimates/online.tum",
