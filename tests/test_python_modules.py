@@ -93,8 +93,8 @@ PACKAGE_LAYERS: dict[str, list[set[str]]] = {
     ],
     "slam": [
         # Pose maths, the log-fitted odometry noise, the preset files read as a given class's
-        # fields, and the saved run a new one continues.
-        {"fill", "grid_alignment", "motion_noise", "preset_files", "prior"},
+        # fields, the saved run a new one continues, and the pose graph of loop closing.
+        {"fill", "grid_alignment", "loop_closing", "motion_noise", "preset_files", "prior"},
         {"config"},
         {"presets", "run", "scan_odometry"},
         {"time_offset"},  # estimated with scan-matching odometry

@@ -23,6 +23,7 @@ __all__ = [
     "ParticleBelief",
     "SensorModel",
     "candidate_seed",
+    "loop_match",
     "mode_seeking_pose",
     "geodesic",
     "run_iig",
@@ -267,6 +268,16 @@ class ClamFilter:
     def best_map(self) -> CrmMap: ...
     def front_end_counts(self) -> tuple[int, int]: ...
     def map_memory(self) -> tuple[int, int, int]: ...
+    def empty_map(self) -> CrmMap: ...
+    def map_scan(
+        self,
+        map: CrmMap,
+        pose: NDArray[np.float64],
+        angles: NDArray[np.float64],
+        ranges: NDArray[np.float64],
+        laser_offset: NDArray[np.float64],
+    ) -> None: ...
+    def reanchor(self, map: CrmMap, correction: NDArray[np.float64]) -> None: ...
 
 @final
 class MclFilter:
@@ -431,6 +442,17 @@ class LocalMapMatcher:
     def n_inserted(self) -> int: ...
     def map(self) -> LogOddsMap: ...
 
+def loop_match(
+    world_points: NDArray[np.float64],
+    endpoints: NDArray[np.float64],
+    guess: NDArray[np.float64],
+    *,
+    resolution: float,
+    linear_window: float,
+    angular_window: float,
+    penalty: float = 0.0,
+    exclude: tuple[tuple[float, float], float] | None = None,
+) -> tuple[tuple[float, float, float], float, float, int]: ...
 def mode_seeking_pose(
     poses: NDArray[np.float64], weights: NDArray[np.float64], bandwidth: tuple[float, float]
 ) -> tuple[float, float, float]: ...

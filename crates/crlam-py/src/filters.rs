@@ -523,6 +523,52 @@ filter_pymethods!(ClamFilter {
         let c = self.inner.front_end_counts();
         (c.searched, c.corrected)
     }
+
+    /// A map with the filter's grid and levels and nothing mapped yet (loop closing rebuilds
+    /// the map into it with `map_scan`).
+    fn empty_map(&self) -> PyResult<CrmMap> {
+        guard("ClamFilter.empty_map", || {
+            Ok(CrmMap::from_core(
+                self.inner.empty_map().py_err()?,
+                self.inner.config().crm.tile_size,
+            ))
+        })
+    }
+
+    /// Maps one scan taken at robot pose `pose` into `map` as a particle's map takes a
+    /// processed scan (the filter's mapping model and options).
+    fn map_scan(
+        &self,
+        py: Python<'_>,
+        mut map: PyRefMut<'_, CrmMap>,
+        pose: PyReadonlyArray1<'_, f64>,
+        angles: PyReadonlyArray1<'_, f64>,
+        ranges: PyReadonlyArray1<'_, f64>,
+        laser_offset: PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<()> {
+        guard("ClamFilter.map_scan", || {
+            let scan = ScanInput {
+                odom: [0.0; 3],
+                angles: slice1(&angles, "angles")?,
+                ranges: slice1(&ranges, "ranges")?,
+                laser_offset: pose3(&laser_offset)?,
+            };
+            let pose = pose3(&pose)?;
+            let inner = &self.inner;
+            let core = map.core_mut();
+            py.allow_threads(|| inner.map_scan(core, pose, &scan))
+                .py_err()
+        })
+    }
+
+    /// Loop closing's correction: every particle's map becomes a copy of `map`, and every pose
+    /// moves by the rigid `correction` (x, y, theta; new = correction ∘ old).
+    fn reanchor(&mut self, map: PyRef<'_, CrmMap>, correction: PyReadonlyArray1<'_, f64>) -> PyResult<()> {
+        guard("ClamFilter.reanchor", || {
+            let c = pose3(&correction)?;
+            self.inner.reanchor(map.core().clone(), c).py_err()
+        })
+    }
 });
 
 /// RBPF-OGM: the GMapping-style baseline (log-odds maps, scan matching, improved proposal).

@@ -66,6 +66,7 @@ fn _native(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<info_state::InfoUpdate>()?;
     m.add_class::<info::InfoFunction>()?;
     m.add_function(wrap_pyfunction!(filters::mode_seeking_pose, m)?)?;
+    m.add_function(wrap_pyfunction!(local_matcher::loop_match, m)?)?;
     m.add_function(wrap_pyfunction!(info::candidate_seed, m)?)?;
     m.add_function(wrap_pyfunction!(planner::run_iig, m)?)?;
     m.add_function(wrap_pyfunction!(planner::geodesic, m)?)?;

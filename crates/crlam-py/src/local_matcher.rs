@@ -1,10 +1,13 @@
 //! Python class of one scan matcher on one GMapping-style grid (`crlam.slam.scan_odometry`).
 
-use crlam_core::rbpf::{LocalMapMatcher as CoreLocalMapMatcher, MatcherParams};
-use numpy::PyReadonlyArray1;
+use crlam_core::rbpf::{
+    match_against_points, CorrelativeSettings, LocalMapMatcher as CoreLocalMapMatcher,
+    MatcherParams,
+};
+use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::prelude::*;
 
-use crate::convert::{guard, pose3, slice1, IntoPy};
+use crate::convert::{guard, pose3, shape_err, slice1, IntoPy};
 use crate::maps::LogOddsMap;
 
 /// One scan matcher on one GMapping-style grid: match a scan from a start pose, insert a scan
@@ -107,4 +110,69 @@ impl LocalMapMatcher {
     fn map(&self) -> LogOddsMap {
         LogOddsMap::from_core(self.inner.map().clone())
     }
+}
+
+/// An (n, 2) point array as a vector of points.
+fn points_n2(a: &PyReadonlyArray2<'_, f64>, name: &str) -> PyResult<Vec<[f64; 2]>> {
+    let shape = a.shape();
+    if shape[1] != 2 {
+        return Err(shape_err(format!(
+            "{name} must have shape (n, 2), got {shape:?}"
+        )));
+    }
+    let s = a
+        .as_slice()
+        .map_err(|_| shape_err(format!("{name} must be a contiguous float64 array")))?;
+    Ok(s.chunks(2).map(|c| [c[0], c[1]]).collect())
+}
+
+/// The loop-closure search (`crlam_core::rbpf::loop_match`): the robot pose within
+/// ±`linear_window` m and ±`angular_window` rad of `guess` at which `endpoints` (n, 2; robot
+/// frame) fall best on the cells of `world_points` (m, 2; world frame) on a `resolution` grid.
+/// With `exclude` ((x, y), radius; m), the best pose farther than the radius from (x, y).
+/// Returns (pose, explained share, the share explained at the guess, lattice poses evaluated).
+#[pyfunction]
+#[pyo3(signature = (world_points, endpoints, guess, *, resolution, linear_window, angular_window, penalty=0.0, exclude=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn loop_match(
+    py: Python<'_>,
+    world_points: PyReadonlyArray2<'_, f64>,
+    endpoints: PyReadonlyArray2<'_, f64>,
+    guess: PyReadonlyArray1<'_, f64>,
+    resolution: f64,
+    linear_window: f64,
+    angular_window: f64,
+    penalty: f64,
+    exclude: Option<((f64, f64), f64)>,
+) -> PyResult<((f64, f64, f64), f64, f64, usize)> {
+    guard("loop_match", || {
+        let pts = points_n2(&world_points, "world_points")?;
+        let ends = points_n2(&endpoints, "endpoints")?;
+        let g = pose3(&guess)?;
+        let settings = CorrelativeSettings {
+            linear_window,
+            angular_window,
+            penalty,
+            min_score: 0.0,
+            min_gain: 0.0,
+        };
+        let m = py
+            .allow_threads(|| {
+                match_against_points(
+                    &pts,
+                    resolution,
+                    &ends,
+                    g,
+                    &settings,
+                    exclude.map(|((x, y), r)| ([x, y], r)),
+                )
+            })
+            .py_err()?;
+        Ok((
+            (m.pose[0], m.pose[1], m.pose[2]),
+            m.explained,
+            m.guess_score,
+            m.evaluated,
+        ))
+    })
 }

@@ -361,6 +361,15 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"records the estimate ({FROM_PRESET}; robust: auto, paper: off)",
         ),
     ),
+    "--loop-closing": (
+        "loop closing",
+        dict(
+            choices=("off", "graph"),
+            help="graph: a pose graph over the processed scans, closed by wide-window matches against scans mapped "
+            "long ago, re-anchors the particles on the map rebuilt at the corrected poses and gives the trajectory "
+            f"(RBPF-CLAM only); off: the particles alone close loops (paper: off; {FROM_PRESET})",
+        ),
+    ),
     "--fill": (
         "estimates",
         dict(

@@ -217,6 +217,14 @@ def write_run_outputs(
             lag = "full" if config.smoothing_lag is None else f"lag {config.smoothing_lag}"
             rel = f"estimates/smoothed{suffix}.tum"
             save(rel, traj[1], f"crlam {config.method} lineage smoother ({lag}, {what}) over {name}", ESTIMATES[rel])
+    if run.loops is not None and run.loops.reanchors > 0:
+        _, online_poses = run.online_trajectory()
+        save(
+            "estimates/online.tum",
+            online_poses,
+            f"crlam {config.method} weighted-mean estimates as they stood online, before loop closing's corrections, over {name}",
+            ESTIMATES["estimates/online.tum"],
+        )
     write_particle_sets(out / "steps.csv", run)
     assert run.filter is not None
     mem_bytes, n_tiles, n_refs = run.filter.map_memory()
@@ -238,6 +246,7 @@ def write_run_outputs(
         "n_resamples": run.filter.n_resamples,
         "particle_set": particle_set_summary(run),
         "fill_rule": fill_rule(config.fill),
+        "loop_closing": None if run.loops is None else run.loops.record(),
         "preset": config.preset,
         "deviations_from_paper": config.deviations(),
         "motion_noise_estimate": None if noise_estimate is None else noise_estimate.to_dict(),
@@ -394,7 +403,8 @@ def write_slam_outputs(
 
 ESTIMATES = {
     "trajectory.tum": "the filter's estimate, one pose per laser scan sorted by time: the weighted mean of the "
-    "particles at processed scans, carried by the odometry in between (use this one)",
+    "particles at processed scans (with loop closing: their poses in the corrected pose graph), carried by the "
+    "odometry in between (use this one)",
     "estimates/best_path.tum": "the final best particle's path (the trajectory GMapping reports)",
     "estimates/best_path_means.tum": "the same lineage with each pose replaced by the mean of the proposal it was drawn from",
     "estimates/max_weight.tum": "the highest-weight particle at each processed scan, chosen online",
@@ -402,6 +412,8 @@ ESTIMATES = {
     "estimates/smoothed.tum": "lineage smoother: each scan's weighted mean of the particles' ancestors (final weights, "
     "or --smoothing-lag)",
     "estimates/smoothed_means.tum": "the lineage smoother over the ancestors' proposal means",
+    "estimates/online.tum": "with loop closing: the weighted-mean estimates as they stood online, before the pose "
+    "graph corrected them (trajectory.tum is then the graph's poses)",
 }
 
 

@@ -245,6 +245,11 @@ class SlamConfig:
         each scan's corrected stamp when the estimate is identified (else leaves it as logged);
         ``off`` (paper) leaves the odometry as the log attaches it; a number applies that offset. Input
         handling only: :meth:`SlamRun.step` takes the odometry it is given.
+    loop_closing : str
+        ``"off"`` (paper): the particles alone close loops. ``"graph"`` (RBPF-CLAM only): a pose
+        graph over the processed scans, closed by wide-window matches against scans mapped long
+        ago; a correction re-anchors every particle on the map rebuilt at the corrected poses
+        (:mod:`crlam.slam.loop_closing`), and the run's trajectory is the graph's.
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
         ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
@@ -296,6 +301,7 @@ class SlamConfig:
     no_return: str = "z_max"
     body_mask: str = "off"
     time_offset: str | float = "off"
+    loop_closing: str = "off"
     preset: str | None = field(default=None, compare=False)
 
     @classmethod
@@ -413,6 +419,10 @@ class SlamConfig:
             raise bad("cause_kernel", "must be 'midpoint' or 'chord'")
         if self.no_return not in ("drop", "z_max"):
             raise bad("no_return", "must be 'drop' or 'z_max' (crlam.io.readings)")
+        if self.loop_closing not in ("off", "graph"):
+            raise bad("loop_closing", "must be 'off' or 'graph' (crlam.slam.loop_closing)")
+        if self.loop_closing == "graph" and self.method != "clam":
+            raise bad("loop_closing", "'graph' re-anchors RBPF-CLAM's particles on a rebuilt CRM: needs method='clam'")
         if self.body_mask not in ("auto", "off"):
             raise bad("body_mask", "must be 'auto' or 'off' (crlam.preflight.body_mask)")
         if self.batch_kernel not in ("windowed", "full_ray"):

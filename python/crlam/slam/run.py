@@ -21,6 +21,7 @@ from crlam.pose import number_pair
 from crlam.slam.config import SlamConfig
 from crlam.slam.fill import fill_skipped
 from crlam.slam.grid_alignment import WallDirection, from_map_frame, into_map_frame, map_frame, map_turn
+from crlam.slam.loop_closing import LoopCloser
 from crlam.slam.prior import SlamPrior
 
 # The package (crlam.slam) re-exports these with SlamConfig and its constants (crlam.slam.config);
@@ -261,6 +262,8 @@ class SlamRun:
     map_pivot: NDArray[np.float64] | None = None
     #: The first scan's wall direction the turn was taken from (``grid_alignment="walls"``).
     map_walls: WallDirection | None = None
+    #: The pose graph and loop search (``config.loop_closing="graph"``; set at the first scan).
+    loops: LoopCloser | None = None
 
     @property
     def map_turn(self) -> float:
@@ -307,13 +310,16 @@ class SlamRun:
         odom = self._to_map_frame(odom)
         if self.filter is None:
             self.filter = make_filter(self.config, odom, self.prior)
-        p, e, n, r = self.filter.process(
-            odom,
-            np.ascontiguousarray(angles, dtype=np.float64),
-            np.ascontiguousarray(ranges, dtype=np.float64),
-            np.ascontiguousarray(laser_offset, dtype=np.float64),
-        )
+            if self.config.loop_closing == "graph":
+                base = None if self.prior is None else self.prior.map.native.copy()
+                self.loops = LoopCloser(resolution=self.config.resolution, base_map=base)
+        angles = np.ascontiguousarray(angles, dtype=np.float64)
+        ranges = np.ascontiguousarray(ranges, dtype=np.float64)
+        laser_offset = np.ascontiguousarray(laser_offset, dtype=np.float64)
+        p, e, n, r = self.filter.process(odom, angles, ranges, laser_offset)
         est = np.array(e)
+        if p and self.loops is not None and isinstance(self.filter, _native.ClamFilter):
+            self.loops.add_node(self.filter, est, angles, ranges, laser_offset)
         self.odometry.append(odom)
         self.estimates.append(est)
         self.stamps.append(stamp)
@@ -363,6 +369,15 @@ class SlamRun:
         :attr:`estimates` keeps the estimates as they stood online (skipped scans: the odometry
         fill).
         """
+        if not self.particle_sets or not self.processed[0]:
+            return np.array(self.stamps), np.array(self.estimates).reshape(-1, 3)
+        if self.loops is not None and self.loops.reanchors > 0:
+            return self._fill_path(self.loops.poses(), "pose graph")
+        return self.online_trajectory()
+
+    def online_trajectory(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """As :meth:`trajectory`, with the weighted-mean estimates as they stood online even when
+        loop closing has corrected them since."""
         if not self.particle_sets or not self.processed[0]:
             return np.array(self.stamps), np.array(self.estimates).reshape(-1, 3)
         return self._fill_path(np.array([r.estimate for r in self.particle_sets]), "weighted-mean estimates")
@@ -460,5 +475,9 @@ class SlamRun:
             lo.native = self.filter.best_map()
             return lo
         m = ConfidenceRichMap(self.config.mapping_config())
-        m.native = self.filter.best_map()
+        if self.loops is not None and self.loops.changed_since_rebuild:
+            # The graph moved poses since the particles took their map: the map of its poses.
+            m.native = self.loops.rebuild_map(self.filter)
+        else:
+            m.native = self.filter.best_map()
         return m

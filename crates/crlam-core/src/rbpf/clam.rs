@@ -290,6 +290,64 @@ impl RbpfClam {
         )
     }
 
+    /// A map with the filter's grid and levels and nothing mapped yet (what loop closing
+    /// rebuilds the map into, scan by scan with [`Self::map_scan`]).
+    pub fn empty_map(&self) -> Result<CrmMap> {
+        CrmMap::new(&self.cfg.crm)
+    }
+
+    /// Maps `scan` taken at robot pose `pose` into `map` exactly as a particle's map takes a
+    /// processed scan (the mapping model, its map stride and scan options); `scan.odom` is not
+    /// read.
+    pub fn map_scan(&self, map: &mut CrmMap, pose: Pose, scan: &ScanInput) -> Result<()> {
+        scan.validate()?;
+        crate::grid::check_pose(pose)?;
+        check_prior_map(&self.cfg.crm, map)?;
+        let sensor = compose(pose, scan.laser_offset);
+        let opts = scan_opts(&self.cfg, self.cfg.map_stride);
+        with_thread_scratch(|sc| {
+            map.update_scan(
+                sensor,
+                scan.angles,
+                scan.ranges,
+                &self.cfg.mapping_model,
+                &opts,
+                sc,
+            )
+        })?;
+        Ok(())
+    }
+
+    /// Loop closing's correction: every particle's map becomes `map` (the map rebuilt at a pose
+    /// graph's corrected poses) and every pose the filter holds (the particles', the estimate,
+    /// the weighed set) moves by the rigid `correction` (world frame: new = correction ∘ old).
+    ///
+    /// Weights, the path tree (the poses as they were proposed) and the odometry reference stay.
+    /// Hit means, where kept, restart empty: the rebuilt map's cell centres stand until new
+    /// scans record where the walls are (as when continuing a saved run).
+    pub fn reanchor(&mut self, map: CrmMap, correction: Pose) -> Result<()> {
+        crate::grid::check_pose(correction)?;
+        check_prior_map(&self.cfg.crm, &map)?;
+        let hits = match self.particles.first().and_then(|p| p.hits.as_ref()) {
+            Some(_) => Some(HitMeans::new(
+                self.cfg.crm.geometry,
+                self.cfg.crm.tile_size,
+            )?),
+            None => None,
+        };
+        for p in &mut self.particles {
+            p.pose = compose(correction, p.pose);
+            p.map = map.clone();
+            p.hits = hits.clone();
+        }
+        for q in &mut self.weighed.poses {
+            *q = compose(correction, *q);
+        }
+        self.estimate = compose(correction, self.estimate);
+        self.initial = compose(correction, self.initial);
+        Ok(())
+    }
+
     /// Feeds one scan; processes it when the update trigger fires.
     pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
         scan.validate()?;

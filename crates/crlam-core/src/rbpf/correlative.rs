@@ -256,6 +256,20 @@ pub fn search(
     guess: Pose,
     settings: &CorrelativeSettings,
 ) -> Result<CorrelativeMatch> {
+    search_excluding(field, endpoints, guess, settings, None)
+}
+
+/// As [`search`], with the translations within `exclude.1` m of the point `exclude.0` (world
+/// frame, every heading) left out: the best pose *elsewhere*, to tell a unique match from one of
+/// a corridor's look-alikes (loop closing's ambiguity test). When every pose is excluded, the
+/// guess is returned with a score of 0.
+pub fn search_excluding(
+    field: &LikelihoodField,
+    endpoints: &[[f64; 2]],
+    guess: Pose,
+    settings: &CorrelativeSettings,
+    exclude: Option<([f64; 2], f64)>,
+) -> Result<CorrelativeMatch> {
     settings.validate()?;
     crate::grid::check_pose(guess)?;
     let g = *field.geometry();
@@ -325,8 +339,28 @@ pub fn search(
         };
         (d * d) as f64
     };
+    // The excluded disc in lattice units (translations from the guess, in cells).
+    let excluded =
+        exclude.map(|(c, r)| ((c[0] - guess[0]) / res, (c[1] - guess[1]) / res, r / res));
+    let inside = |dx: f64, dy: f64| {
+        excluded.is_some_and(|(cx, cy, r)| (dx - cx).powi(2) + (dy - cy).powi(2) <= r * r)
+    };
+    // Whether every translation of the block [dx0, dx0 + side) × [dy0, dy0 + side) is excluded.
+    let block_excluded = |dx0: i64, dy0: i64, side: i64| {
+        let (x0, y0, x1, y1) = (
+            dx0 as f64,
+            dy0 as f64,
+            (dx0 + side - 1) as f64,
+            (dy0 + side - 1) as f64,
+        );
+        inside(x0, y0) && inside(x1, y0) && inside(x0, y1) && inside(x1, y1)
+    };
     let centre = n_side;
-    let guess_score = mean_at(0, &headings[centre].1, 0, 0);
+    let guess_score = if inside(0.0, 0.0) {
+        0.0
+    } else {
+        mean_at(0, &headings[centre].1, 0, 0)
+    };
     let mut best = CorrelativeMatch {
         score: guess_score,
         explained: guess_score,
@@ -364,7 +398,7 @@ pub fn search(
         }
         stack.push(root);
         while let Some((b, k, h, dx0, dy0)) = stack.pop() {
-            if b <= best.score {
+            if b <= best.score || (excluded.is_some() && block_excluded(dx0, dy0, 1i64 << h)) {
                 continue;
             }
             if h == 0 {

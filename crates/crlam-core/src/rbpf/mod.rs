@@ -12,7 +12,8 @@
 //!    and estimate), `motion_prior`;
 //! 2. `scanmatch_params`, `prepared_scan` (a scan's matching beams), [`hit_means`] (where in
 //!    its cells a CRM saw its walls), [`match_surface`] (the cells the matcher reads), [`scanmatch`] (GMapping's matcher and improved proposal),
-//!    [`correlative`] (the wide-window search in front of it);
+//!    [`correlative`] (the wide-window search in front of it), [`loop_match`] (the same search
+//!    over old endpoints, for loop closing);
 //! 3. RBPF-OGM: `ogm_config`, then [`ogm`];
 //! 4. RBPF-CLAM: `clam_config` (settings), `clam_particle` (the particle and its weight at a
 //!    pose), `proposal` (the likelihood-mode proposal), [`clam_match`] (the scan-match
@@ -28,6 +29,7 @@ pub mod estimate;
 pub mod hit_means;
 pub mod lineage;
 pub mod local_match;
+pub mod loop_match;
 pub mod match_surface;
 mod motion_prior;
 pub mod ogm;
@@ -48,6 +50,7 @@ pub use estimate::{mode_seeking_pose, ModeBandwidth, WeighedSet};
 pub use hit_means::HitMeans;
 pub use lineage::{NodeId, PathTree, NO_NODE};
 pub use local_match::{LocalMapMatcher, LocalMatch};
+pub use loop_match::{match_against_points, MAX_LOOP_POINTS};
 pub use match_surface::MatchSurface;
 pub use ogm::{MotionDraws, OgmFilterConfig, OgmMemoryStats, OgmParticle, RbpfOgm};
 pub use prepared_scan::BeamSelection;
