@@ -10,7 +10,12 @@ import pytest
 
 from crlam import _native
 from crlam.errors import ConfigError
-from crlam.loop_closing import LoopClosingSettings, optimize_pose_graph, scan_endpoints, search_window
+from crlam.loop_closing import (
+    LoopClosingSettings,
+    optimize_pose_graph,
+    scan_endpoints,
+    search_window,
+)
 from crlam.pose import between, compose
 from crlam.slam import SlamConfig, SlamRun
 
