@@ -16,7 +16,8 @@ is (every particle keeps a CRM and its CRM-likelihood weight):
    particles' maps is read: the place is found even when no particle's map is right there.
 3. **Verification.** A match counts when it explains :attr:`~LoopClosingSettings.min_explained`
    of the scan, when no pose of the window a metre or more away explains nearly as much (a
-   corridor's walls fit anywhere along it), and when a second match, from a later scan, implies the same correction
+   corridor's walls fit anywhere along it), when the graph does not already put the scan there
+   (the loop is closed: the match adds nothing), and when a second match, from a later scan, implies the same correction
    (:attr:`~LoopClosingSettings.agree_xy`, :attr:`~LoopClosingSettings.agree_theta`): a corridor's
    look-alike or a door seen twice rarely agrees with itself twice. Verified matches become
    edges of the graph, with a Cauchy loss so that a wrong one that slips through is outvoted.
@@ -191,8 +192,10 @@ def optimize_pose_graph(
         Each edge's nodes; its measurement is the pose of node j in node i's frame.
     measurements : (m, 3) array
         The relative poses x_i^-1 x_j measured.
-    sigmas : (m, 3) array
-        Standard deviations of each edge's residual (m, m, rad).
+    sigmas : (m, 3) or (m, 3, 3) array
+        Standard deviations of each edge's residual (m, m, rad), or each edge's square-root
+        information S (S^T S the inverse covariance of the residual, which is in node j's frame
+        for the translation).
     robust : (m,) bool array
         Edges under a Cauchy loss of scale ``cauchy_scale`` (on the whitened residual's norm),
         by iteratively reweighted least squares; the others are plain squares.
@@ -209,7 +212,8 @@ def optimize_pose_graph(
     i = np.asarray(edges_i, dtype=np.intp)
     j = np.asarray(edges_j, dtype=np.intp)
     z = np.asarray(measurements, dtype=np.float64)
-    w_sqrt = 1.0 / np.asarray(sigmas, dtype=np.float64)
+    sig = np.asarray(sigmas, dtype=np.float64)
+    sqrt_info = sig if sig.ndim == 3 else np.einsum("mi,ij->mij", 1.0 / sig, np.eye(3))
     m = len(i)
     rows = np.repeat(np.arange(3 * m).reshape(m, 3), 3, axis=1).reshape(m, 3, 3)
     cols_i = (3 * i)[:, None, None] + np.arange(3)[None, None, :]
@@ -223,18 +227,20 @@ def optimize_pose_graph(
         for _ in range(iterations):
             r, ji, jj = _edge_residuals(x, i, j, z)
             scale = np.ones(m)
+            rw = np.einsum("mij,mj->mi", sqrt_info, r)
             if phase:
-                norm2 = np.sum((r[robust] * w_sqrt[robust]) ** 2, axis=1)
+                norm2 = np.sum(rw[robust] ** 2, axis=1)
                 # IRLS weight of the Cauchy loss rho(s) = c^2 log(1 + s / c^2): rho'(s).
                 scale[robust] = 1.0 / (1.0 + norm2 / cauchy_scale**2)
-            ws = w_sqrt * np.sqrt(scale)[:, None]
-            data = np.concatenate([(ji * ws[:, :, None]).ravel(), (jj * ws[:, :, None]).ravel()])
+            ws = sqrt_info * np.sqrt(scale)[:, None, None]
+            rw = rw * np.sqrt(scale)[:, None]
+            data = np.concatenate([np.einsum("mij,mjk->mik", ws, ji).ravel(), np.einsum("mij,mjk->mik", ws, jj).ravel()])
             jac = scipy.sparse.csr_matrix(
                 (data, (np.concatenate([rows.ravel(), rows.ravel()]), np.concatenate([cols_i.ravel(), cols_j.ravel()]))),
                 shape=(3 * m, 3 * n),
             )[:, 3:]  # node 0 fixed: its columns dropped
             h = (jac.T @ jac).tocsc() + scipy.sparse.identity(3 * (n - 1), format="csc") * 1e-9
-            step = -scipy.sparse.linalg.spsolve(h, jac.T @ (r * ws).ravel()).reshape(-1, 3)
+            step = -scipy.sparse.linalg.spsolve(h, jac.T @ rw.ravel()).reshape(-1, 3)
             x[1:] += step
             x[1:, 2] = wrap_angle(x[1:, 2])
             if float(np.max(np.abs(step))) < tolerance:
@@ -249,6 +255,7 @@ class _Match:
     pose: Array  # the matched pose of `node`, in the graph's frame
     guess: Array  # the graph's pose of `node` when searched
     explained: float
+    sqrt_information: Array  # (3, 3): the edge's square-root information
 
 
 @dataclass
@@ -320,7 +327,7 @@ class LoopCloser:
                     s.chain_theta + s.chain_theta_per_rad * abs(float(rel[2])) + 0.2 * s.chain_xy_per_metre * d,
                 ]
             )
-            self._edges.append((self.n_nodes - 1, self.n_nodes, rel, sig, False))
+            self._edges.append((self.n_nodes - 1, self.n_nodes, rel, np.diag(1.0 / sig), False))
         self._last_online = online.copy()
         self._poses.append(np.asarray(pose, dtype=np.float64))
         self._travel.append(travel)
@@ -341,8 +348,7 @@ class LoopCloser:
             return None
         for m in [*agreeing, match]:
             z = compose(inverse(self._poses[m.old_node]), m.pose)
-            sig = np.array([s.loop_sigma_xy, s.loop_sigma_xy, s.loop_sigma_theta])
-            self._edges.append((m.old_node, m.node, z, sig, True))
+            self._edges.append((m.old_node, m.node, z, m.sqrt_information, True))
         # The graph moves: matches still pending were measured in its old frame.
         self._pending = []
         self.loops_closed += 1
@@ -423,13 +429,20 @@ class LoopCloser:
             return None
         matched = np.array(fine, dtype=np.float64)
         nearest = int(near[np.argmin(np.hypot(poses[near, 0] - matched[0], poses[near, 1] - matched[1]))])
-        return _Match(node=c, old_node=nearest, pose=matched, guess=guess.copy(), explained=float(explained_fine))
+        return _Match(
+            node=c,
+            old_node=nearest,
+            pose=matched,
+            guess=guess.copy(),
+            explained=float(explained_fine),
+            sqrt_information=np.diag(1.0 / np.array([s.loop_sigma_xy, s.loop_sigma_xy, s.loop_sigma_theta])),
+        )
 
     def _optimise(self) -> None:
         i = np.array([e[0] for e in self._edges], dtype=np.intp)
         j = np.array([e[1] for e in self._edges], dtype=np.intp)
         z = np.array([e[2] for e in self._edges])
-        sig = np.array([e[3] for e in self._edges])
+        sig = np.array([e[3] for e in self._edges]).reshape(-1, 3, 3)
         robust = np.array([e[4] for e in self._edges], dtype=bool)
         x = optimize_pose_graph(self.poses(), i, j, z, sig, robust, cauchy_scale=self.settings.cauchy_scale)
         self._poses = list(x)
