@@ -87,7 +87,6 @@ pub fn mcl_scans_with(
             model: SensorModel::with_defaults(SensorModelKind::Mixture, z_max, 0.05),
             tail_tolerance,
             skip_no_returns: false,
-            run_sums: matches!(model, MclModel::Crm),
         },
         motion: MotionModel::gmapping(),
         trigger: UpdateTrigger::every_scan(),
@@ -164,11 +163,6 @@ mod tests {
             super::MclModel::LikelihoodField,
             super::MclModel::Beam,
         ] {
-            // MCL_MODEL=crm (etc.) times one model alone (for a profile of it).
-            let only = std::env::var("MCL_MODEL").unwrap_or_default();
-            if !only.is_empty() && !m.figure_name().contains(&only) {
-                continue;
-            }
             let f = super::mcl_scans_with(n, 1000, 180, m).unwrap();
             eprintln!("{f:?}");
         }

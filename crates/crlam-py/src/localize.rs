@@ -143,7 +143,7 @@ impl MclFilter {
     #[pyo3(signature = (crm, rect, model, *, initial_pose=None, initial_cov=None, free_threshold=0.25, margin=0,
         n_min=100, n_max=5000, kld_err=0.01, kld_z=2.326_347_874_040_840_8, bin_xy=0.5, bin_theta=0.174_532_925_199_432_95,
         alpha_slow=0.001, alpha_fast=0.1, tempering=1.0, min_neff=0.0, sigma_max=0.0, anneal=0.5, beam_stride=1, max_beams=0, motion="gmapping",
-        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, min_cluster=0, keep_ratio=1e-3, min_bin=0, place_xy=0.0, place_theta=std::f64::consts::FRAC_PI_2, spread_max=0, spread_climb=false, tail_tolerance=1e-6, skip_no_returns=false, run_sums=true, measurement="crm", measurement_params=None, seed=0))]
+        motion_params=None, linear_update=0.0, angular_update=0.0, spread_update=(0.0, 0.0), spread_limit=0.5, resample_threshold=0.5, min_cluster=0, keep_ratio=1e-3, min_bin=0, place_xy=0.0, place_theta=std::f64::consts::FRAC_PI_2, spread_max=0, spread_climb=false, tail_tolerance=1e-6, skip_no_returns=false, measurement="crm", measurement_params=None, seed=0))]
     fn new(
         py: Python<'_>,
         crm: &CrmMap,
@@ -183,7 +183,6 @@ impl MclFilter {
         spread_climb: bool,
         tail_tolerance: f64,
         skip_no_returns: bool,
-        run_sums: bool,
         measurement: &str,
         measurement_params: Option<Vec<(String, f64)>>,
         seed: u64,
@@ -207,7 +206,6 @@ impl MclFilter {
                     model: model.inner,
                     tail_tolerance,
                     skip_no_returns,
-                    run_sums,
                 },
                 motion: motion_model(motion, motion_params)?,
                 trigger: UpdateTrigger {

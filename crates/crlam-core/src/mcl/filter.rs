@@ -44,7 +44,6 @@ pub use crate::mcl::config::MclConfig;
 use crate::mcl::field::MeanField;
 use crate::mcl::kld::KldSettings;
 use crate::mcl::likelihood::{select_beams, ScanFit};
-use crate::mcl::run_sums::RunSums;
 use crate::mcl::weighing::{adaptive_tempering, climb_settings, set_spread, ScanWeigher};
 use crate::pose::{between, compose, covariance_factor, draw_pose, Pose};
 use crate::rbpf::{OdometryTracker, ScanInput};
@@ -123,8 +122,6 @@ pub struct Mcl {
     pub(super) endpoint_field: Option<EndpointField>,
     /// The likelihood field's distances (AMCL's likelihood-field model only).
     pub(super) distance_field: Option<Arc<DistanceField>>,
-    /// The prefix sums of the CRM likelihood's far phases (`likelihood.run_sums`).
-    pub(super) run_sums: Option<Arc<RunSums>>,
 }
 
 impl Mcl {
@@ -146,13 +143,9 @@ impl Mcl {
             last: None,
             endpoint_field: None,
             distance_field: None,
-            run_sums: None,
         };
         if let Measurement::LikelihoodField(p) = m.cfg.measurement {
             m.distance_field = Some(Arc::new(DistanceField::new(&m.field, p.max_dist)));
-        }
-        if m.cfg.measurement == Measurement::Crm && m.cfg.likelihood.run_sums {
-            m.run_sums = Some(Arc::new(RunSums::new(&m.field)?));
         }
         m.reset(init)?;
         Ok(m)
@@ -259,7 +252,6 @@ impl Mcl {
             &self.cfg,
             &self.field,
             self.distance_field.as_deref(),
-            self.run_sums.as_deref(),
             sigma,
         )
         .fit(sensor, angles, ranges, &beams)
@@ -323,13 +315,7 @@ impl Mcl {
             .sigma_hit()
             .unwrap_or(cfg.likelihood.model.sigma_hit);
         let sigma_hit = (cfg.anneal * spread).min(cfg.sigma_max).max(base);
-        let weigher = ScanWeigher::new(
-            cfg,
-            field,
-            self.distance_field.as_deref(),
-            self.run_sums.as_deref(),
-            sigma_hit,
-        );
+        let weigher = ScanWeigher::new(cfg, field, self.distance_field.as_deref(), sigma_hit);
         // The climb of a spread set, on the endpoint score at this scan's σ.
         if cfg.spread_climb && spread > cfg.spread_limit && self.endpoint_field.is_none() {
             self.endpoint_field = Some(EndpointField::new(field));

@@ -24,7 +24,6 @@ fn filter(min_cluster: usize) -> Mcl {
             model: SensorModel::with_defaults(SensorModelKind::Mixture, 8.0, 0.1),
             tail_tolerance: 1e-6,
             skip_no_returns: false,
-            run_sums: false,
         },
         motion: MotionModel::gmapping(),
         trigger: UpdateTrigger::every_scan(),

@@ -27,7 +27,6 @@ use crate::crm::far_simd::far_phase;
 use crate::crm::lane_io::LANES;
 use crate::error::{config_err, CrlamError, Result};
 use crate::mcl::field::MeanField;
-use crate::mcl::run_sums::RunSums;
 use crate::pose::Pose;
 use crate::raycast::{FastWalk, WalkCell};
 use crate::sensor::{CauseKernel, MixtureReading, SensorModel, SensorModelKind};
@@ -43,11 +42,6 @@ pub struct LikelihoodSettings {
     /// Leave no-returns out of the likelihood (AMCL's likelihood field does; for lasers whose
     /// failed readings come as no-returns, e.g. on dark surfaces).
     pub skip_no_returns: bool,
-    /// Read the reach through the cells far before a reading (and along a no-return) from
-    /// per-row and per-column prefix sums of ln(1 − m̂) ([`RunSums`]): one step per row or
-    /// column the ray crosses instead of one per cell, the same cells, the reach to rounding.
-    /// The localizer builds the sums; off, every cell is walked.
-    pub run_sums: bool,
 }
 
 impl LikelihoodSettings {
@@ -108,67 +102,13 @@ pub fn beam_log_eta(
         let values = field.values();
         // holds_ray: every index of this walk lies in `values`.
         let mean = |wc: &WalkCell| values[wc.index as usize];
-        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance), 1.0);
+        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
         finish_beam(walk, far, &mean, reading, tail_tolerance)
     } else {
         let mean = |wc: &WalkCell| field.mean_at(wc.cell.ix, wc.cell.iy);
-        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance), 1.0);
+        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
         finish_beam(walk, far, &mean, reading, tail_tolerance)
     }
-}
-
-/// [`beam_log_eta`] with the reach before the reading (all of it for a no-return) read from
-/// `runs`, the prefix sums of `field` (see [`RunSums`]): the same cells, the same result to
-/// rounding. A ray that may leave the stored cells is walked cell by cell.
-pub fn beam_log_eta_runs(
-    field: &MeanField,
-    runs: &RunSums,
-    reading: &MixtureReading,
-    origin: [f64; 2],
-    angle: f64,
-    ray_length: f64,
-    tail_tolerance: f64,
-) -> BeamEta {
-    if !field.holds_ray(origin, ray_length) {
-        return beam_log_eta(field, reading, origin, angle, ray_length, tail_tolerance);
-    }
-    let mut walk = FastWalk::new(field.geometry(), origin, angle, ray_length, field.window());
-    let values = field.values();
-    // holds_ray: every index of this walk lies in `values`.
-    let mean = |wc: &WalkCell| values[wc.index as usize];
-    // Every cell whose chord ends before the far phase's end is far (for both kernels: its
-    // midpoint and its end lie before it); a no-return's causes are all far.
-    let lim = if reading.is_no_return() {
-        f64::INFINITY
-    } else {
-        far_end(reading)
-    };
-    // The far phase's stop rule (R·sup ≤ tol·(1 − R)·L_far: the rest of the ray changes η by
-    // less than the tolerance) holds once R ≤ tol·L_far·sup⁻¹/2 (then 1 − R ≥ 1/2), sup bounding
-    // every cause's likelihood (beyond 0 for a no-return, whose causes are all far).
-    let far_like = reading.far_before();
-    let sup = if reading.is_no_return() {
-        reading.bound_beyond(0.0)
-    } else {
-        reading_bound(reading)
-    };
-    let stop_below = (0.5 * tail_tolerance * far_like / sup).ln();
-    let log_reach = runs.consume_before(&mut walk, lim, stop_below);
-    if log_reach < stop_below {
-        let reach = log_reach.exp();
-        return BeamEta {
-            log_eta: ((1.0 - reach) * far_like).ln(),
-            explained: 0.0,
-        };
-    }
-    let far = far_phase_scalar(
-        &mut walk,
-        &mean,
-        reading,
-        Some(tail_tolerance),
-        log_reach.exp(),
-    );
-    finish_beam(walk, far, &mean, reading, tail_tolerance)
 }
 
 /// Where a beam's far phase ended.
@@ -203,10 +143,9 @@ fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
     mean: &M,
     reading: &MixtureReading,
     early: Option<f64>,
-    reach0: f64,
 ) -> FarEnd {
     let mut out = FarEnd {
-        reach: reach0,
+        reach: 1.0,
         first_near: None,
         done: None,
     };
@@ -218,14 +157,7 @@ fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
     let far_like = reading.far_before();
     let sup_all = reading_bound(reading);
     let mut count = 0u32;
-    let mut reach = reach0;
-    if let Some(tol) = early {
-        // The stop rule below, once after the cells taken before this walk (runs).
-        if reach < 1.0 && reach * sup_all <= tol * (1.0 - reach) * far_like {
-            out.done = Some((1.0 - reach) * far_like);
-            return out;
-        }
-    }
+    let mut reach = 1.0f64;
     for wc in walk.by_ref() {
         let c = wc.cell;
         let far = if chord {
@@ -382,19 +314,6 @@ pub struct ScanFit {
     pub n_beams: usize,
 }
 
-/// Whether a beam's far phase is cheaper by runs ([`RunSums`]) than cell by cell in lanes: a
-/// run costs about as much as RUN_COST cells in lanes, and a ray at slope s (minor over major
-/// component, in [0, 1]) crosses 1 + s cells per line, so runs pay where 1/s exceeds about
-/// RUN_COST (a no-return, read to the ray's end, always: the lanes leave it to the scalar loop).
-fn by_runs(angle: f64, no_return: bool) -> bool {
-    let (c, s) = (angle.cos().abs(), angle.sin().abs());
-    no_return || c.min(s) * RUN_COST < c.max(s)
-}
-
-/// Cells of a lane walk that cost about as much as one run (measured on the `crlam bench`
-/// room, Intel Xeon, AVX2 and AVX-512).
-const RUN_COST: f64 = 3.0;
-
 /// A range beam whose far phase runs in lanes: its walk, reading and place in the scan.
 struct LaneBeam<'a> {
     walk: FastWalk,
@@ -419,7 +338,6 @@ pub fn scan_log_likelihood(
     scan_log_likelihood_at(
         crate::simd::level(),
         field,
-        None,
         settings,
         sensor,
         angles,
@@ -428,37 +346,10 @@ pub fn scan_log_likelihood(
     )
 }
 
-/// [`scan_log_likelihood`] with the reach before each reading read from `runs` (the prefix sums
-/// of `field`, [`RunSums`]) instead of walked: the same result to rounding, one step per row
-/// or column a ray crosses instead of one per cell.
-pub fn scan_log_likelihood_runs(
-    field: &MeanField,
-    runs: &RunSums,
-    settings: &LikelihoodSettings,
-    sensor: Pose,
-    angles: &[f64],
-    ranges: &[f64],
-    beams: &[usize],
-) -> Result<ScanFit> {
-    scan_log_likelihood_at(
-        crate::simd::level(),
-        field,
-        Some(runs),
-        settings,
-        sensor,
-        angles,
-        ranges,
-        beams,
-    )
-}
-
-/// [`scan_log_likelihood`] with the lanes at `level` (lowered to what the CPU runs), or with
-/// the far phases read from `runs` (no lanes).
-#[allow(clippy::too_many_arguments)]
+/// [`scan_log_likelihood`] with the lanes at `level` (lowered to what the CPU runs).
 fn scan_log_likelihood_at(
     level: crate::simd::SimdLevel,
     field: &MeanField,
-    runs: Option<&RunSums>,
     settings: &LikelihoodSettings,
     sensor: Pose,
     angles: &[f64],
@@ -502,7 +393,7 @@ fn scan_log_likelihood_at(
                 (walks[i].clone(), far)
             } else {
                 let mut walk = b.walk;
-                let far = far_phase_scalar(&mut walk, &mean, &b.reading, None, 1.0);
+                let far = far_phase_scalar(&mut walk, &mean, &b.reading, None);
                 (walk, far)
             };
             per_beam[b.slot] = Some(finish_beam(walk, far, &mean, &b.reading, tol));
@@ -530,17 +421,7 @@ fn scan_log_likelihood_at(
         let Some(reading) = MixtureReading::new(model, z) else {
             return Err(config_err("weight_model", "must be the mixture model"));
         };
-        if let Some(runs) = runs.filter(|_| by_runs(plan.angle, plan.no_return)) {
-            per_beam[slot] = Some(beam_log_eta_runs(
-                field,
-                runs,
-                &reading,
-                plan.origin,
-                plan.angle,
-                plan.length,
-                tol,
-            ));
-        } else if midpoint && !plan.no_return && field.holds_ray(plan.origin, plan.length) {
+        if midpoint && !plan.no_return && field.holds_ray(plan.origin, plan.length) {
             let walk = FastWalk::new(g, plan.origin, plan.angle, plan.length, field.window());
             lanes.push(LaneBeam {
                 walk,

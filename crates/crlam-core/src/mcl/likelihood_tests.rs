@@ -78,7 +78,6 @@ fn field_likelihood_equals_the_maps() {
                 model: mix,
                 tail_tolerance: tol,
                 skip_no_returns: false,
-                run_sums: false,
             };
             let fit = scan_log_likelihood(&field, &s, pose, &angles, &ranges, &beams).unwrap();
             let got = fit.log_likelihood;
@@ -103,7 +102,6 @@ fn every_vector_level_gives_the_same_likelihood() {
         model: mix,
         tail_tolerance: 1e-6,
         skip_no_returns: false,
-        run_sums: false,
     };
     let beams = select_beams(90, 1, 0);
     for pose in [
@@ -113,7 +111,7 @@ fn every_vector_level_gives_the_same_likelihood() {
         [-3.0, 9.0, 0.0],
     ] {
         let at = |level| {
-            scan_log_likelihood_at(level, &field, None, &s, pose, &angles, &ranges, &beams).unwrap()
+            scan_log_likelihood_at(level, &field, &s, pose, &angles, &ranges, &beams).unwrap()
         };
         let scalar = at(SimdLevel::Scalar);
         assert_eq!(scalar, at(SimdLevel::Avx2));
@@ -129,7 +127,6 @@ fn the_true_pose_is_likelier_than_shifted_ones() {
         model: mix,
         tail_tolerance: 1e-6,
         skip_no_returns: false,
-        run_sums: false,
     };
     let beams = select_beams(90, 1, 0);
     let ll = |p: Pose| {
@@ -159,7 +156,6 @@ fn settings_are_checked() {
         model: mix,
         tail_tolerance: 1e-6,
         skip_no_returns: false,
-        run_sums: false,
     };
     assert!(ok.validate().is_ok());
     let ijrr = LikelihoodSettings {
@@ -223,7 +219,6 @@ fn any_pose_and_scan_gives_a_result_or_an_error() {
             model,
             tail_tolerance: 1e-6,
             skip_no_returns: false,
-            run_sums: false,
         };
         runner
             .run(
@@ -242,11 +237,9 @@ fn any_pose_and_scan_gives_a_result_or_an_error() {
 }
 
 /// The stated error on random maps and scans: with any field of means (random m̂ per cell,
-/// walls of random confidence, cells of m̂ = 1), any sensor pose in or near the map and any
-/// readings (in range, short, no-returns), the localizer's likelihood at tail tolerance `tol`,
-/// walked cell by cell or with the reach read from row and column sums ([`RunSums`]), is low
-/// by at most `n_beams · tol` against the same likelihood walked to rounding (tolerance
-/// 2^-60), never high; with the sums at 2^-60 it is the walked one to 1e-9.
+/// walls of random confidence), any sensor pose in or near the map and any readings (in range,
+/// short, no-returns), the localizer's likelihood at tail tolerance `tol` is low by at most
+/// `n_beams · tol` against the same likelihood to rounding (tolerance 2^-60), never high.
 #[test]
 fn the_tolerance_bounds_the_error_on_random_maps_and_scans() {
     use proptest::prelude::*;
@@ -275,52 +268,39 @@ fn the_tolerance_bounds_the_error_on_random_maps_and_scans() {
             // Mostly free cells of low m̂, some walls of high m̂.
             let mut mean: Vec<f64> = noise.iter().map(|u| 0.2 * u * u).collect();
             for (ix, iy, m) in walls {
-                mean[iy * 40 + ix] = if m > 0.97 { 1.0 } else { m };
+                mean[iy * 40 + ix] = m;
             }
             let field = MeanField::from_means(g, rect, mean, 0.3, 0.25, 60).unwrap();
-            let sums = RunSums::new(&field).unwrap();
             let mut model = SensorModel::with_defaults(SensorModelKind::Mixture, 5.0, 0.1);
             model.kernel = kernel;
             let n = ranges.len();
             let angles: Vec<f64> = (0..n).map(|i| -1.5 + 3.0 * i as f64 / n as f64).collect();
             let beams: Vec<usize> = (0..n).collect();
-            let at = |tol: f64, runs: bool| {
+            let at = |tol: f64| {
                 let s = LikelihoodSettings {
                     model,
                     tail_tolerance: tol,
                     skip_no_returns: false,
-                    run_sums: runs,
                 };
-                let p = [pose.0, pose.1, pose.2];
-                if runs {
-                    scan_log_likelihood_runs(&field, &sums, &s, p, &angles, &ranges, &beams)
-                } else {
-                    scan_log_likelihood(&field, &s, p, &angles, &ranges, &beams)
-                }
+                scan_log_likelihood(
+                    &field,
+                    &s,
+                    [pose.0, pose.1, pose.2],
+                    &angles,
+                    &ranges,
+                    &beams,
+                )
                 .unwrap()
             };
-            let exact = at(1.0 / (1u64 << 60) as f64, false);
-            let by_runs = at(1.0 / (1u64 << 60) as f64, true);
-            prop_assert_eq!(by_runs.n_beams, exact.n_beams);
-            prop_assert!(
-                (by_runs.log_likelihood - exact.log_likelihood).abs()
-                    <= 1e-9 * (1.0 + exact.log_likelihood.abs()),
-                "by runs {} against walked {}",
-                by_runs.log_likelihood,
-                exact.log_likelihood
-            );
-            for (tol, runs) in [1e-6, 1e-3, 0.01]
-                .into_iter()
-                .flat_map(|t| [(t, false), (t, true)])
-            {
-                let fast = at(tol, runs);
+            let exact = at(1.0 / (1u64 << 60) as f64);
+            for tol in [1e-6, 1e-3, 0.01] {
+                let fast = at(tol);
                 prop_assert_eq!(fast.n_beams, exact.n_beams);
                 let err = exact.log_likelihood - fast.log_likelihood;
                 prop_assert!(
                     err > -1e-9 && err <= fast.n_beams as f64 * tol + 1e-9,
-                    "tol {} (runs {}): error {} over {} beams",
+                    "tol {}: error {} over {} beams",
                     tol,
-                    runs,
                     err,
                     fast.n_beams
                 );

@@ -4,8 +4,6 @@
 //!
 //! - [`field`]: the per-map structure, the expected occupancy of every cell in a flat array;
 //! - [`likelihood`]: the scan likelihood read from it, with a stated error bound;
-//! - [`run_sums`]: per-row and per-column prefix sums of ln(1 − m̂), the likelihood's reach
-//!   before a reading at one step per row or column crossed;
 //! - [`kld`]: Fox's sample-count bound and the pose histogram;
 //! - [`cluster`]: the clusters of a weighted set;
 //! - [`climb`]: the scan-matched proposal of a spread set (an endpoint score and its climb);
@@ -23,7 +21,6 @@ pub mod filter;
 pub mod kld;
 pub mod likelihood;
 mod resampling;
-pub mod run_sums;
 mod weighing;
 
 #[cfg(test)]
@@ -35,7 +32,5 @@ pub use field::MeanField;
 pub use filter::{Mcl, MclConfig, MclInit, MclStep};
 pub use kld::{kld_sample_count, KldSettings};
 pub use likelihood::{
-    beam_log_eta, beam_log_eta_runs, scan_log_likelihood, scan_log_likelihood_runs, select_beams,
-    BeamEta, LikelihoodSettings, ScanFit,
+    beam_log_eta, scan_log_likelihood, select_beams, BeamEta, LikelihoodSettings, ScanFit,
 };
-pub use run_sums::RunSums;

@@ -151,7 +151,6 @@ fn config(n_min: usize, n_max: usize) -> MclConfig {
             model,
             tail_tolerance: 1e-6,
             skip_no_returns: false,
-            run_sums: false,
         },
         motion: MotionModel::Thrun {
             alpha: [0.05, 0.05, 0.05, 0.05],

@@ -8,10 +8,7 @@ use crate::mcl::baseline::{
 use crate::mcl::climb::ClimbSettings;
 use crate::mcl::config::MclConfig;
 use crate::mcl::field::MeanField;
-use crate::mcl::likelihood::{
-    scan_log_likelihood, scan_log_likelihood_runs, LikelihoodSettings, ScanFit,
-};
-use crate::mcl::run_sums::RunSums;
+use crate::mcl::likelihood::{scan_log_likelihood, LikelihoodSettings, ScanFit};
 use crate::pose::Pose;
 use crate::resample::{effective_sample_size, normalize_log_weights};
 use crate::sensor::SensorModel;
@@ -92,8 +89,6 @@ pub(super) struct ScanWeigher<'a> {
     pub measurement: Measurement,
     pub field: &'a MeanField,
     pub distance_field: Option<&'a DistanceField>,
-    /// The prefix sums of the CRM likelihood's far phases, when its settings ask for them.
-    pub run_sums: Option<&'a RunSums>,
     /// The CRM's settings with the scan's σ_hit.
     pub likelihood: LikelihoodSettings,
     pub sigma_hit: f64,
@@ -105,14 +100,12 @@ impl<'a> ScanWeigher<'a> {
         cfg: &MclConfig,
         field: &'a MeanField,
         distance_field: Option<&'a DistanceField>,
-        run_sums: Option<&'a RunSums>,
         sigma_hit: f64,
     ) -> Self {
         Self {
             measurement: cfg.measurement,
             field,
             distance_field,
-            run_sums,
             likelihood: LikelihoodSettings {
                 model: SensorModel {
                     sigma_hit,
@@ -145,20 +138,7 @@ impl<'a> ScanWeigher<'a> {
             (Measurement::Beam(p), _) => {
                 beam_model_scan(self.field, p, sigma, limits, sensor, angles, ranges, beams)
             }
-            _ => match self.run_sums {
-                Some(runs) => scan_log_likelihood_runs(
-                    self.field,
-                    runs,
-                    &self.likelihood,
-                    sensor,
-                    angles,
-                    ranges,
-                    beams,
-                ),
-                None => {
-                    scan_log_likelihood(self.field, &self.likelihood, sensor, angles, ranges, beams)
-                }
-            },
+            _ => scan_log_likelihood(self.field, &self.likelihood, sensor, angles, ranges, beams),
         }
     }
 }
