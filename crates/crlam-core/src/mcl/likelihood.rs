@@ -23,7 +23,7 @@
 //! cells of the window and past it evaluate likelihoods.
 
 use crate::crm::beam::{plan_beam, ScanOptions};
-use crate::crm::far_simd::far_phase;
+use crate::crm::far_simd::{far_phase, FarStop};
 use crate::crm::lane_io::LANES;
 use crate::error::{config_err, CrlamError, Result};
 use crate::mcl::field::MeanField;
@@ -325,7 +325,9 @@ struct LaneBeam<'a> {
 ///
 /// Range readings of the midpoint kernel whose rays the field holds run their far phase sixteen
 /// beams at a time in vector lanes (`crm::far_simd`, the SLAM filters' kernel, at the level of
-/// [`crate::simd::level`]); the lanes end every walk as the scalar loop would, bit for bit, and
+/// [`crate::simd::level`]), with the scalar loop's stop rule (a lane whose reach has fallen so
+/// far that the rest of its ray cannot matter stops, as a beam of a particle that sees a wall
+/// before its reading does); the lanes end every walk as the scalar loop would, bit for bit, and
 /// the beams are summed in scan order, so the result does not depend on the level.
 pub fn scan_log_likelihood(
     field: &MeanField,
@@ -377,23 +379,41 @@ fn scan_log_likelihood_at(
     let flush = |lanes: &mut Vec<LaneBeam>, per_beam: &mut [Option<BeamEta>]| {
         let mut walks: [FastWalk; LANES] = [const { FastWalk::ended() }; LANES];
         let (mut lo, mut reach) = ([0.0; LANES], [1.0; LANES]);
+        let (mut sup, mut far_like) = ([0.0; LANES], [0.0; LANES]);
+        let mut stopped = [false; LANES];
         let n = lanes.len();
         for (i, b) in lanes.iter().enumerate() {
             walks[i] = b.walk.clone();
             lo[i] = far_end(&b.reading);
+            sup[i] = reading_bound(&b.reading);
+            far_like[i] = b.reading.far_before();
         }
-        let in_lanes = far_phase(level, &mut walks[..n], &lo[..n], &mut reach[..n], values);
+        // The far phase's stop rule, as the scalar loop's (`far_phase_scalar`).
+        let stop = FarStop {
+            sup: &sup[..n],
+            far_like: &far_like[..n],
+            tol,
+            stopped: &mut stopped[..n],
+        };
+        let in_lanes = far_phase(
+            level,
+            &mut walks[..n],
+            &lo[..n],
+            &mut reach[..n],
+            values,
+            Some(stop),
+        );
         for (i, b) in lanes.drain(..).enumerate() {
             let (walk, far) = if in_lanes {
                 let far = FarEnd {
                     reach: reach[i],
                     first_near: None,
-                    done: None,
+                    done: stopped[i].then(|| (1.0 - reach[i]) * far_like[i]),
                 };
                 (walks[i].clone(), far)
             } else {
                 let mut walk = b.walk;
-                let far = far_phase_scalar(&mut walk, &mean, &b.reading, None);
+                let far = far_phase_scalar(&mut walk, &mean, &b.reading, Some(tol));
                 (walk, far)
             };
             per_beam[b.slot] = Some(finish_beam(walk, far, &mean, &b.reading, tol));

@@ -239,7 +239,8 @@ fn any_pose_and_scan_gives_a_result_or_an_error() {
 /// The stated error on random maps and scans: with any field of means (random m̂ per cell,
 /// walls of random confidence), any sensor pose in or near the map and any readings (in range,
 /// short, no-returns), the localizer's likelihood at tail tolerance `tol` is low by at most
-/// `n_beams · tol` against the same likelihood to rounding (tolerance 2^-60), never high.
+/// `n_beams · tol` against the same likelihood to rounding (tolerance 2^-60), never high, and
+/// is the same, bit for bit, at every vector level.
 #[test]
 fn the_tolerance_bounds_the_error_on_random_maps_and_scans() {
     use proptest::prelude::*;
@@ -293,6 +294,30 @@ fn the_tolerance_bounds_the_error_on_random_maps_and_scans() {
                 .unwrap()
             };
             let exact = at(1.0 / (1u64 << 60) as f64);
+            // Every vector level stops its lanes' far phases where the scalar loop stops
+            // (walls of random confidence make many stop): the same likelihood bit for bit.
+            for tol in [1e-6, 0.01] {
+                let s = LikelihoodSettings {
+                    model,
+                    tail_tolerance: tol,
+                    skip_no_returns: false,
+                };
+                let at_level = |level| {
+                    scan_log_likelihood_at(
+                        level,
+                        &field,
+                        &s,
+                        [pose.0, pose.1, pose.2],
+                        &angles,
+                        &ranges,
+                        &beams,
+                    )
+                    .unwrap()
+                };
+                let scalar = at_level(crate::simd::SimdLevel::Scalar);
+                prop_assert_eq!(scalar, at_level(crate::simd::SimdLevel::Avx2));
+                prop_assert_eq!(scalar, at_level(crate::simd::SimdLevel::Avx512));
+            }
             for tol in [1e-6, 1e-3, 0.01] {
                 let fast = at(tol);
                 prop_assert_eq!(fast.n_beams, exact.n_beams);
