@@ -17,15 +17,20 @@
 //!   high). With 2^-60 the result is the SLAM filter's to rounding;
 //! - with a tail tolerance of at least [`HIT_TABLE_ERROR`] (1e-7; the default is 1e-6) the hit
 //!   density's truncation normaliser comes from a table of Φ ([`crate::mcl::hit_table`]), which
-//!   moves each beam's log η by less than 1e-7 either way.
+//!   moves each beam's log η by less than 1e-7 either way;
+//! - the hit window around the reading is as wide as the tolerance needs (`hit_reach`): causes
+//!   whose hit term is below `tail_tolerance` times the likelihood floor w_r/z_max (which
+//!   bounds every cause's likelihood from below) have it left out, which leaves out less than
+//!   `tail_tolerance` of η. At 2^-60 the window is the SLAM filters'
+//!   ([`SensorModel::negligible_hit_distance`]); at the default 1e-6 it is about 6 σ either side
+//!   instead of about 9 σ.
 //!
 //! The stated error of the localizer's likelihood: each beam's log η lies within
-//! [−tail_tolerance − 1e-7, +1e-7] of the exact one (tested on random maps and scans).
+//! [−2·tail_tolerance − 1e-7, +1e-7] of the exact one (tested on random maps and scans).
 //!
-//! Causes farther than [`SensorModel::negligible_hit_distance`] before the reading have a hit
-//! term below 2^-60 of the likelihood floor w_r/z_max and no short term, so together they
-//! contribute (1 − R_a)·w_r/z_max, R_a being the reach where the hit window starts: only the
-//! cells of the window and past it evaluate likelihoods.
+//! Causes before the window have no short term and, at the window's reach, no hit term, so
+//! together they contribute (1 − R_a)·w_r/z_max, R_a being the reach where the window starts:
+//! only the cells of the window and past it evaluate likelihoods.
 
 use crate::crm::beam::{plan_beam, ScanOptions};
 use crate::crm::far_simd::{far_phase, FarStop};
@@ -108,11 +113,11 @@ pub fn beam_log_eta(
         let values = field.values();
         // holds_ray: every index of this walk lies in `values`.
         let mean = |wc: &WalkCell| values[wc.index as usize];
-        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
+        let far = far_phase_scalar(&mut walk, &mean, reading, tail_tolerance);
         finish_beam(walk, far, &mean, reading, tail_tolerance)
     } else {
         let mean = |wc: &WalkCell| field.mean_at(wc.cell.ix, wc.cell.iy);
-        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
+        let far = far_phase_scalar(&mut walk, &mean, reading, tail_tolerance);
         finish_beam(walk, far, &mean, reading, tail_tolerance)
     }
 }
@@ -130,25 +135,48 @@ struct FarEnd {
 
 /// Where the far phase of a reading ends: causes whose distance (chord midpoint, or the chord's
 /// end for the chord kernel) lies below this are far.
-fn far_end(reading: &MixtureReading) -> f64 {
+fn far_end(reading: &MixtureReading, tail_tolerance: f64) -> f64 {
     if reading.is_no_return() {
         f64::NEG_INFINITY
     } else {
-        reading.z() - reading.model().negligible_hit_distance()
+        reading.z() - hit_reach(reading.model(), tail_tolerance)
     }
 }
 
+/// Distance (m) from a reading beyond which a cause's hit term w_h φ̃ is below `tail_tolerance`
+/// times the likelihood floor w_r/z_max, which bounds every cause's likelihood from below:
+/// leaving those hit terms out (the far phase before the window, no hit term past it) leaves
+/// out less than `tail_tolerance` of η. At most [`SensorModel::negligible_hit_distance`] (the
+/// 2^-60 reach of the SLAM filters, which the exact likelihood keeps).
+fn hit_reach(model: &SensorModel, tail_tolerance: f64) -> f64 {
+    let full = model.negligible_hit_distance();
+    let floor = model.w_rand / model.z_max;
+    // The truncation normaliser is at least 1/2, so φ̃ ≤ 2 φ_peak e^{−u²/2}.
+    let peak2 = 2.0 / (model.sigma_hit * crate::sensor::SQRT_2PI);
+    let ratio = model.w_hit * peak2 / (tail_tolerance * floor);
+    if !(ratio.is_finite() && floor > 0.0) {
+        return full;
+    }
+    let sigmas = if ratio > 1.0 {
+        (2.0 * ratio.ln()).sqrt()
+    } else {
+        0.0
+    };
+    (sigmas * model.sigma_hit).min(full)
+}
+
 /// The far phase of a range reading, one cell at a time: R = Π (1 − m̂) over the causes far
-/// before the reading. With `early` (the tail tolerance), every 16 cells: every cause past here
-/// has a likelihood below `sup_all`, so once R · sup_all is below the tolerance times what the
-/// far causes already give, (1 − R)·far_like, the rest of the ray cannot matter (a particle
-/// whose beam runs into walls before its reading). The lanes have no such stop.
+/// before the reading (those before [`far_end`] at the tail tolerance `tol`). Every 16 cells:
+/// every cause past here has a likelihood below `sup_all`, so once R · sup_all is below the
+/// tolerance times what the far causes already give, (1 − R)·far_like, the rest of the ray
+/// cannot matter (a particle whose beam runs into walls before its reading). The lanes stop by
+/// the same rule (`crm::far_simd::FarStop`).
 #[inline(always)]
 fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
     walk: &mut FastWalk,
     mean: &M,
     reading: &MixtureReading,
-    early: Option<f64>,
+    tol: f64,
 ) -> FarEnd {
     let mut out = FarEnd {
         reach: 1.0,
@@ -158,7 +186,7 @@ fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
     if reading.is_no_return() {
         return out;
     }
-    let lo = far_end(reading);
+    let lo = far_end(reading, tol);
     let chord = reading.model().kernel == CauseKernel::Chord;
     let far_like = reading.far_before();
     let sup_all = reading_bound(reading);
@@ -177,11 +205,9 @@ fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
         }
         reach *= 1.0 - mean(&wc);
         count += 1;
-        if let Some(tol) = early {
-            if count.is_multiple_of(16) && reach * sup_all <= tol * (1.0 - reach) * far_like {
-                out.done = Some((1.0 - reach) * far_like);
-                break;
-            }
+        if count.is_multiple_of(16) && reach * sup_all <= tol * (1.0 - reach) * far_like {
+            out.done = Some((1.0 - reach) * far_like);
+            break;
         }
     }
     out.reach = reach;
@@ -207,7 +233,7 @@ fn finish_beam<M: Fn(&WalkCell) -> f64>(
     let model = reading.model();
     let no_return = reading.is_no_return();
     let z = reading.z();
-    let hit_reach = model.negligible_hit_distance();
+    let hit_reach = hit_reach(model, tail_tolerance);
     let far_like = reading.far_before();
     let chord = model.kernel == CauseKernel::Chord;
     // The hit density's truncation normaliser from the table of Φ (`hit_table`) when the
@@ -395,7 +421,7 @@ fn scan_log_likelihood_at(
         let n = lanes.len();
         for (i, b) in lanes.iter().enumerate() {
             walks[i] = b.walk.clone();
-            lo[i] = far_end(&b.reading);
+            lo[i] = far_end(&b.reading, tol);
             sup[i] = reading_bound(&b.reading);
             far_like[i] = b.reading.far_before();
         }
@@ -424,7 +450,7 @@ fn scan_log_likelihood_at(
                 (walks[i].clone(), far)
             } else {
                 let mut walk = b.walk;
-                let far = far_phase_scalar(&mut walk, &mean, &b.reading, Some(tol));
+                let far = far_phase_scalar(&mut walk, &mean, &b.reading, tol);
                 (walk, far)
             };
             per_beam[b.slot] = Some(finish_beam(walk, far, &mean, &b.reading, tol));
