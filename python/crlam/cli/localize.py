@@ -286,7 +286,8 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         "--model",
         choices=("crm", "crm-exact", "likelihood_field", "beam"),
         default=None,
-        help="measurement model: crm (default: the CRM likelihood, each beam within --tail-tolerance, --max-beams beams), "
+        help="measurement model: crm (default: the CRM likelihood, each beam's log within "
+        "2 x --tail-tolerance + 1e-7, --max-beams beams), "
         "crm-exact (every beam to rounding), likelihood_field or beam (AMCL's, nav2 defaults; m >= 0.5 is an obstacle)",
     )
     f.add_argument(
@@ -348,7 +349,10 @@ def add_parser(sub: argparse._SubParsersAction) -> argparse.ArgumentParser:  # t
         "--free-threshold", type=nonnegative_float, default=None, help="free cells: expected occupancy <= this (default 0.25)"
     )
     f.add_argument(
-        "--tail-tolerance", type=positive_float, default=None, help="relative likelihood a beam walk may leave out (1e-6)"
+        "--tail-tolerance",
+        type=positive_float,
+        default=None,
+        help="relative likelihood a beam walk, and its hit window, may leave out (1e-6)",
     )
     f.add_argument("--seed", type=nonnegative_int, default=None, help="random seed (default 0)")
     s = group(p, "sensor")

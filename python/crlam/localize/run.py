@@ -9,9 +9,12 @@ estimate converged.
 The measurement model (``model``) is the CRM predictive likelihood of the scan (crm-spec 4.1)
 under the map's beliefs, read from a dense layer of the map's expected occupancy: exact, except
 that each beam's walk stops once the rest of its ray can change its likelihood by less than a
-relative ``tail_tolerance`` (each beam's log-likelihood is then low by less than that, never
-high), on at most ``max_beams`` beams of each scan (60, AMCL's ``laser_max_beams``, spread
-evenly). ``model="crm-exact"`` weighs every beam to rounding (tolerance 2^-60, no beam cap);
+relative ``tail_tolerance``, that hit terms below ``tail_tolerance`` times the likelihood floor
+are left out, and that, with a tolerance of at least 1e-7, the hit density's truncation
+normaliser comes from a table of the normal CDF (each beam's log-likelihood then lies within
+[-2 tail_tolerance - 1e-7, +1e-7] of the exact one), on at most ``max_beams`` beams
+of each scan (60, AMCL's ``laser_max_beams``, spread evenly). ``model="crm-exact"`` weighs
+every beam to rounding (tolerance 2^-60, no table, no beam cap);
 ``"likelihood_field"`` and ``"beam"`` are AMCL's models on the same filter
 (``crlam_core::mcl::baseline``), for comparison.
 """
@@ -185,7 +188,9 @@ class LocalizeConfig:
     free_threshold : float
         Cells with m̂ at most this are free: global starts and recovery place particles there.
     tail_tolerance : float
-        Relative part of a beam's likelihood its walk may leave out (the stated error).
+        Relative part of a beam's likelihood its walk may leave out, and again its hit window (the
+        stated error is twice this, with 1e-7 from the table of the hit normaliser when the
+        tolerance is at least 1e-7).
     skip_no_returns : bool
         Leave the no-returns out of the likelihood (AMCL's likelihood field does). For lasers that
         report failed readings (dark or shiny surfaces) as no-returns: the CRM likelihood reads a

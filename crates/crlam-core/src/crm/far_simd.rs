@@ -38,34 +38,55 @@ pub(crate) const SET: usize = 8;
 
 const _: () = assert!(LANES == 2 * SET, "a call steps two sets of AVX-512 lanes");
 
+/// The localizer's stop rule of a far phase (`mcl::likelihood`), per lane: after every 16th
+/// far cell a lane has taken, it stops when R·sup ≤ tol·(1 − R)·L_far (every cause past there
+/// has a likelihood below `sup[i]`, so the rest of the ray changes η by less than `tol` of
+/// what the far causes already give), and `stopped[i]` says so. The operations are the scalar
+/// loop's, in its order, so a lane stops where it would.
+pub(crate) struct FarStop<'a> {
+    pub sup: &'a [f64],
+    pub far_like: &'a [f64],
+    pub tol: f64,
+    pub stopped: &'a mut [bool],
+}
+
 /// Runs the far phase of `walks` (at most [`LANES`]) at `level` (lowered to the best the CPU
 /// supports): lane i consumes cells while their chord midpoint is below `lo[i]` (+∞ for a
 /// no-return), multiplying `reach[i]` by 1 − m̂ with m̂ read from `means` at the walk's window
-/// index. Every walk's cells must lie inside `means`' window. Returns false, touching nothing, at
-/// the scalar level (the scalar kernel walks the beams instead).
+/// index, and, with `stop`, stops early by its rule. Every walk's cells must lie inside `means`'
+/// window. Returns false, touching nothing, at the scalar level (the scalar kernel walks the
+/// beams instead).
 pub(crate) fn far_phase(
     level: SimdLevel,
     walks: &mut [FastWalk],
     lo: &[f64],
     reach: &mut [f64],
     means: &[f64],
+    stop: Option<FarStop>,
 ) -> bool {
     assert!(walks.len() <= LANES && lo.len() == walks.len() && reach.len() == walks.len());
+    if let Some(st) = &stop {
+        assert!(
+            st.sup.len() == walks.len()
+                && st.far_like.len() == walks.len()
+                && st.stopped.len() == walks.len()
+        );
+    }
     // SAFETY: the CPU supports the level (`runnable`); the caller guarantees every index the
     // walks reach lies in `means`.
     #[cfg(target_arch = "x86_64")]
     match level.runnable() {
         SimdLevel::Avx512 => {
-            unsafe { far_phase_avx512(walks, lo, reach, means) };
+            unsafe { far_phase_avx512(walks, lo, reach, means, stop) };
             return true;
         }
         SimdLevel::Avx2 => {
-            unsafe { super::lanes_avx2::far_phase_avx2(walks, lo, reach, means) };
+            unsafe { super::lanes_avx2::far_phase_avx2(walks, lo, reach, means, stop) };
             return true;
         }
         SimdLevel::Scalar => {}
     }
-    let _ = (level, walks, lo, reach, means);
+    let _ = (level, walks, lo, reach, means, stop);
     false
 }
 
@@ -257,30 +278,60 @@ struct FarLanes {
     lo: __m512d,
     reach: __m512d,
     active: __mmask8,
+    /// The stop rule's terms ([`FarStop`]; unused without it).
+    sup: __m512d,
+    far_like: __m512d,
+    tol: __m512d,
+    /// Far cells taken per lane, and the lanes the rule stopped.
+    count: __m512i,
+    stopped: __mmask8,
 }
 
 #[cfg(target_arch = "x86_64")]
 impl FarLanes {
+    /// Lanes from `walks`, their far ends and reaches, and the stop rule's terms of `range`
+    /// (zero without one).
     #[target_feature(enable = "avx512f")]
-    unsafe fn load(walks: &[FastWalk], lo: &[f64], reach: &[f64]) -> Self {
-        let (mut l, mut r) = ([0.0; SET], [0.0; SET]);
-        l[..lo.len()].copy_from_slice(lo);
-        r[..reach.len()].copy_from_slice(reach);
+    unsafe fn load(
+        walks: &[FastWalk],
+        lo: &[f64],
+        reach: &[f64],
+        stop: Option<(&FarStop, std::ops::Range<usize>)>,
+    ) -> Self {
+        let pad = |v: &[f64]| {
+            let mut a = [0.0; SET];
+            a[..v.len()].copy_from_slice(v);
+            _mm512_loadu_pd(a.as_ptr())
+        };
         let walk = WalkLanes::load(walks.iter());
         let active = walk.live;
+        let (sup, far_like, tol) = match stop {
+            Some((st, r)) => (
+                pad(&st.sup[r.clone()]),
+                pad(&st.far_like[r]),
+                _mm512_set1_pd(st.tol),
+            ),
+            None => (pad(&[]), pad(&[]), pad(&[])),
+        };
         Self {
             walk,
-            lo: _mm512_loadu_pd(l.as_ptr()),
-            reach: _mm512_loadu_pd(r.as_ptr()),
+            lo: pad(lo),
+            reach: pad(reach),
             active,
+            sup,
+            far_like,
+            tol,
+            count: _mm512_setzero_si512(),
+            stopped: 0,
         }
     }
 
     /// One cell of every active lane: a reported cell that is not far stays for the scalar
-    /// kernel (its lane stops unmoved); a far one multiplies the reach.
+    /// kernel (its lane stops unmoved); a far one multiplies the reach, and with `STOP`, after
+    /// every 16th far cell of a lane, the lane stops if [`FarStop`]'s rule holds.
     #[target_feature(enable = "avx512f")]
     #[inline]
-    unsafe fn step(&mut self, means: &[f64]) {
+    unsafe fn step<const STOP: bool>(&mut self, means: &[f64]) {
         let c = self.walk.crossing();
         let d = _mm512_mul_pd(_mm512_set1_pd(0.5), _mm512_add_pd(self.walk.t_in, c.t_out));
         let far = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(d, self.lo);
@@ -291,10 +342,34 @@ impl FarLanes {
         let m = _mm512_mask_i64gather_pd::<8>(one, take, self.walk.index, means.as_ptr());
         self.reach = _mm512_mask_mul_pd(self.reach, take, self.reach, _mm512_sub_pd(one, m));
         self.active = self.walk.advance(adv, &c);
+        if STOP {
+            // The scalar loop's `count % 16 == 0 && R·sup <= tol·(1 − R)·L_far`.
+            self.count = _mm512_mask_add_epi64(self.count, take, self.count, _mm512_set1_epi64(1));
+            let sixteenth = take
+                & _mm512_cmpeq_epi64_mask(
+                    _mm512_and_si512(self.count, _mm512_set1_epi64(15)),
+                    _mm512_setzero_si512(),
+                );
+            if sixteenth != 0 {
+                let lhs = _mm512_mul_pd(self.reach, self.sup);
+                let rhs = _mm512_mul_pd(
+                    _mm512_mul_pd(self.tol, _mm512_sub_pd(one, self.reach)),
+                    self.far_like,
+                );
+                let hit = sixteenth & _mm512_cmp_pd_mask::<_CMP_LE_OQ>(lhs, rhs);
+                self.stopped |= hit;
+                self.active &= !hit;
+            }
+        }
     }
 
     #[target_feature(enable = "avx512f")]
-    unsafe fn store(&self, walks: &mut [FastWalk], reach: &mut [f64]) {
+    unsafe fn store(
+        &self,
+        walks: &mut [FastWalk],
+        reach: &mut [f64],
+        stopped: Option<&mut [bool]>,
+    ) {
         let mut r = [0.0; SET];
         _mm512_storeu_pd(r.as_mut_ptr(), self.reach);
         self.walk.store(walks.iter_mut());
@@ -303,28 +378,58 @@ impl FarLanes {
                 *out = r[i];
             }
         }
+        if let Some(stopped) = stopped {
+            for (i, s) in stopped.iter_mut().enumerate() {
+                *s = self.stopped & (1 << i) != 0;
+            }
+        }
     }
 }
 
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-unsafe fn far_phase_avx512(walks: &mut [FastWalk], lo: &[f64], reach: &mut [f64], means: &[f64]) {
-    let split = walks.len().min(SET);
+unsafe fn far_phase_avx512(
+    walks: &mut [FastWalk],
+    lo: &[f64],
+    reach: &mut [f64],
+    means: &[f64],
+    mut stop: Option<FarStop>,
+) {
+    let n = walks.len();
+    let split = n.min(SET);
     let (wa, wb) = walks.split_at_mut(split);
     let (la, lb) = lo.split_at(split);
     let (ra, rb) = reach.split_at_mut(split);
-    let mut a = FarLanes::load(wa, la, ra);
-    let mut b = FarLanes::load(wb, lb, rb);
+    let mut a = FarLanes::load(wa, la, ra, stop.as_ref().map(|s| (s, 0..split)));
+    let mut b = FarLanes::load(wb, lb, rb, stop.as_ref().map(|s| (s, split..n)));
+    if stop.is_some() {
+        far_loop::<true>(&mut a, &mut b, means);
+    } else {
+        far_loop::<false>(&mut a, &mut b, means);
+    }
+    let (sa, sb) = match stop.as_mut() {
+        Some(st) => {
+            let (x, y) = st.stopped.split_at_mut(split);
+            (Some(x), Some(y))
+        }
+        None => (None, None),
+    };
+    a.store(wa, ra, sa);
+    b.store(wb, rb, sb);
+}
+
+/// Steps two sets of far lanes until none is active.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+unsafe fn far_loop<const STOP: bool>(a: &mut FarLanes, b: &mut FarLanes, means: &[f64]) {
     while a.active | b.active != 0 {
         if a.active != 0 {
-            a.step(means);
+            a.step::<STOP>(means);
         }
         if b.active != 0 {
-            b.step(means);
+            b.step::<STOP>(means);
         }
     }
-    a.store(wa, ra);
-    b.store(wb, rb);
 }
 
 /// One set of tail lanes.
@@ -503,7 +608,7 @@ mod tests {
                 .map(|(w, &l)| scalar(w, l, &means))
                 .collect();
             let mut reach = vec![1.0; n];
-            assert!(far_phase(level, &mut walks, &lo, &mut reach, &means));
+            assert!(far_phase(level, &mut walks, &lo, &mut reach, &means, None));
             for i in 0..n {
                 assert_eq!(
                     reach[i].to_bits(),

@@ -90,7 +90,7 @@ impl CrmMap {
         }
         let walks = &mut walks[..n];
         let mut reach = [1.0; LANES];
-        if n == 0 || !far_phase(level, walks, &lo[..n], &mut reach[..n], &t.values) {
+        if n == 0 || !far_phase(level, walks, &lo[..n], &mut reach[..n], &t.values, None) {
             return out;
         }
         let Some(wm) = k.window_model() else {

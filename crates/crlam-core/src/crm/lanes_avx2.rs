@@ -10,6 +10,7 @@
 
 use std::arch::x86_64::*;
 
+use super::far_simd::FarStop;
 use super::lane_io::{TailLanesIo, WindowLanesIo, WindowModel, LANES};
 use crate::crm::windowed::TAIL_EPS;
 use crate::numeric::fastmath::{exp_for_sums_x4, exp_table_x4};
@@ -258,25 +259,52 @@ struct FarLanes {
     lo: __m256d,
     reach: __m256d,
     active: Mask,
+    /// The stop rule's terms ([`FarStop`]; unused without it).
+    sup: __m256d,
+    far_like: __m256d,
+    tol: __m256d,
+    /// Far cells taken per lane, and the lanes the rule stopped.
+    count: __m256i,
+    stopped: Mask,
 }
 
 impl FarLanes {
+    /// Lanes from `walks`, their far ends and reaches, and the stop rule's terms (zero
+    /// without one).
     #[target_feature(enable = "avx2")]
-    unsafe fn load(walks: &[FastWalk], lo: &[f64], reach: &[f64]) -> Self {
+    unsafe fn load(
+        walks: &[FastWalk],
+        lo: &[f64],
+        reach: &[f64],
+        stop: Option<(&FarStop, std::ops::Range<usize>)>,
+    ) -> Self {
         let walk = WalkLanes::load(walks.iter());
         let active = walk.live;
+        let (sup, far_like, tol) = match stop {
+            Some((st, r)) => (
+                load_padded(&st.sup[r.clone()]),
+                load_padded(&st.far_like[r]),
+                _mm256_set1_pd(st.tol),
+            ),
+            None => (load_padded(&[]), load_padded(&[]), load_padded(&[])),
+        };
         Self {
             walk,
             lo: load_padded(lo),
             reach: load_padded(reach),
             active,
+            sup,
+            far_like,
+            tol,
+            count: _mm256_setzero_si256(),
+            stopped: _mm256_setzero_pd(),
         }
     }
 
     /// One cell of every active lane, as [`super::far_simd`]'s `FarLanes::step`.
     #[target_feature(enable = "avx2")]
     #[inline]
-    unsafe fn step(&mut self, means: &[f64]) {
+    unsafe fn step<const STOP: bool>(&mut self, means: &[f64]) {
         let c = self.walk.crossing();
         let d = _mm256_mul_pd(_mm256_set1_pd(0.5), _mm256_add_pd(self.walk.t_in, c.t_out));
         let far = _mm256_cmp_pd::<_CMP_LT_OQ>(d, self.lo);
@@ -291,16 +319,49 @@ impl FarLanes {
             take,
         );
         self.active = self.walk.advance(adv, &c);
+        if STOP {
+            // The scalar loop's `count % 16 == 0 && R·sup <= tol·(1 − R)·L_far`.
+            let taken = _mm256_and_si256(_mm256_castpd_si256(take), _mm256_set1_epi64x(1));
+            self.count = _mm256_add_epi64(self.count, taken);
+            let sixteenth = and(
+                take,
+                _mm256_castsi256_pd(_mm256_cmpeq_epi64(
+                    _mm256_and_si256(self.count, _mm256_set1_epi64x(15)),
+                    _mm256_setzero_si256(),
+                )),
+            );
+            if any(sixteenth) {
+                let lhs = _mm256_mul_pd(self.reach, self.sup);
+                let rhs = _mm256_mul_pd(
+                    _mm256_mul_pd(self.tol, _mm256_sub_pd(one, self.reach)),
+                    self.far_like,
+                );
+                let hit = and(sixteenth, _mm256_cmp_pd::<_CMP_LE_OQ>(lhs, rhs));
+                self.stopped = or(self.stopped, hit);
+                self.active = and_not(hit, self.active);
+            }
+        }
     }
 
     #[target_feature(enable = "avx2")]
-    unsafe fn store(&self, walks: &mut [FastWalk], reach: &mut [f64]) {
+    unsafe fn store(
+        &self,
+        walks: &mut [FastWalk],
+        reach: &mut [f64],
+        stopped: Option<&mut [bool]>,
+    ) {
         let r = to_array(self.reach);
         self.walk.store(walks.iter_mut());
         let live = lane_bits(self.walk.live);
         for (i, out) in reach.iter_mut().enumerate() {
             if live & (1 << i) != 0 {
                 *out = r[i];
+            }
+        }
+        if let Some(stopped) = stopped {
+            let bits = lane_bits(self.stopped);
+            for (i, s) in stopped.iter_mut().enumerate() {
+                *s = bits & (1 << i) != 0;
             }
         }
     }
@@ -316,28 +377,41 @@ pub(crate) unsafe fn far_phase_avx2(
     lo: &[f64],
     reach: &mut [f64],
     means: &[f64],
+    mut stop: Option<FarStop>,
 ) {
     let n = walks.len();
-    let mut sets = [FarLanes::load(&[], &[], &[]); SETS];
+    let mut sets = [FarLanes::load(&[], &[], &[], None); SETS];
     for (s, set) in sets.iter_mut().enumerate() {
         let r = set_range(s, n);
-        *set = FarLanes::load(&walks[r.clone()], &lo[r.clone()], &reach[r]);
+        let st = stop.as_ref().map(|st| (st, r.clone()));
+        *set = FarLanes::load(&walks[r.clone()], &lo[r.clone()], &reach[r], st);
     }
+    if stop.is_some() {
+        far_loop::<true>(&mut sets, means);
+    } else {
+        far_loop::<false>(&mut sets, means);
+    }
+    for (s, set) in sets.iter().enumerate() {
+        let r = set_range(s, n);
+        let stopped = stop.as_mut().map(|st| &mut st.stopped[r.clone()]);
+        set.store(&mut walks[r.clone()], &mut reach[r], stopped);
+    }
+}
+
+/// Steps the sets of far lanes until none is active.
+#[target_feature(enable = "avx2")]
+unsafe fn far_loop<const STOP: bool>(sets: &mut [FarLanes; SETS], means: &[f64]) {
     loop {
         let mut stepped = false;
         for set in sets.iter_mut() {
             if any(set.active) {
-                set.step(means);
+                set.step::<STOP>(means);
                 stepped = true;
             }
         }
         if !stepped {
             break;
         }
-    }
-    for (s, set) in sets.iter().enumerate() {
-        let r = set_range(s, n);
-        set.store(&mut walks[r.clone()], &mut reach[r]);
     }
 }
 

@@ -14,19 +14,30 @@
 //!   the reading's hit window, [`MixtureReading::bound_beyond`]) and they share a probability
 //!   of at most R_l, so stopping when R_l · sup ≤ tolerance · η_so_far leaves out less than
 //!   that fraction of η. Each beam's log η is then low by less than `tail_tolerance` (and never
-//!   high): the stated error of the localizer's likelihood. With 2^-60 the result is the SLAM
-//!   filter's to rounding.
+//!   high). With 2^-60 the result is the SLAM filter's to rounding;
+//! - with a tail tolerance of at least [`HIT_TABLE_ERROR`] (1e-7; the default is 1e-6) the hit
+//!   density's truncation normaliser comes from a table of Φ ([`crate::mcl::hit_table`]), which
+//!   moves each beam's log η by less than 1e-7 either way;
+//! - the hit window around the reading is as wide as the tolerance needs (`hit_reach`): causes
+//!   whose hit term is below `tail_tolerance` times the likelihood floor w_r/z_max (which
+//!   bounds every cause's likelihood from below) have it left out, which leaves out less than
+//!   `tail_tolerance` of η. At 2^-60 the window is the SLAM filters'
+//!   ([`SensorModel::negligible_hit_distance`]); at the default 1e-6 it is about 6 σ either side
+//!   instead of about 9 σ.
 //!
-//! Causes farther than [`SensorModel::negligible_hit_distance`] before the reading have a hit
-//! term below 2^-60 of the likelihood floor w_r/z_max and no short term, so together they
-//! contribute (1 − R_a)·w_r/z_max, R_a being the reach where the hit window starts: only the
-//! cells of the window and past it evaluate likelihoods.
+//! The stated error of the localizer's likelihood: each beam's log η lies within
+//! [−2·tail_tolerance − 1e-7, +1e-7] of the exact one (tested on random maps and scans).
+//!
+//! Causes before the window have no short term and, at the window's reach, no hit term, so
+//! together they contribute (1 − R_a)·w_r/z_max, R_a being the reach where the window starts:
+//! only the cells of the window and past it evaluate likelihoods.
 
 use crate::crm::beam::{plan_beam, ScanOptions};
-use crate::crm::far_simd::far_phase;
+use crate::crm::far_simd::{far_phase, FarStop};
 use crate::crm::lane_io::LANES;
 use crate::error::{config_err, CrlamError, Result};
 use crate::mcl::field::MeanField;
+use crate::mcl::hit_table::{hit_density_table, HIT_TABLE_ERROR};
 use crate::pose::Pose;
 use crate::raycast::{FastWalk, WalkCell};
 use crate::sensor::{CauseKernel, MixtureReading, SensorModel, SensorModelKind};
@@ -102,11 +113,11 @@ pub fn beam_log_eta(
         let values = field.values();
         // holds_ray: every index of this walk lies in `values`.
         let mean = |wc: &WalkCell| values[wc.index as usize];
-        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
+        let far = far_phase_scalar(&mut walk, &mean, reading, tail_tolerance);
         finish_beam(walk, far, &mean, reading, tail_tolerance)
     } else {
         let mean = |wc: &WalkCell| field.mean_at(wc.cell.ix, wc.cell.iy);
-        let far = far_phase_scalar(&mut walk, &mean, reading, Some(tail_tolerance));
+        let far = far_phase_scalar(&mut walk, &mean, reading, tail_tolerance);
         finish_beam(walk, far, &mean, reading, tail_tolerance)
     }
 }
@@ -124,25 +135,48 @@ struct FarEnd {
 
 /// Where the far phase of a reading ends: causes whose distance (chord midpoint, or the chord's
 /// end for the chord kernel) lies below this are far.
-fn far_end(reading: &MixtureReading) -> f64 {
+fn far_end(reading: &MixtureReading, tail_tolerance: f64) -> f64 {
     if reading.is_no_return() {
         f64::NEG_INFINITY
     } else {
-        reading.z() - reading.model().negligible_hit_distance()
+        reading.z() - hit_reach(reading.model(), tail_tolerance)
     }
 }
 
+/// Distance (m) from a reading beyond which a cause's hit term w_h φ̃ is below `tail_tolerance`
+/// times the likelihood floor w_r/z_max, which bounds every cause's likelihood from below:
+/// leaving those hit terms out (the far phase before the window, no hit term past it) leaves
+/// out less than `tail_tolerance` of η. At most [`SensorModel::negligible_hit_distance`] (the
+/// 2^-60 reach of the SLAM filters, which the exact likelihood keeps).
+fn hit_reach(model: &SensorModel, tail_tolerance: f64) -> f64 {
+    let full = model.negligible_hit_distance();
+    let floor = model.w_rand / model.z_max;
+    // The truncation normaliser is at least 1/2, so φ̃ ≤ 2 φ_peak e^{−u²/2}.
+    let peak2 = 2.0 / (model.sigma_hit * crate::sensor::SQRT_2PI);
+    let ratio = model.w_hit * peak2 / (tail_tolerance * floor);
+    if !(ratio.is_finite() && floor > 0.0) {
+        return full;
+    }
+    let sigmas = if ratio > 1.0 {
+        (2.0 * ratio.ln()).sqrt()
+    } else {
+        0.0
+    };
+    (sigmas * model.sigma_hit).min(full)
+}
+
 /// The far phase of a range reading, one cell at a time: R = Π (1 − m̂) over the causes far
-/// before the reading. With `early` (the tail tolerance), every 16 cells: every cause past here
-/// has a likelihood below `sup_all`, so once R · sup_all is below the tolerance times what the
-/// far causes already give, (1 − R)·far_like, the rest of the ray cannot matter (a particle
-/// whose beam runs into walls before its reading). The lanes have no such stop.
+/// before the reading (those before [`far_end`] at the tail tolerance `tol`). Every 16 cells:
+/// every cause past here has a likelihood below `sup_all`, so once R · sup_all is below the
+/// tolerance times what the far causes already give, (1 − R)·far_like, the rest of the ray
+/// cannot matter (a particle whose beam runs into walls before its reading). The lanes stop by
+/// the same rule (`crm::far_simd::FarStop`).
 #[inline(always)]
 fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
     walk: &mut FastWalk,
     mean: &M,
     reading: &MixtureReading,
-    early: Option<f64>,
+    tol: f64,
 ) -> FarEnd {
     let mut out = FarEnd {
         reach: 1.0,
@@ -152,7 +186,7 @@ fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
     if reading.is_no_return() {
         return out;
     }
-    let lo = far_end(reading);
+    let lo = far_end(reading, tol);
     let chord = reading.model().kernel == CauseKernel::Chord;
     let far_like = reading.far_before();
     let sup_all = reading_bound(reading);
@@ -171,11 +205,9 @@ fn far_phase_scalar<M: Fn(&WalkCell) -> f64>(
         }
         reach *= 1.0 - mean(&wc);
         count += 1;
-        if let Some(tol) = early {
-            if count.is_multiple_of(16) && reach * sup_all <= tol * (1.0 - reach) * far_like {
-                out.done = Some((1.0 - reach) * far_like);
-                break;
-            }
+        if count.is_multiple_of(16) && reach * sup_all <= tol * (1.0 - reach) * far_like {
+            out.done = Some((1.0 - reach) * far_like);
+            break;
         }
     }
     out.reach = reach;
@@ -201,9 +233,12 @@ fn finish_beam<M: Fn(&WalkCell) -> f64>(
     let model = reading.model();
     let no_return = reading.is_no_return();
     let z = reading.z();
-    let hit_reach = model.negligible_hit_distance();
+    let hit_reach = hit_reach(model, tail_tolerance);
     let far_like = reading.far_before();
     let chord = model.kernel == CauseKernel::Chord;
+    // The hit density's truncation normaliser from the table of Φ (`hit_table`) when the
+    // tolerance admits its error, else computed.
+    let table = tail_tolerance >= HIT_TABLE_ERROR;
     // (L, its w_hit part) of a cause in the window or past it.
     let like = |t_in: f64, t_out: f64, d: f64| {
         if chord {
@@ -212,10 +247,12 @@ fn finish_beam<M: Fn(&WalkCell) -> f64>(
                 model.w_hit * model.chord_hit_density(z, t_in, t_out),
             )
         } else {
-            let hit = if (d - z).abs() <= hit_reach {
-                model.hit_density_fast(z, d)
-            } else {
+            let hit = if (d - z).abs() > hit_reach {
                 0.0
+            } else if table {
+                hit_density_table(model, z, d)
+            } else {
+                model.hit_density_fast(z, d)
             };
             (reading.range_cell_fast(d, hit), model.w_hit * hit)
         }
@@ -325,7 +362,9 @@ struct LaneBeam<'a> {
 ///
 /// Range readings of the midpoint kernel whose rays the field holds run their far phase sixteen
 /// beams at a time in vector lanes (`crm::far_simd`, the SLAM filters' kernel, at the level of
-/// [`crate::simd::level`]); the lanes end every walk as the scalar loop would, bit for bit, and
+/// [`crate::simd::level`]), with the scalar loop's stop rule (a lane whose reach has fallen so
+/// far that the rest of its ray cannot matter stops, as a beam of a particle that sees a wall
+/// before its reading does); the lanes end every walk as the scalar loop would, bit for bit, and
 /// the beams are summed in scan order, so the result does not depend on the level.
 pub fn scan_log_likelihood(
     field: &MeanField,
@@ -377,23 +416,41 @@ fn scan_log_likelihood_at(
     let flush = |lanes: &mut Vec<LaneBeam>, per_beam: &mut [Option<BeamEta>]| {
         let mut walks: [FastWalk; LANES] = [const { FastWalk::ended() }; LANES];
         let (mut lo, mut reach) = ([0.0; LANES], [1.0; LANES]);
+        let (mut sup, mut far_like) = ([0.0; LANES], [0.0; LANES]);
+        let mut stopped = [false; LANES];
         let n = lanes.len();
         for (i, b) in lanes.iter().enumerate() {
             walks[i] = b.walk.clone();
-            lo[i] = far_end(&b.reading);
+            lo[i] = far_end(&b.reading, tol);
+            sup[i] = reading_bound(&b.reading);
+            far_like[i] = b.reading.far_before();
         }
-        let in_lanes = far_phase(level, &mut walks[..n], &lo[..n], &mut reach[..n], values);
+        // The far phase's stop rule, as the scalar loop's (`far_phase_scalar`).
+        let stop = FarStop {
+            sup: &sup[..n],
+            far_like: &far_like[..n],
+            tol,
+            stopped: &mut stopped[..n],
+        };
+        let in_lanes = far_phase(
+            level,
+            &mut walks[..n],
+            &lo[..n],
+            &mut reach[..n],
+            values,
+            Some(stop),
+        );
         for (i, b) in lanes.drain(..).enumerate() {
             let (walk, far) = if in_lanes {
                 let far = FarEnd {
                     reach: reach[i],
                     first_near: None,
-                    done: None,
+                    done: stopped[i].then(|| (1.0 - reach[i]) * far_like[i]),
                 };
                 (walks[i].clone(), far)
             } else {
                 let mut walk = b.walk;
-                let far = far_phase_scalar(&mut walk, &mean, &b.reading, None);
+                let far = far_phase_scalar(&mut walk, &mean, &b.reading, tol);
                 (walk, far)
             };
             per_beam[b.slot] = Some(finish_beam(walk, far, &mean, &b.reading, tol));

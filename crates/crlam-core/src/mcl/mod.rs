@@ -4,6 +4,7 @@
 //!
 //! - [`field`]: the per-map structure, the expected occupancy of every cell in a flat array;
 //! - [`likelihood`]: the scan likelihood read from it, with a stated error bound;
+//! - [`hit_table`]: the hit density's truncation normaliser from a table of Φ;
 //! - [`kld`]: Fox's sample-count bound and the pose histogram;
 //! - [`cluster`]: the clusters of a weighted set;
 //! - [`climb`]: the scan-matched proposal of a spread set (an endpoint score and its climb);
@@ -18,6 +19,7 @@ pub mod cluster;
 pub mod config;
 pub mod field;
 pub mod filter;
+pub mod hit_table;
 pub mod kld;
 pub mod likelihood;
 mod resampling;
