@@ -248,8 +248,9 @@ class SlamConfig:
     loop_closing : str
         ``"off"`` (paper): the particles alone close loops. ``"graph"`` (RBPF-CLAM only): a pose
         graph over the processed scans, closed by wide-window matches against scans mapped long
-        ago; a correction re-anchors every particle on the map rebuilt at the corrected poses
-        (:mod:`crlam.slam.loop_closing`), and the run's trajectory is the graph's.
+        ago; a correction beyond the filter's own reach re-anchors every particle on the map
+        rebuilt at the corrected poses (:mod:`crlam.slam.loop_closing`), and the run's trajectory
+        is then the graph's.
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
         ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
