@@ -23,6 +23,7 @@
 //! product), so one set of eight lanes leaves the core waiting on latencies; two independent sets
 //! stepped in the same loop overlap their chains.
 
+pub(crate) use super::lane_io::FarStop;
 use super::lane_io::{TailLanesIo, LANES};
 #[cfg(target_arch = "x86_64")]
 use crate::crm::windowed::TAIL_EPS;
@@ -37,18 +38,6 @@ use std::arch::x86_64::*;
 pub(crate) const SET: usize = 8;
 
 const _: () = assert!(LANES == 2 * SET, "a call steps two sets of AVX-512 lanes");
-
-/// The localizer's stop rule of a far phase (`mcl::likelihood`), per lane: after every 16th
-/// far cell a lane has taken, it stops when R·sup ≤ tol·(1 − R)·L_far (every cause past there
-/// has a likelihood below `sup[i]`, so the rest of the ray changes η by less than `tol` of
-/// what the far causes already give), and `stopped[i]` says so. The operations are the scalar
-/// loop's, in its order, so a lane stops where it would.
-pub(crate) struct FarStop<'a> {
-    pub sup: &'a [f64],
-    pub far_like: &'a [f64],
-    pub tol: f64,
-    pub stopped: &'a mut [bool],
-}
 
 /// Runs the far phase of `walks` (at most [`LANES`]) at `level` (lowered to the best the CPU
 /// supports): lane i consumes cells while their chord midpoint is below `lo[i]` (+∞ for a

@@ -55,3 +55,15 @@ pub(crate) struct WindowModel {
     pub(crate) model: SensorModel,
     pub(crate) hit_reach: f64,
 }
+
+/// The localizer's stop rule of a far phase (`mcl::likelihood`; shared by `far_simd` and `lanes_avx2`), per lane: after every 16th
+/// far cell a lane has taken, it stops when R·sup ≤ tol·(1 − R)·L_far (every cause past there
+/// has a likelihood below `sup[i]`, so the rest of the ray changes η by less than `tol` of
+/// what the far causes already give), and `stopped[i]` says so. The operations are the scalar
+/// loop's, in its order, so a lane stops where it would.
+pub(crate) struct FarStop<'a> {
+    pub sup: &'a [f64],
+    pub far_like: &'a [f64],
+    pub tol: f64,
+    pub stopped: &'a mut [bool],
+}

@@ -10,8 +10,7 @@
 
 use std::arch::x86_64::*;
 
-use super::far_simd::FarStop;
-use super::lane_io::{TailLanesIo, WindowLanesIo, WindowModel, LANES};
+use super::lane_io::{FarStop, TailLanesIo, WindowLanesIo, WindowModel, LANES};
 use crate::crm::windowed::TAIL_EPS;
 use crate::numeric::fastmath::{exp_for_sums_x4, exp_table_x4};
 use crate::raycast::FastWalk;
