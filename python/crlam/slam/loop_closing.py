@@ -493,7 +493,11 @@ class LoopCloser:
             "loops_closed": self.loops_closed,
             "reanchors": self.reanchors,
             "largest_correction_m": self.largest_correction_m,
-            "loop_edges": int(sum(1 for e in self._edges if e[4])),
+            "loop_edges": [
+                {"old_node": int(e[0]), "node": int(e[1]), "relative_pose": [float(v) for v in e[2]]}
+                for e in self._edges
+                if e[4]
+            ],
             "reanchorings": self.reanchorings,
         }
 
