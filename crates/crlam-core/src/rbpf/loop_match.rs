@@ -1,6 +1,6 @@
 //! The loop-closure search: a scan matched over a wide window against points mapped long ago.
 //!
-//! Loop closing (`crlam.loop_closing`) keeps, beside the particles, the endpoints of every
+//! Loop closing (`crlam.slam.loop_closing`) keeps, beside the particles, the endpoints of every
 //! processed scan at the poses of a pose graph. When the robot comes back near old nodes, the
 //! current scan is searched against the endpoints of those nodes only: a window as wide as the
 //! drift the travelled path allows (metres and tens of degrees), searched by the branch and
