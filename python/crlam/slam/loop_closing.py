@@ -494,9 +494,7 @@ class LoopCloser:
             "reanchors": self.reanchors,
             "largest_correction_m": self.largest_correction_m,
             "loop_edges": [
-                {"old_node": int(e[0]), "node": int(e[1]), "relative_pose": [float(v) for v in e[2]]}
-                for e in self._edges
-                if e[4]
+                {"old_node": int(e[0]), "node": int(e[1]), "relative_pose": [float(v) for v in e[2]]} for e in self._edges if e[4]
             ],
             "reanchorings": self.reanchorings,
         }
