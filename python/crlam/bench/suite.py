@@ -140,7 +140,7 @@ def run_benchmarks(
     known_extra = {SURFACE_BENCH, EXPLORE_BENCH, ROS_LATENCY_BENCH, *IIG_BENCHES, *SLAM_BENCHES}
     unknown = set(names or []) - {b.name for b in BENCHMARKS} - known_extra
     if unknown:
-        raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS]}")
+        raise ValueError(f"unknown benchmarks {sorted(unknown)}; known: {[b.name for b in BENCHMARKS] + sorted(known_extra)}")
     figures: dict[str, Any] = {}
     details: dict[str, Any] = {}
     extra = [n for n in (SURFACE_BENCH, EXPLORE_BENCH, ROS_LATENCY_BENCH, *IIG_BENCHES) if names is None or n in names]
