@@ -2,15 +2,14 @@
 # The measurements of docs/method/loop-closing.md: the robust preset with and without loop
 # closing (--loop-closing graph | off), filter seed 0, on semi-real logs (the real scans of
 # GMapping-corrected logs at their corrected poses, with a drifting odometry of our own; the
-# odometry flags of results/odometry_noise/run.sh) and on the held-out Intel and ACES logs.
+# odometries of results/semireal_odometry.sh) and on the held-out Intel and ACES logs.
 #   ./run.sh OUT        (CRLAM_DATA: the data folder; every run folder is written under OUT)
 # Resumes: a run whose metrics.json exists is not run again.
 set -euo pipefail
 out=${1:?usage: run.sh OUT}
 data=${CRLAM_DATA:-../../../shared/data}
 mkdir -p "$out"
-good="--trans-scale 0.005 --trans-noise 0.005 --rot-scale 0.005 --heading-bias 0.0002 --rot-noise 0.005 --rot-per-trans 0.001 --turn-slip 0.01 --seed 2"
-mild="--trans-scale 0.01 --trans-noise 0.01 --rot-scale 0.01 --heading-bias 0.001 --rot-noise 0.01 --rot-per-trans 0.002 --turn-slip 0.03 --seed 1"
+. "$(dirname "$0")/../semireal_odometry.sh"  # $good and $mild: the odometries drawn
 logs="good:infinite-corridor good:acapulco good:fhw mild:fhw good:freiburg-campus"
 for entry in $logs; do
   kind=${entry%%:*}; b=${entry#*:}; log="$out/$kind-$b"
