@@ -45,7 +45,7 @@ import scipy.sparse.linalg
 from numpy.typing import NDArray
 
 from crlam import _native
-from crlam.pose import compose, inverse, wrap_angle
+from crlam.pose import compose, inverse, transform_points, wrap_angle
 
 Array = NDArray[np.float64]
 
@@ -130,12 +130,7 @@ def scan_endpoints(angles: Array, ranges: Array, laser_offset: Array, *, max_rea
     if a.size > most:
         keep = np.linspace(0, a.size - 1, most).round().astype(np.intp)
         a, r = a[keep], r[keep]
-    c, s = math.cos(laser_offset[2]), math.sin(laser_offset[2])
-    lx, ly = r * np.cos(a), r * np.sin(a)
-    pts = np.empty((a.size, 2))
-    pts[:, 0] = laser_offset[0] + c * lx - s * ly
-    pts[:, 1] = laser_offset[1] + s * lx + c * ly
-    return pts
+    return transform_points(laser_offset, np.stack([r * np.cos(a), r * np.sin(a)], axis=-1).reshape(-1, 2))
 
 
 def _edge_residuals(x: Array, i: NDArray[np.intp], j: NDArray[np.intp], z: Array) -> tuple[Array, Array, Array]:
@@ -384,7 +379,7 @@ class LoopCloser:
             return None
         near = near[np.argsort(np.hypot(poses[near, 0] - guess[0], poses[near, 1] - guess[1]))[: s.max_search_nodes]]
         lin, ang = search_window(float(travel[c] - travel[near].max()), s)
-        points = np.vstack([_to_world(poses[k], self._endpoints[k]) for k in near])
+        points = np.vstack([transform_points(poses[k], self._endpoints[k]) for k in near])
         if len(points) < s.min_endpoints:
             return None
         self.searches += 1
@@ -512,11 +507,3 @@ def _earlier_visit(near: NDArray[np.intp], newest_old: int) -> NDArray[np.intp]:
     if runs[-1][-1] == newest_old:
         runs = runs[:-1]
     return runs[-1] if runs else near[:0]
-
-
-def _to_world(pose: Array, points: NDArray[np.float64]) -> NDArray[np.float64]:
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    out = np.empty_like(points)
-    out[:, 0] = pose[0] + c * points[:, 0] - s * points[:, 1]
-    out[:, 1] = pose[1] + s * points[:, 0] + c * points[:, 1]
-    return out
