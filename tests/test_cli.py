@@ -122,6 +122,13 @@ def test_bench_quick_prints_named_figures(tmp_path: Path, capsys: pytest.Capture
     assert figures["slam_default_over_ogm_gmapping_sick"] == pytest.approx(
         figures["slam_default_scans_per_s_sick"] / figures["slam_ogm_gmapping_scans_per_s_sick"], rel=0.02
     )
+    # The default once more on two threads: the same run (results never depend on the thread
+    # count), timed against the one-thread run.
+    two = full["details"]["slam_default_two_threads"]
+    assert (two["threads"], default["threads"]) == (2, 1) and two["n_processed"] == default["n_processed"]
+    assert figures["slam_default_two_threads_time_over_one_sick"] == pytest.approx(
+        two["wall_time_s"] / default["wall_time_s"], abs=0.01
+    )
 
 
 @pytest.mark.slow

@@ -16,13 +16,16 @@ Runs
     GMapping's setting (hit-mean cells, odometry drawn at every scan, 0.05 m, 80 m, 1 m / 0.5 rad
     triggers: the setting BENCHMARKS.md compares on Intel, with its map-cell limit raised to
     10^8 as there: its 80 m maps outgrow the default 16 million cells). Each runs in a fresh
-    ``spawn`` process, so that its peak resident memory is its own, on one thread.
+    ``spawn`` process, so that its peak resident memory is its own, on one thread; the default
+    runs once more on two threads (``RAYON_NUM_THREADS=2``: the particles' updates in parallel).
 
 Figures: log scans per second of wall time (the whole run: reading, filtering, writing the
 trajectory), its peak resident memory (MB: the whole command's, the run folder's files and
 ``trajectory.png`` included), the ratio of the two filters' speeds, and the default run's whole
 command's peak against the filter's own (``command_peak_rss_mb / filter_peak_rss_mb`` of its
-``metrics.json``: what writing the map and the figure adds).
+``metrics.json``: what writing the map and the figure adds), and the two-thread run's wall time
+over the one-thread run's (the target is 0.6 or less: two cores should nearly halve the filter's
+share of the run).
 """
 
 from __future__ import annotations
@@ -44,6 +47,8 @@ SLAM_BENCHES = (
     "slam_ogm_gmapping_peak_rss_mb_sick",
     "slam_default_over_ogm_gmapping_sick",
     "slam_default_command_over_filter_rss_sick",
+    "slam_default_two_threads_scans_per_s_sick",
+    "slam_default_two_threads_time_over_one_sick",
 )
 """The figures :func:`slam_pipeline_figures` returns (``crlam bench --only`` takes any of them)."""
 
@@ -81,9 +86,12 @@ def _simulate(folder: Path, n_scans: int) -> tuple[Path, float]:
 OGM_GMAPPING_MAX_MAP_CELLS = 100_000_000
 
 
-def _run_in_child(log: str, out: str, preset: str, overrides: dict[str, Any], max_map_cells: int | None) -> dict[str, Any]:
+def _run_in_child(
+    log: str, out: str, preset: str, overrides: dict[str, Any], max_map_cells: int | None, threads: int
+) -> dict[str, Any]:
     """One whole ``crlam slam`` run (in a spawned process): its metrics and CPU seconds."""
-    os.environ["RAYON_NUM_THREADS"] = "1"
+    # Read when the core's thread pool starts, at the run's first parallel update.
+    os.environ["RAYON_NUM_THREADS"] = str(threads)
     from dataclasses import replace
 
     from crlam.experiments.slam_run import run_slam_log
@@ -107,10 +115,12 @@ def _run_in_child(log: str, out: str, preset: str, overrides: dict[str, Any], ma
     }
 
 
-def _timed_run(log: Path, out: Path, preset: str, overrides: dict[str, Any], max_map_cells: int | None) -> dict[str, Any]:
+def _timed_run(
+    log: Path, out: Path, preset: str, overrides: dict[str, Any], max_map_cells: int | None, threads: int
+) -> dict[str, Any]:
     ctx = multiprocessing.get_context("spawn")  # a forked child of a rayon process can hang
     with ProcessPoolExecutor(max_workers=1, mp_context=ctx) as pool:
-        return pool.submit(_run_in_child, str(log), str(out), preset, overrides, max_map_cells).result()
+        return pool.submit(_run_in_child, str(log), str(out), preset, overrides, max_map_cells, threads).result()
 
 
 def slam_pipeline_figures(*, quick: bool = False, repeats: int = 1) -> tuple[dict[str, float], dict[str, Any]]:
@@ -124,23 +134,26 @@ def slam_pipeline_figures(*, quick: bool = False, repeats: int = 1) -> tuple[dic
         ``slam_ogm_gmapping_peak_rss_mb_sick`` (MB), and
         ``slam_default_over_ogm_gmapping_sick`` (the ratio of the two speeds, this run), and
         ``slam_default_command_over_filter_rss_sick`` (the default run's whole command's peak
-        memory over its filter's).
+        memory over its filter's), ``slam_default_two_threads_scans_per_s_sick`` and
+        ``slam_default_two_threads_time_over_one_sick`` (the default on two threads: its speed,
+        and its wall time over the one-thread run's).
     details : dict
         Per filter: scans, processed scans, wall and CPU seconds, scans per CPU second, peak RSS,
         the settings.
     """
     n = QUICK_SCANS if quick else N_SCANS
     runs = {
-        "slam_default": ("robust", {}, None),
-        "slam_ogm_gmapping": ("paper", OGM_GMAPPING, OGM_GMAPPING_MAX_MAP_CELLS),
+        "slam_default": ("robust", {}, None, 1),
+        "slam_ogm_gmapping": ("paper", OGM_GMAPPING, OGM_GMAPPING_MAX_MAP_CELLS, 1),
+        "slam_default_two_threads": ("robust", {}, None, 2),
     }
     details: dict[str, Any] = {}
     with tempfile.TemporaryDirectory(prefix="crlam-bench-") as tmp:
         log, far = _simulate(Path(tmp) / "sim", n)
-        for name, (preset, overrides, max_map_cells) in runs.items():
+        for name, (preset, overrides, max_map_cells, threads) in runs.items():
             best: dict[str, Any] | None = None
             for k in range(max(1, repeats)):
-                r = _timed_run(log, Path(tmp) / f"{name}_{k}", preset, overrides, max_map_cells)
+                r = _timed_run(log, Path(tmp) / f"{name}_{k}", preset, overrides, max_map_cells, threads)
                 if best is None or r["wall_time_s"] < best["wall_time_s"]:
                     best = r
             assert best is not None
@@ -152,8 +165,9 @@ def slam_pipeline_figures(*, quick: bool = False, repeats: int = 1) -> tuple[dic
             best["workload"] = f"museum world, sick sensor (180 beams, 180 deg, 80 m), {n} scans, seed 0"
             best["returned_readings_beyond_8m"] = round(far, 3)
             best["repeats"] = repeats
+            best["threads"] = threads
             details[name] = best
-    d, o = details["slam_default"], details["slam_ogm_gmapping"]
+    d, o, t = details["slam_default"], details["slam_ogm_gmapping"], details["slam_default_two_threads"]
     figures = {
         "slam_default_scans_per_s_sick": round(d["scans_per_s"], 1),
         "slam_default_peak_rss_mb_sick": round(d["peak_rss_mb"], 1),
@@ -161,5 +175,7 @@ def slam_pipeline_figures(*, quick: bool = False, repeats: int = 1) -> tuple[dic
         "slam_ogm_gmapping_peak_rss_mb_sick": round(o["peak_rss_mb"], 1),
         "slam_default_over_ogm_gmapping_sick": round(d["scans_per_s"] / o["scans_per_s"], 2),
         "slam_default_command_over_filter_rss_sick": round(d["peak_rss_mb"] / d["filter_peak_rss_mb"], 2),
+        "slam_default_two_threads_scans_per_s_sick": round(t["scans_per_s"], 1),
+        "slam_default_two_threads_time_over_one_sick": round(t["wall_time_s"] / d["wall_time_s"], 2),
     }
     return figures, details
