@@ -12,7 +12,15 @@ from crlam import _native
 from crlam.errors import ConfigError
 from crlam.pose import between, compose
 from crlam.slam import SlamConfig, SlamRun
-from crlam.slam.loop_closing import LoopClosingSettings, optimize_pose_graph, scan_endpoints, search_window
+from crlam.slam.loop_closing import (
+    LoopCloser,
+    LoopClosingSettings,
+    _Match,
+    optimize_pose_graph,
+    revisited_endpoints,
+    scan_endpoints,
+    search_window,
+)
 
 
 def _chain(truth: np.ndarray) -> np.ndarray:
@@ -279,3 +287,87 @@ def test_a_drift_beyond_the_search_window_is_left_alone() -> None:
     end, worst, run = _run_ring("graph", heading_bias_deg=0.06)
     assert run.loops is not None
     assert end <= open_end + 0.3 and worst <= open_max + 0.3
+
+
+def _landmarks() -> np.ndarray:
+    """Points (m) scattered over a 30 m x 12 m strip around a 20 m corridor's centre line."""
+    return np.random.default_rng(3).uniform((-5.0, -6.0), (25.0, 6.0), (600, 2))
+
+
+def _seen_from(pose: np.ndarray, world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The bearings and ranges of the points within 8 m of ``pose``, in its frame."""
+    d = world - pose[:2]
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    local = np.stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]], axis=1)
+    r = np.hypot(local[:, 0], local[:, 1])
+    keep = r < 8.0
+    return np.arctan2(local[keep, 1], local[keep, 0]), r[keep]
+
+
+def _out_and_back() -> np.ndarray:
+    """Poses (m, rad) 20 m out along x and back, one per metre: the return pass sees the same
+    points again after 2-40 m of path."""
+    out = [(float(k), 0.0, 0.0) for k in range(21)]
+    back = [(float(k), 0.0, math.pi) for k in range(20, -1, -1)]
+    return np.array(out + back)
+
+
+def test_revisited_endpoints_count_only_walls_seen_again_in_place() -> None:
+    world = _landmarks()
+    truth = _out_and_back()
+    ends = []
+    for p in truth:
+        a, r = _seen_from(p, world)
+        ends.append(np.stack([r * np.cos(a), r * np.sin(a)], axis=1))
+    travel = np.arange(len(truth), dtype=np.float64)
+    aligned = revisited_endpoints(truth, ends, travel, 0.1, 15.0)
+    assert aligned > 0.3 * sum(len(e) for e in ends)
+    # The return pass 0.4 m to the side: its points fall beside the first pass's.
+    shifted = truth.copy()
+    shifted[21:, 1] += 0.4
+    assert revisited_endpoints(shifted, ends, travel, 0.1, 15.0) < 0.2 * aligned
+    # Seen again after less path than min_travel: a cell hit by the same pass does not count.
+    assert revisited_endpoints(truth, ends, travel, 0.1, 100.0) == 0
+
+
+def _closer_along(poses: np.ndarray) -> LoopCloser:
+    """A loop closer fed the out-and-back scans at ``poses`` (the filter's online estimates); its
+    own search never runs."""
+    world = _landmarks()
+    # A search at node 0 only, which has no old node to search.
+    closer = LoopCloser(resolution=0.1, settings=LoopClosingSettings(search_every=10**6))
+    for p, t in zip(poses, _out_and_back(), strict=True):
+        a, r = _seen_from(t, world)  # the scan is taken at the true pose
+        assert closer.add_node(None, p, a, r, np.zeros(3)) is None  # type: ignore[arg-type]
+    return closer
+
+
+def _match(closer: LoopCloser, node: int, old: int, pose: np.ndarray) -> _Match:
+    s = closer.settings
+    info = np.diag(1.0 / np.array([s.loop_sigma_xy, s.loop_sigma_xy, s.loop_sigma_theta]))
+    return _Match(node=node, old_node=old, pose=pose, guess=closer.poses()[node], explained=0.9, sqrt_information=info)
+
+
+def test_a_closure_that_pulls_agreeing_passes_apart_is_dropped() -> None:
+    truth = _out_and_back()
+    closer = _closer_along(truth)  # the loop is closed: both passes lie on each other
+    before = closer.poses()
+    wrong = [_match(closer, k, 41 - k, truth[k] + np.array([0.0, 0.5, 0.0])) for k in (39, 41)]
+    assert not closer._close(wrong)
+    assert closer.inconsistent == 1 and closer.loops_closed == 0
+    np.testing.assert_array_equal(closer.poses(), before)
+    assert not any(e[4] for e in closer._edges) and not closer.changed_since_rebuild
+    c = closer.record()["closures"][0]
+    assert c["revisited_endpoints_after"] < c["revisited_endpoints_before"] and not c["kept"]
+
+
+def test_a_closure_that_lays_the_passes_onto_each_other_is_kept() -> None:
+    truth = _out_and_back()
+    drifted = truth.copy()
+    drifted[21:, 1] += 0.05 * np.arange(21)  # the return pass drifts 1 m to the side
+    closer = _closer_along(drifted)
+    right = [_match(closer, k, 41 - k, truth[k]) for k in (39, 41)]
+    assert closer._close(right)
+    assert closer.loops_closed == 1 and closer.inconsistent == 0
+    end = closer.poses()[-1]
+    assert math.hypot(end[0] - truth[-1][0], end[1] - truth[-1][1]) < 0.1

@@ -152,6 +152,16 @@ def test_overrides_win_and_unknown_names_are_errors() -> None:
         SlamConfig.from_preset("paper", tempering=-1.0)
 
 
+def test_a_presets_loop_closing_gives_way_to_rbpf_ogm() -> None:
+    preset = {"method": "clam", "loop_closing": "graph"}
+    assert SlamConfig.settle_preset_settings(preset, {"method": "ogm"})["loop_closing"] == "off"
+    assert SlamConfig.settle_preset_settings(preset, {"particles": 3})["loop_closing"] == "graph"
+    # Asked for by name, it stays, and the config's check says why it cannot be.
+    both = SlamConfig.settle_preset_settings(preset, {"method": "ogm", "loop_closing": "graph"})
+    with pytest.raises(ConfigError, match="loop_closing"):
+        SlamConfig(**both)
+
+
 @pytest.mark.parametrize(
     ("body", "key"),
     [

@@ -317,8 +317,12 @@ class SlamConfig:
         """A preset's settings with ``overrides`` on top, where a preset's ``motion_noise =
         "estimate"`` (a fit of GMapping's odometry model) becomes ``"model"`` when the overrides
         choose another motion model and say nothing of the noise: ``--motion thrun`` on the
-        ``robust`` preset runs Thrun's model with its parameters rather than failing."""
+        ``robust`` preset runs Thrun's model with its parameters rather than failing. Likewise a
+        preset's ``loop_closing = "graph"`` (it re-anchors RBPF-CLAM's particles) becomes
+        ``"off"`` when the overrides choose RBPF-OGM and say nothing of loop closing."""
         settings = preset | overrides
+        if preset.get("loop_closing") == "graph" and "loop_closing" not in overrides and settings.get("method") == "ogm":
+            settings["loop_closing"] = "off"
         if (
             preset.get("motion_noise") == "estimate"
             and "motion_noise" not in overrides

@@ -21,7 +21,14 @@ is (every particle keeps a CRM and its CRM-likelihood weight):
    (:attr:`~LoopClosingSettings.agree_xy`, :attr:`~LoopClosingSettings.agree_theta`): a corridor's
    look-alike or a door seen twice rarely agrees with itself twice. Verified matches become
    edges of the graph, with a Cauchy loss so that a wrong one that slips through is outvoted.
-4. **Correction.** The graph is solved by Gauss-Newton over its sparse normal equations
+4. **Consistency.** The solved graph is kept only if it makes the map agree with itself where
+   the robot has been twice: more scan endpoints must fall in cells that are hit from at least
+   :attr:`~LoopClosingSettings.min_travel` metres of path apart (:func:`revisited_endpoints`)
+   than before the new edges. A right closure lays the second pass's walls onto the first;
+   a wrong one (a corridor passed in opposite directions, a match a few decimetres off) pulls
+   walls that already lay on each other apart. Otherwise the new edges are dropped and the
+   graph stays as it was.
+5. **Correction.** The graph is solved by Gauss-Newton over its sparse normal equations
    (:func:`optimize_pose_graph`). When the current node moves by more than 0.4 m or 2 deg,
    the map is rebuilt from every processed scan at its corrected pose, with the filter's own
    mapping model, and every particle takes that map and moves by the current node's correction
@@ -281,6 +288,10 @@ class LoopCloser:
     matches: int = 0
     loops_closed: int = 0
     reanchors: int = 0
+    inconsistent: int = 0
+    #: Each solved closure: the node, how far it moved the current pose, the revisited endpoints
+    #: before and after, and whether the graph kept it.
+    closures: list[dict[str, Any]] = field(default_factory=list)
     largest_correction_m: float = 0.0
     #: Each re-anchoring: the node (processed scan, from 0) and how far its pose moved.
     reanchorings: list[dict[str, float]] = field(default_factory=list)
@@ -341,14 +352,46 @@ class LoopCloser:
         self._pending = [m for m in self._pending if self.n_nodes - 1 - m.node <= 20 * s.search_every] + [match]
         if not agreeing:
             return None
-        for m in [*agreeing, match]:
+        # The graph moves (or not): matches still pending were measured in its old frame.
+        self._pending = []
+        if not self._close([*agreeing, match]):
+            return None
+        return self._maybe_reanchor(filt, online)
+
+    def _close(self, matches: list[_Match]) -> bool:
+        """Adds the matches' loop edges and solves the graph; keeps the solution only if it makes
+        the map agree better with itself where the robot has been twice (the module's step 4).
+        Returns whether it was kept."""
+        before = self.poses()
+        n_edges, optimised = len(self._edges), self._optimised_since_rebuild
+        revisited_before = self._revisited(before)
+        for m in matches:
             z = compose(inverse(self._poses[m.old_node]), m.pose)
             self._edges.append((m.old_node, m.node, z, m.sqrt_information, True))
-        # The graph moves: matches still pending were measured in its old frame.
-        self._pending = []
-        self.loops_closed += 1
         self._optimise()
-        return self._maybe_reanchor(filt, online)
+        revisited_after = self._revisited(self.poses())
+        kept = revisited_after > revisited_before
+        self.closures.append(
+            {
+                "node": self.n_nodes - 1,
+                "moved_m": float(math.hypot(*(self._poses[-1][:2] - before[-1][:2]))),
+                "revisited_endpoints_before": revisited_before,
+                "revisited_endpoints_after": revisited_after,
+                "kept": kept,
+            }
+        )
+        if not kept:
+            # The closure pulls apart what the passes agreed on: the graph goes back.
+            self._poses = list(before)
+            del self._edges[n_edges:]
+            self._optimised_since_rebuild = optimised
+            self.inconsistent += 1
+            return False
+        self.loops_closed += 1
+        return True
+
+    def _revisited(self, poses: Array) -> int:
+        return revisited_endpoints(poses, self._endpoints, np.array(self._travel), self.resolution, self.settings.min_travel)
 
     def _agree(self, a: _Match, b: _Match) -> bool:
         """Whether two matches imply the same correction of the graph at b's pose."""
@@ -492,7 +535,42 @@ class LoopCloser:
                 {"old_node": int(e[0]), "node": int(e[1]), "relative_pose": [float(v) for v in e[2]]} for e in self._edges if e[4]
             ],
             "reanchorings": self.reanchorings,
+            "inconsistent": self.inconsistent,
+            "closures": self.closures,
         }
+
+
+def revisited_endpoints(
+    poses: Array, endpoints: list[NDArray[np.float64]], travel: Array, resolution: float, min_travel: float
+) -> int:
+    """How many endpoints fall in cells that scans hit from at least ``min_travel`` metres of path
+    apart: the map's agreement with itself where the robot has been twice.
+
+    Parameters
+    ----------
+    poses : (n, 3) float64
+        Each node's pose (x, y in m; theta in rad).
+    endpoints : list of (k_i, 2) float64
+        Each node's scan endpoints in its own frame (m).
+    travel : (n,) float64
+        Each node's path length from the start (m).
+    resolution : float
+        Cell size (m).
+    min_travel : float
+        Path (m) between two hits of a cell for the cell to count as seen twice.
+    """
+    if not endpoints:
+        return 0
+    points = np.vstack([transform_points(p, e) for p, e in zip(poses, endpoints, strict=True)])
+    along = np.repeat(np.asarray(travel, dtype=np.float64), [len(e) for e in endpoints])
+    cells = np.floor(points / resolution).astype(np.int64)
+    key = cells[:, 0] * (1 << 32) + cells[:, 1]  # unique while each cell index is below 2^31 in size
+    order = np.argsort(key, kind="stable")
+    key, along = key[order], along[order]
+    starts = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    spread = np.maximum.reduceat(along, starts) - np.minimum.reduceat(along, starts)
+    hits = np.diff(np.r_[starts, key.size])
+    return int(hits[spread >= min_travel].sum())
 
 
 def _earlier_visit(near: NDArray[np.intp], newest_old: int) -> NDArray[np.intp]:
