@@ -316,10 +316,13 @@ def test_real_logs_sweeps_use_the_robust_preset(office: Path, tmp_path: Path, mo
     files = {"intel": office / "log.clf", "intel-relations": rel}
     monkeypatch.setattr(real_logs, "find_dataset", lambda name: files[name])
     out = tmp_path / "cli"
-    argv = ["experiment", "real-logs", "--out", str(out), "--datasets", "intel", "--methods", "clam"]
+    argv = ["experiment", "real-logs", "--out", str(out), "--datasets", "intel", "--methods", "clam", "ogm"]
     argv += ["--particles", "2", "--runs", "1", "--ranges", "8", "--max-scans", "12", "--workers", "1", "--quiet"]
     assert main(argv) == 0
-    (run,) = (out / "runs").iterdir()
+    run, ogm = (next((out / "runs").glob(f"intel_{m}_*")) for m in ("clam", "ogm"))
+    # RBPF-OGM runs the preset without its loop closing (re-anchoring needs RBPF-CLAM's CRMs).
+    ogm_settings = presets.load_config_file(ogm / "config.toml").settings
+    assert ogm_settings["method"] == "ogm" and ogm_settings["loop_closing"] == "off"
     stored = presets.load_config_file(run / "config.toml")
     assert stored.preset == "robust"
     fitted = json.loads((run / "metrics.json").read_text())["motion_noise_estimate"]["params"]

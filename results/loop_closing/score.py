@@ -5,6 +5,7 @@ Usage: python score.py OUT"""
 from __future__ import annotations
 
 import json
+import re
 import sys
 from pathlib import Path
 
@@ -35,15 +36,18 @@ def closing(run: Path) -> str:
         return "-"
     lc = json.loads(metrics.read_text()).get("loop_closing") or {}
     moves = ", ".join(f"{r['moved_m']:.1f}" for r in lc.get("reanchorings", []))
-    return f"{lc.get('loops_closed', 0)} / {lc.get('reanchors', 0)} ({moves})" if lc else "-"
+    return f"{lc.get('loops_closed', 0)} / {lc.get('inconsistent', 0)} / {lc.get('reanchors', 0)} ({moves})" if lc else "-"
 
 
 def main(out: Path) -> None:
-    print("| log | odometry | loop closing off | loop closing on | loops closed / re-anchorings (m moved) |")
+    print(
+        "| log | odometry | loop closing off | loop closing on "
+        "| loops closed / dropped as inconsistent / re-anchorings (m moved) |"
+    )
     print("|---|---|---|---|---|")
     names = sorted(p.name for p in (out / "runs-graph").iterdir() if p.is_dir())
     for name in names:
-        log = out / name
+        log = out / re.sub(r"-s\d+$", "", name)  # the semi-real log of a run of another filter seed
         truth = read_tum(log / "groundtruth.tum") if (log / "semireal.json").exists() else None
         odom = "-"
         if truth is not None:

@@ -368,7 +368,7 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             help="graph: a pose graph over the processed scans, closed by wide-window matches against scans mapped "
             "long ago; a correction beyond 0.4 m or 2 deg re-anchors the particles on the map rebuilt at the corrected "
             "poses, and the trajectory is then the graph's (RBPF-CLAM only); off: the particles alone close loops "
-            f"(paper and robust: off; {FROM_PRESET})",
+            f"(robust: graph, paper: off; {FROM_PRESET})",
         ),
     ),
     "--fill": (

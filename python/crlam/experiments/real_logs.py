@@ -92,7 +92,10 @@ def run_real_logs(
                 for rg in ranges:
                     zmax = FULL_RANGE[ds] if rg == "full" else float(rg)
                     for k in range(seeds):
-                        cfg = SlamConfig(**{**base.to_dict(), "method": m, "particles": n, "seed": k, "max_range": zmax})
+                        grid = {"method": m, "particles": n, "seed": k, "max_range": zmax}
+                        if m == "ogm":
+                            grid["loop_closing"] = "off"  # re-anchoring needs RBPF-CLAM's CRMs
+                        cfg = SlamConfig(**{**base.to_dict(), **grid})
                         specs.append(
                             RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans, threads=threads)
                         )

@@ -246,11 +246,12 @@ class SlamConfig:
         ``off`` (paper) leaves the odometry as the log attaches it; a number applies that offset. Input
         handling only: :meth:`SlamRun.step` takes the odometry it is given.
     loop_closing : str
-        ``"off"`` (paper): the particles alone close loops. ``"graph"`` (RBPF-CLAM only): a pose
-        graph over the processed scans, closed by wide-window matches against scans mapped long
-        ago; a correction beyond the filter's own reach re-anchors every particle on the map
-        rebuilt at the corrected poses (:mod:`crlam.slam.loop_closing`), and the run's trajectory
-        is then the graph's.
+        ``"off"`` (paper): the particles alone close loops. ``"graph"`` (robust; RBPF-CLAM only):
+        a pose graph over the processed scans, closed by wide-window matches against scans
+        mapped long ago and kept where the map then agrees better with itself; a correction
+        beyond the filter's own reach re-anchors every particle on the map rebuilt at the
+        corrected poses (:mod:`crlam.slam.loop_closing`), and the run's trajectory is then the
+        graph's.
     preset : str or None
         Name of the preset the settings were resolved from (:meth:`from_preset`; None for a plain
         ``SlamConfig(...)``). Provenance only: recorded in ``config.toml`` and ``metrics.json``,
