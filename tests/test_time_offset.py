@@ -70,6 +70,21 @@ def test_estimate_recovers_an_injected_offset_on_a_simulated_log(sim_records: li
     assert est.heading_scale is not None and 0.9 < est.heading_scale < 1.1
 
 
+def test_the_estimate_does_not_depend_on_the_thread_count(
+    sim_records: list[CarmenRecord], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Four runs of 100 scans, matched on one thread and on two: the same pairs, the same estimate.
+    variant = build_variant(sim_records, "odom_shift", StressSettings(odom_shift_s=0.1))
+    settings = TimeOffsetSettings(max_scans=400, segments=4)
+    estimates = []
+    for threads in ("1", "2"):
+        monkeypatch.setenv("RAYON_NUM_THREADS", threads)
+        estimates.append(estimate_time_offset(iter(variant), settings, n_scans=_n_scans(variant)))
+    one, two = estimates
+    assert one.n_pairs == two.n_pairs > 0 and one.n_scans_matched == two.n_scans_matched
+    assert one.estimate_s == two.estimate_s and one.ci95_s == two.ci95_s
+
+
 def test_estimate_on_the_unshifted_simulated_log_is_near_zero(sim_records: list[CarmenRecord]) -> None:
     est = estimate_time_offset(iter(sim_records), n_scans=_n_scans(sim_records))
     assert est.estimate_s is not None and abs(est.estimate_s) <= 0.02, est.reason

@@ -13,7 +13,8 @@ Estimate (:func:`estimate_time_offset`)
 1. Scan-matching odometry (:class:`crlam.slam.scan_odometry.ScanMatchOdometry`, which never reads the
    log's odometry) gives each scan a heading ``a(t)`` in the laser's time. To bound the cost, at
    most ``max_scans`` scans are matched, in ``segments`` runs of consecutive scans spread evenly
-   over the log (a fresh front end each). A scan the front end could not match, and a scan whose
+   over the log (a fresh front end each; the runs are matched in parallel on the core's threads,
+   :func:`match_threads`, with the same result on any number). A scan the front end could not match, and a scan whose
    stamp is out of order with its neighbours in file order (Intel's log has such stamps), starts
    no pair and ends none.
 2. The odometry's heading ``o(s)`` is the log's odometry records (CARMEN ``ODOM`` lines, a bag's
@@ -264,24 +265,56 @@ def _segment_starts(n_total: int | None, settings: TimeOffsetSettings) -> tuple[
     return [round(span * i / max(k - 1, 1)) for i in range(k)], length
 
 
+def match_threads() -> int:
+    """Threads for work split by Python (the segments of the estimate): the core's own thread
+    count (``RAYON_NUM_THREADS``, else every core), so that ``RAYON_NUM_THREADS=1`` keeps a run on
+    one core."""
+    env = os.environ.get("RAYON_NUM_THREADS", "").strip()
+    if env.isdigit() and int(env) > 0:
+        return int(env)
+    return os.cpu_count() or 1
+
+
+def _match_segment(scans: list[tuple[Array, Array, Array, float]]) -> _Run:
+    """Scan-matching odometry over one segment's scans (angles, ranges, laser offset, stamp), with
+    a fresh front end: the run's stamps, unwrapped headings and which scans matched."""
+    from crlam.slam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig
+
+    front = ScanMatchOdometry(ScanOdometryConfig())
+    run = _Run()
+    last_heading = 0.0
+    for angles, ranges, offset, stamp in scans:
+        before = front.stats.n_matched
+        pose = front.step(angles, ranges, offset, stamp)
+        matched = front.stats.n_matched > before or front.stats.n_scans == 1
+        heading = float(pose[2])
+        if run.headings:
+            heading = last_heading + math.remainder(heading - last_heading, 2.0 * math.pi)
+        last_heading = heading
+        run.stamps.append(stamp)
+        run.headings.append(heading)
+        run.matched.append(matched)
+    return run
+
+
 def _collect(
     records: Iterable[object], n_total: int | None, settings: TimeOffsetSettings
 ) -> tuple[list[_Run], Array, Array, Array, Array]:
     """Match the scans of the runs; collect the odometry records' and the scans' odometry
-    (stamp, heading) series."""
-    from crlam.slam.scan_odometry import ScanMatchOdometry, ScanOdometryConfig
+    (stamp, heading) series. The runs' scans are read in one pass over the records and matched
+    afterwards, each run on its own thread (:func:`match_threads`; the matcher releases the GIL):
+    the runs are independent, so the result does not depend on the thread count."""
+    from concurrent.futures import ThreadPoolExecutor
 
     starts, length = _segment_starts(n_total, settings)
-    runs: list[_Run] = []
+    segments: list[list[tuple[Array, Array, Array, float]]] = []
     odo_t: list[float] = []
     odo_h: list[float] = []
     att_t: list[float] = []
     att_h: list[float] = []
-    front: ScanMatchOdometry | None = None
-    run: _Run | None = None
+    current: list[tuple[Array, Array, Array, float]] | None = None
     k = -1
     seg = 0
-    last_heading = 0.0
     for rec in records:
         if isinstance(rec, OdometryReading):
             odo_t.append(rec.timestamp)
@@ -296,25 +329,22 @@ def _collect(
             att_t.append(rec.timestamp)
             att_h.append(float(rec.odom[2]))
         if seg < len(starts) and k == starts[seg]:
-            front, run = ScanMatchOdometry(ScanOdometryConfig()), _Run()
-            runs.append(run)
+            current = []
+            segments.append(current)
             seg += 1
-        if front is None or run is None:
+        if current is None:
             continue
-        if len(run.stamps) >= length:
-            front, run = None, None
+        if len(current) >= length:
+            current = None
             continue
         ranges = np.where(rec.ranges >= rec.max_range, np.inf, rec.ranges)
-        before = front.stats.n_matched
-        pose = front.step(rec.angles, ranges, rec.laser_offset, rec.timestamp)
-        matched = front.stats.n_matched > before or front.stats.n_scans == 1
-        heading = float(pose[2])
-        if run.headings:
-            heading = last_heading + math.remainder(heading - last_heading, 2.0 * math.pi)
-        last_heading = heading
-        run.stamps.append(rec.timestamp)
-        run.headings.append(heading)
-        run.matched.append(matched)
+        current.append((rec.angles, ranges, rec.laser_offset, rec.timestamp))
+    workers = max(1, min(match_threads(), len(segments)))
+    if workers == 1:
+        runs = [_match_segment(scans) for scans in segments]
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            runs = list(pool.map(_match_segment, segments))
     return (
         runs,
         np.array(odo_t, dtype=np.float64),
