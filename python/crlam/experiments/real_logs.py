@@ -92,10 +92,10 @@ def run_real_logs(
                 for rg in ranges:
                     zmax = FULL_RANGE[ds] if rg == "full" else float(rg)
                     for k in range(seeds):
+                        # The grid over the base as over a preset: an RBPF-OGM run drops the base's
+                        # loop closing (re-anchoring needs RBPF-CLAM's CRMs).
                         grid = {"method": m, "particles": n, "seed": k, "max_range": zmax}
-                        if m == "ogm":
-                            grid["loop_closing"] = "off"  # re-anchoring needs RBPF-CLAM's CRMs
-                        cfg = SlamConfig(**{**base.to_dict(), **grid})
+                        cfg = SlamConfig(**SlamConfig.settle_preset_settings(base.to_dict(), grid))
                         specs.append(
                             RunSpec(f"{ds}_{m}_{n}p_{rg}m_seed{k}", log, cfg, relations=rel, max_scans=max_scans, threads=threads)
                         )

@@ -282,15 +282,13 @@ def _match_segment(scans: list[tuple[Array, Array, Array, float]]) -> _Run:
 
     front = ScanMatchOdometry(ScanOdometryConfig())
     run = _Run()
-    last_heading = 0.0
     for angles, ranges, offset, stamp in scans:
         before = front.stats.n_matched
         pose = front.step(angles, ranges, offset, stamp)
         matched = front.stats.n_matched > before or front.stats.n_scans == 1
         heading = float(pose[2])
-        if run.headings:
-            heading = last_heading + math.remainder(heading - last_heading, 2.0 * math.pi)
-        last_heading = heading
+        if run.headings:  # unwrapped against the run's previous heading
+            heading = run.headings[-1] + math.remainder(heading - run.headings[-1], 2.0 * math.pi)
         run.stamps.append(stamp)
         run.headings.append(heading)
         run.matched.append(matched)
