@@ -58,3 +58,44 @@ def test_the_readme_names_every_file_of_the_run_folder(shuffled_log: Path, tmp_p
         if rel.endswith(".tum"):
             assert rel in ESTIMATES
     assert "use this one" in next(line for line in readme.splitlines() if line.startswith("trajectory.tum"))
+
+
+@pytest.mark.parametrize("method", ["clam", "ogm"])
+def test_a_finished_command_frees_the_particle_maps_before_its_figures(shuffled_log: Path, tmp_path: Path, method: str) -> None:
+    """``run_slam_log`` ends the run: once the map files are written the particles' maps are
+    freed (the figures then do not stack on the filter's memory), the trajectories stay readable
+    and the filter refuses further scans with a clear error."""
+    from crlam.errors import ConfigError
+
+    cfg = SlamConfig(method=method, particles=3, seed=1, loop_closing="off")
+    res = run_slam_log(shuffled_log, tmp_path, cfg, progress=False, max_scans=20, figures=False)
+    assert (tmp_path / "map.pgm").is_file()
+    filt = res.run.filter
+    assert filt is not None and filt.maps_released
+    assert filt.map_memory()[0] == 0
+    assert res.run.trajectory()[1].shape == (20, 3)
+    assert res.run.best_path_trajectory()[1].shape == (20, 3)
+    with pytest.raises(ConfigError, match="released"):
+        res.run.best_map()
+    z = np.ones(8)
+    with pytest.raises(ConfigError, match="released"):
+        filt.process(np.zeros(3), np.linspace(-1, 1, 8), z, np.zeros(3))
+
+
+def test_saving_a_run_that_goes_on_keeps_its_maps(shuffled_log: Path, tmp_path: Path) -> None:
+    """The live node's save path (``write_slam_outputs``) writes the folder and keeps mapping."""
+    from crlam.experiments.slam_outputs import write_slam_outputs
+    from crlam.io.carmen_types import LaserScan
+    from crlam.io.logs import open_log
+    from crlam.slam import SlamRun
+
+    run = SlamRun(SlamConfig(particles=3, seed=1, loop_closing="off"))
+    scans = [r for r in open_log(shuffled_log) if isinstance(r, LaserScan)]
+    for rec in scans[:15]:
+        run.step(rec.odom, rec.angles, np.minimum(rec.ranges, 7.9), rec.laser_offset, rec.timestamp)
+    write_slam_outputs(run, 1.0, tmp_path, source="test", input_info={}, figures=False)
+    assert (tmp_path / "metrics.json").is_file()
+    assert run.filter is not None and not run.filter.maps_released
+    rec = scans[15]
+    run.step(rec.odom, rec.angles, np.minimum(rec.ranges, 7.9), rec.laser_offset, rec.timestamp)
+    assert run.n_scans == 16

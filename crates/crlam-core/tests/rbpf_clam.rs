@@ -755,3 +755,33 @@ fn a_filter_with_a_prior_map_continues_where_the_saved_run_ended() {
     other.crm = CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.2).unwrap());
     assert!(RbpfClam::with_prior(other, start, prior).is_err());
 }
+
+#[test]
+fn released_maps_free_the_tiles_keep_the_paths_and_refuse_scans() {
+    let run = simulate(40);
+    let mut f = RbpfClam::new(config(ClamProposal::Odometry), run.truth[0]).unwrap();
+    feed_processed(&run, &mut f, |_| {});
+    let (bytes_before, _, _) = f.map_memory();
+    assert!(bytes_before > 0);
+    let path = f.best_path();
+    let estimate = f.estimate();
+    f.release_maps().unwrap();
+    assert!(f.maps_released());
+    assert_eq!(
+        f.map_memory().0,
+        0,
+        "every particle's map tiles are dropped"
+    );
+    assert_eq!(f.best_path(), path);
+    assert_eq!(f.estimate(), estimate);
+    let s = ScanInput {
+        odom: run.odom[0],
+        angles: &run.angles,
+        ranges: &run.ranges[0],
+        laser_offset: [0.0; 3],
+    };
+    let err = f.process(&s).unwrap_err().to_string();
+    assert!(err.contains("released"), "{err}");
+    let map = f.empty_map().unwrap();
+    assert!(f.reanchor(map, [0.0; 3]).is_err());
+}

@@ -828,3 +828,28 @@ fn weights_are_the_smoothed_ones_behind_neff_and_the_estimate() {
     }
     assert!(unresampled > 0);
 }
+
+#[test]
+fn released_maps_free_the_tiles_keep_the_paths_and_refuse_scans() {
+    let run = simulate(30, 0.5);
+    let (mut f, _) = run_filter(&run, config());
+    assert!(f.map_memory().0 > 0);
+    let path = f.best_path();
+    f.release_maps().unwrap();
+    assert!(f.maps_released());
+    assert_eq!(
+        f.map_memory().0,
+        0,
+        "every particle's map tiles are dropped"
+    );
+    assert_eq!(f.best_path(), path);
+    let err = f
+        .process(&ScanInput {
+            odom: run.odom[0],
+            angles: &run.angles,
+            ranges: &run.ranges[0],
+            laser_offset: LASER,
+        })
+        .unwrap_err();
+    assert!(matches!(err, CrlamError::Config { .. }), "{err}");
+}

@@ -333,6 +333,20 @@ macro_rules! filter_pymethods {
             fn map_memory(&self) -> (usize, usize, usize) {
                 ParticleFilter::map_memory(&self.inner)
             }
+
+            /// Frees the particles' maps once the run's map is written. Poses, weights and paths
+            /// stay readable; the filter then refuses scans (ConfigError).
+            fn release_maps(&mut self) -> PyResult<()> {
+                guard(concat!(stringify!($class), ".release_maps"), || {
+                    ParticleFilter::release_maps(&mut self.inner).py_err()
+                })
+            }
+
+            /// Whether release_maps was called.
+            #[getter]
+            fn maps_released(&self) -> bool {
+                ParticleFilter::maps_released(&self.inner)
+            }
         }
     };
 }

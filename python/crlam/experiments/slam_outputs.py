@@ -27,7 +27,6 @@ import csv
 import json
 import math
 import os
-import resource
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -41,6 +40,7 @@ from crlam.io.logs import input_description
 from crlam.io.relations import read_relations
 from crlam.io.tum import read_tum, write_tum
 from crlam.preflight.map_range import MapRangeChoice
+from crlam.process_memory import peak_rss_mb
 from crlam.slam import SlamRun
 from crlam.slam.fill import fill_rule
 from crlam.slam.grid_alignment import into_map_frame
@@ -89,25 +89,6 @@ def correlative_front_end_record(run: SlamRun) -> dict[str, Any] | None:
         "searched": int(searched),
         "corrected": int(corrected),
     }
-
-
-def peak_rss_mb() -> float:
-    """Peak resident memory of this process (MB).
-
-    On Linux this is ``VmHWM`` from ``/proc/self/status``: the high-water mark of this program's
-    own memory since it started. ``ru_maxrss`` is not: a process started by ``fork`` (as the
-    ``spawn`` workers of a sweep are, before their ``exec``) inherits the parent's peak, so a run
-    started by a parent that had just simulated a large log reported the parent's memory. Other
-    systems fall back to ``ru_maxrss``.
-    """
-    try:
-        with open("/proc/self/status") as status:
-            for line in status:
-                if line.startswith("VmHWM:"):
-                    return int(line.split()[1]) / 1024.0
-    except (OSError, ValueError, IndexError):
-        pass
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def _toml_plain(v: Any) -> Any:
@@ -160,7 +141,15 @@ def write_run_outputs(
     time_offset: dict[str, Any] | None = None,
     map_range: MapRangeChoice | None = None,
     live_feed: Any = None,
+    release_maps: bool = False,
 ) -> SlamResult:
+    """Writes the run folder of a finished run (see the module docstring) and returns its result.
+
+    ``release_maps`` frees the particles' maps once the map's files are written and before the
+    figures are drawn (:meth:`SlamRun.release_maps`): a command that ends with the run keeps its
+    peak near the filter's own; a caller that goes on mapping (a live node saving its map) keeps
+    them.
+    """
     run, wall = run_wall
     # The filter's own high-water mark: taken when filtering has finished, before any output.
     filter_peak_mb = peak_rss_mb()
@@ -320,6 +309,8 @@ def write_run_outputs(
         )
     products = map_products(best, grids=recorder is not None or live_feed is not None)
     del best
+    if release_maps:
+        run.release_maps()
     if live_feed is not None:
         assert products.grid is not None
         live_feed.finish(

@@ -211,6 +211,7 @@ def run_slam_log(
         offset.to_dict(),
         map_range=map_range,
         live_feed=live_feed,
+        release_maps=True,
     )
 
 

@@ -466,10 +466,27 @@ class SlamRun:
         )
         return np.array(self.stamps), poses
 
+    def release_maps(self) -> None:
+        """Frees the particles' maps (a finished run whose map files are written).
+
+        The trajectories, weights and metrics stay readable; :meth:`best_map` and :meth:`step`
+        raise :class:`~crlam.errors.ConfigError` afterwards. The freed memory goes back to the
+        system (:func:`crlam.process_memory.return_freed_memory`), so what the run's
+        figures allocate next does not add to the filter's high-water mark.
+        """
+        if self.filter is None:
+            return
+        self.filter.release_maps()
+        from crlam.process_memory import return_freed_memory
+
+        return_freed_memory()
+
     def best_map(self) -> ConfidenceRichMap | LogOddsOccupancyMap:
         """The highest-weight particle's map (crm-spec B7), wrapped for the Python API."""
         if self.filter is None:
             raise ConfigError("no scan has been processed yet")
+        if self.filter.maps_released:
+            raise ConfigError("the particles' maps were released once the run's map files were written (release_maps)")
         if isinstance(self.filter, _native.OgmFilter):
             lo = LogOddsOccupancyMap(LogOddsConfig(resolution=self.config.resolution, max_range=self.config.max_range))
             lo.native = self.filter.best_map()

@@ -94,6 +94,8 @@ pub struct RbpfClam {
     parents: Vec<usize>,
     /// What the correlative front end did (see [`FrontEndCounts`]).
     front_end: FrontEndCounts,
+    /// [`Self::release_maps`] was called: the particles hold empty maps and take no more scans.
+    maps_released: bool,
 }
 
 /// Processed scans the correlative front end searched, and those whose odometry increment its
@@ -211,6 +213,7 @@ impl RbpfClam {
             largest_reading: f64::NEG_INFINITY,
             parents: (0..n).collect(),
             front_end: FrontEndCounts::default(),
+            maps_released: false,
         })
     }
 
@@ -326,6 +329,7 @@ impl RbpfClam {
     /// Hit means, where kept, restart empty: the rebuilt map's cell centres stand until new
     /// scans record where the walls are (as when continuing a saved run).
     pub fn reanchor(&mut self, map: CrmMap, correction: Pose) -> Result<()> {
+        self.check_maps_kept()?;
         crate::grid::check_pose(correction)?;
         check_prior_map(&self.cfg.crm, &map)?;
         let hits = match self.particles.first().and_then(|p| p.hits.as_ref()) {
@@ -348,8 +352,39 @@ impl RbpfClam {
         Ok(())
     }
 
+    /// Frees every particle's map and hit means once a run's map has been written: the
+    /// particles keep their poses, weights and paths (every trajectory stays readable), but hold
+    /// empty maps, so the filter refuses further scans and corrections. The last grid to go
+    /// frees the tile pool the particle maps shared.
+    pub fn release_maps(&mut self) -> Result<()> {
+        let empty = CrmMap::new(&self.cfg.crm)?;
+        for p in &mut self.particles {
+            p.map = empty.clone();
+            p.hits = None;
+        }
+        self.maps_released = true;
+        Ok(())
+    }
+
+    /// Whether [`Self::release_maps`] was called.
+    pub fn maps_released(&self) -> bool {
+        self.maps_released
+    }
+
+    fn check_maps_kept(&self) -> Result<()> {
+        if self.maps_released {
+            return Err(config_err(
+                "filter",
+                "the particles' maps were released after the run's outputs were written: \
+                 the filter takes no more scans or corrections",
+            ));
+        }
+        Ok(())
+    }
+
     /// Feeds one scan; processes it when the update trigger fires.
     pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
+        self.check_maps_kept()?;
         scan.validate()?;
         self.largest_reading = scan
             .ranges

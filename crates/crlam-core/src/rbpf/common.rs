@@ -215,6 +215,10 @@ pub trait ParticleFilter {
     fn weights(&self) -> Vec<f64>;
     /// (bytes of distinct map tiles, distinct tiles, tile references) over all particles.
     fn map_memory(&self) -> (usize, usize, usize);
+    /// Frees the particles' maps once the run's map is written; the filter then refuses scans.
+    fn release_maps(&mut self) -> crate::error::Result<()>;
+    /// Whether [`Self::release_maps`] was called.
+    fn maps_released(&self) -> bool;
     /// The best particle's pose at every processed scan (the first one included), in order.
     fn best_path(&self) -> Vec<crate::pose::Pose>;
     /// The proposal means along the best particle's path, when the filter draws its poses from a
@@ -270,6 +274,12 @@ macro_rules! impl_particle_filter {
             }
             fn map_memory(&self) -> (usize, usize, usize) {
                 <$t>::map_memory(self)
+            }
+            fn release_maps(&mut self) -> $crate::error::Result<()> {
+                <$t>::release_maps(self)
+            }
+            fn maps_released(&self) -> bool {
+                <$t>::maps_released(self)
             }
             fn best_path(&self) -> Vec<$crate::pose::Pose> {
                 <$t>::best_path(self)

@@ -31,7 +31,7 @@ use super::lineage::{NodeId, PathTree, NO_NODE};
 use super::motion_prior::MotionPrior;
 pub use super::ogm_config::{MotionDraws, OgmFilterConfig};
 use super::scanmatch::{PreparedScan, ScanMatcher};
-use crate::error::Result;
+use crate::error::{config_err, Result};
 use crate::grid::check_pose;
 use crate::ogm::LogOddsGrid;
 use crate::pose::{between, compose, wrap, Pose};
@@ -179,6 +179,8 @@ pub struct RbpfOgm {
     previous_odom: Option<Pose>,
     raw_step: u64,
     drawn_variance: [f64; 3],
+    /// [`Self::release_maps`] was called: the particles hold empty maps and take no more scans.
+    maps_released: bool,
 }
 
 /// The particles' poses with uniform weights.
@@ -233,6 +235,7 @@ impl RbpfOgm {
             previous_odom: None,
             raw_step: 0,
             drawn_variance: [0.0; 3],
+            maps_released: false,
             // Only drawn poses have a mean distinct from the pose.
             paths: if cfg_draws {
                 PathTree::recording_means()
@@ -249,6 +252,13 @@ impl RbpfOgm {
     /// Feeds one scan. The first scan only builds the maps; later scans are processed when the
     /// trigger fires, else the estimate is carried forward by odometry.
     pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
+        if self.maps_released {
+            return Err(config_err(
+                "filter",
+                "the particles' maps were released after the run's outputs were written: \
+                 the filter takes no more scans",
+            ));
+        }
         scan.validate()?;
         // Everything that can refuse the input happens before the tracker records the scan.
         let prepared = PreparedScan::new(
@@ -547,6 +557,28 @@ impl RbpfOgm {
     /// memory the maps really take with copy-on-write sharing.
     pub fn map_memory(&self) -> (usize, usize, usize) {
         crate::rbpf::common::distinct_tile_memory(self.particles.iter().map(|p| p.map.grid()))
+    }
+
+    /// Frees every particle's map once a run's map has been written (see
+    /// [`crate::rbpf::RbpfClam::release_maps`]): poses, weights and paths stay; the filter
+    /// refuses further scans.
+    pub fn release_maps(&mut self) -> Result<()> {
+        let empty = LogOddsGrid::new(
+            self.cfg.geometry,
+            self.cfg.log_odds,
+            self.cfg.tile_size,
+            None,
+        )?;
+        for p in &mut self.particles {
+            p.map = empty.clone();
+        }
+        self.maps_released = true;
+        Ok(())
+    }
+
+    /// Whether [`Self::release_maps`] was called.
+    pub fn maps_released(&self) -> bool {
+        self.maps_released
     }
 
     pub fn memory_stats(&self) -> OgmMemoryStats {
