@@ -53,6 +53,7 @@ from numpy.typing import NDArray
 
 from crlam import _native
 from crlam.pose import compose, inverse, transform_points, wrap_angle
+from crlam.process_memory import return_freed_memory
 
 Array = NDArray[np.float64]
 
@@ -496,6 +497,10 @@ class LoopCloser:
             return None
         correction = compose(new, inverse(online))
         filt.reanchor(self.rebuild_map(filt), np.ascontiguousarray(correction))
+        # The particles' old maps were allocated on the filter's worker threads and are freed
+        # now, while the rebuilt map was allocated on this thread: without handing the freed
+        # memory back, each re-anchoring leaves a map's worth of resident memory behind.
+        return_freed_memory()
         self.reanchorings.append({"node": self.n_nodes - 1, "moved_m": moved, "turned_deg": math.degrees(turned)})
         self._last_online = compose(correction, self._last_online) if self._last_online is not None else None
         self.reanchors += 1
