@@ -200,6 +200,28 @@ def test_slam_records_and_applies_the_estimate(sim_records: list[CarmenRecord], 
     assert not np.allclose(np.array(res.run.odometry), np.array(off.run.odometry))
 
 
+def test_the_two_pre_passes_side_by_side_give_what_each_gives_alone(
+    sim_records: list[CarmenRecord], tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """With more than one thread the odometry-noise fit and the time-offset estimate run at once;
+    the run must be the one a single thread makes, estimates and trajectory alike."""
+    from crlam.experiments.slam_run import run_slam_log
+    from crlam.experiments.stress_variants import write_variant
+
+    log = write_variant(build_variant(sim_records[: 2 * 400], "odom_shift"), tmp_path / "shifted.clf", "odom_shift")
+    config = SlamConfig.from_preset(particles=2, loop_closing="off")
+    runs = {}
+    for threads in ("1", "2"):
+        monkeypatch.setenv("RAYON_NUM_THREADS", threads)
+        runs[threads] = run_slam_log(log, tmp_path / threads, config, progress=False, figures=False)
+    one, two = runs["1"].metrics, runs["2"].metrics
+    assert one["motion_noise_estimate"]["fitted"]
+    assert one["motion_noise_estimate"] == two["motion_noise_estimate"]
+    assert one["time_offset"]["identified"] and one["time_offset"]["retimed"]
+    assert one["time_offset"] == two["time_offset"]
+    assert (tmp_path / "1" / "trajectory.tum").read_bytes() == (tmp_path / "2" / "trajectory.tum").read_bytes()
+
+
 def test_cli_flag(tmp_path: Path, sim_records: list[CarmenRecord]) -> None:
     from crlam.cli import main
     from crlam.experiments.stress_variants import write_variant

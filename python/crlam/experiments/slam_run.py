@@ -12,7 +12,7 @@ import os
 import sys
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -38,6 +38,10 @@ from crlam.io.readings import ReadingFilter
 from crlam.preflight.lidar_check import LidarSetup
 from crlam.slam import SlamConfig, SlamRun
 from crlam.slam.prior import SlamPrior
+
+if TYPE_CHECKING:
+    from crlam.slam.motion_noise import MotionNoiseEstimate
+    from crlam.slam.time_offset import TimeOffsetEstimate
 
 # The run folder's writers live in crlam.experiments.slam_outputs; re-exported here, where the
 # run's callers (localize_run, the ROS SLAM node, the benches) import them from.
@@ -139,26 +143,46 @@ def run_slam_log(
         readings_log = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
         map_range = map_range_from_readings(lidar.corrected(readings_log), config.max_range, max_scans=max_scans)
         config = replace(config, max_range=map_range.max_range)
-    noise_estimate = None
-    if config.motion_noise == "estimate" and config.motion_params is None:
-        from dataclasses import replace
+    from crlam.slam.time_offset import apply_time_offset, match_threads, report, resolve_time_offset
 
+    fit_config = config
+
+    def fit_noise() -> MotionNoiseEstimate | None:
+        if fit_config.motion_noise != "estimate" or fit_config.motion_params is not None:
+            return None
         from crlam.slam.motion_noise import estimate_gmapping_noise
 
-        noise_estimate = estimate_gmapping_noise(
+        return estimate_gmapping_noise(
             lidar.corrected(open_log(log_path, **(bag_options or {}))),
-            linear_update=config.linear_update,
-            angular_update=config.angular_update,
-            max_range=config.max_range,
+            linear_update=fit_config.linear_update,
+            angular_update=fit_config.angular_update,
+            max_range=fit_config.max_range,
             max_scans=max_scans,
-            seed=config.seed,
+            seed=fit_config.seed,
         )
+
+    def find_offset() -> TimeOffsetEstimate:
+        return resolve_time_offset(fit_config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0])
+
+    # The odometry-noise fit and the time-offset estimate are independent passes over the log
+    # (the noise is fitted to the odometry as the log attaches it): with more than one thread
+    # they run side by side, each with the result it has alone.
+    if match_threads() > 1:
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            noise_job = pool.submit(fit_noise)
+            offset = find_offset()
+            noise_estimate = noise_job.result()
+    else:
+        noise_estimate = fit_noise()
+        offset = find_offset()
+    if noise_estimate is not None:
+        from dataclasses import replace
+
         config = replace(config, motion_params=noise_estimate.params)
         if progress or not noise_estimate.fitted:
             print(noise_estimate.describe(), file=sys.stderr)
-    from crlam.slam.time_offset import apply_time_offset, report, resolve_time_offset
-
-    offset = resolve_time_offset(config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0])
     if progress or (config.time_offset == "auto" and not offset.identified and source[0] != "scan_match"):
         report(offset)
     reader = open_log(log_path, **(bag_options or {}), **_scan_match_reading(log_path, source[0]))
