@@ -25,7 +25,8 @@ PKG = Path(__file__).resolve().parents[1] / "python" / "crlam"
 # command line on top.
 LAYERS: list[set[str]] = [
     {"errors", "_native"},
-    {"limits", "pose"},
+    # process_memory: the process's peak memory and malloc_trim, standard library only.
+    {"limits", "pose", "process_memory"},
     {"crlam"},  # the package's __init__: its version and the errors and limits it re-exports
     # io's run folders record the version in their markers.
     # live_view serves ROS messages' bytes on a Foxglove WebSocket: it reads no crlam module.
