@@ -162,7 +162,9 @@ def run_slam_log(
         )
 
     def find_offset() -> TimeOffsetEstimate:
-        return resolve_time_offset(fit_config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0])
+        return resolve_time_offset(
+            fit_config.time_offset, log_path, bag_options=bag_options, max_scans=max_scans, odometry=source[0]
+        )
 
     # The odometry-noise fit and the time-offset estimate are independent passes over the log
     # (the noise is fitted to the odometry as the log attaches it): with more than one thread
