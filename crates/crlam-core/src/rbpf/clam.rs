@@ -329,7 +329,7 @@ impl RbpfClam {
     /// Hit means, where kept, restart empty: the rebuilt map's cell centres stand until new
     /// scans record where the walls are (as when continuing a saved run).
     pub fn reanchor(&mut self, map: CrmMap, correction: Pose) -> Result<()> {
-        self.check_maps_kept()?;
+        crate::rbpf::common::check_maps_kept(self.maps_released)?;
         crate::grid::check_pose(correction)?;
         check_prior_map(&self.cfg.crm, &map)?;
         let hits = match self.particles.first().and_then(|p| p.hits.as_ref()) {
@@ -371,20 +371,9 @@ impl RbpfClam {
         self.maps_released
     }
 
-    fn check_maps_kept(&self) -> Result<()> {
-        if self.maps_released {
-            return Err(config_err(
-                "filter",
-                "the particles' maps were released after the run's outputs were written: \
-                 the filter takes no more scans or corrections",
-            ));
-        }
-        Ok(())
-    }
-
     /// Feeds one scan; processes it when the update trigger fires.
     pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
-        self.check_maps_kept()?;
+        crate::rbpf::common::check_maps_kept(self.maps_released)?;
         scan.validate()?;
         self.largest_reading = scan
             .ranges

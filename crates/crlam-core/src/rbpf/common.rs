@@ -237,6 +237,19 @@ pub trait ParticleFilter {
     ) -> Option<Vec<crate::pose::Pose>>;
 }
 
+/// The error of a filter whose maps were released ([`ParticleFilter::release_maps`]) when it is
+/// given a scan or a correction; `Ok` while it keeps its maps.
+pub(crate) fn check_maps_kept(maps_released: bool) -> crate::error::Result<()> {
+    if maps_released {
+        return Err(crate::error::config_err(
+            "filter",
+            "the particles' maps were released after the run's outputs were written: \
+             the filter takes no more scans or corrections",
+        ));
+    }
+    Ok(())
+}
+
 /// Implements [`ParticleFilter`] for a filter type with inherent methods of the same names plus
 /// `particles()` whose items have `pose` and `log_w`.
 macro_rules! impl_particle_filter {

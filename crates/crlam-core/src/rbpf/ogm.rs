@@ -31,7 +31,7 @@ use super::lineage::{NodeId, PathTree, NO_NODE};
 use super::motion_prior::MotionPrior;
 pub use super::ogm_config::{MotionDraws, OgmFilterConfig};
 use super::scanmatch::{PreparedScan, ScanMatcher};
-use crate::error::{config_err, Result};
+use crate::error::Result;
 use crate::grid::check_pose;
 use crate::ogm::LogOddsGrid;
 use crate::pose::{between, compose, wrap, Pose};
@@ -252,13 +252,7 @@ impl RbpfOgm {
     /// Feeds one scan. The first scan only builds the maps; later scans are processed when the
     /// trigger fires, else the estimate is carried forward by odometry.
     pub fn process(&mut self, scan: &ScanInput) -> Result<FilterStep> {
-        if self.maps_released {
-            return Err(config_err(
-                "filter",
-                "the particles' maps were released after the run's outputs were written: \
-                 the filter takes no more scans",
-            ));
-        }
+        super::common::check_maps_kept(self.maps_released)?;
         scan.validate()?;
         // Everything that can refuse the input happens before the tracker records the scan.
         let prepared = PreparedScan::new(
