@@ -124,7 +124,7 @@ def test_live_slam_node_serves_its_map_on_foxglove(tmp_path: Path) -> None:
 
     domain = 100 + (os.getpid() + 50) % 100  # not test_ros_nodes.py's domain
     bag = corridor_bag(tmp_path / "corridor.mcap")
-    params = NodeParameters(max_scan_wait=float("inf"), map_update_interval=1.0, process_every_scan=True)
+    params = NodeParameters(max_scan_wait=float("inf"), odom_extrapolation=0.0, map_update_interval=1.0, process_every_scan=True)
     node = SlamNode(params, {"particles": 8, "seed": 3}, domain=domain)
     view = LiveView(port=0)
     node.live_view = view
@@ -279,7 +279,8 @@ def test_ros_slam_command_serves_foxglove(tmp_path: Path) -> None:
     bag = corridor_bag(tmp_path / "corridor.mcap")
     params = tmp_path / "params.yaml"
     params.write_text(
-        "crlam_slam:\n  ros__parameters:\n    particles: 8\n    max_scan_wait: .inf\n    process_every_scan: true\n"
+        "crlam_slam:\n  ros__parameters:\n    particles: 8\n    max_scan_wait: .inf\n"
+        "    odom_extrapolation: 0.0\n    process_every_scan: true\n"
     )
     cmd = [sys.executable, "-m", "crlam", "ros", "slam", "--params-file", str(params), "--domain", str(domain)]
     cmd += ["--foxglove", "0"]

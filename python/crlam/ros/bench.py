@@ -1,8 +1,9 @@
 """The live node's latency for ``crlam bench``: the TurtleBot 4 bag played at its own rate into
 ``crlam ros slam`` (default settings: the newest scan is kept, the others dropped), on the
 loopback interface; from a scan's arrival at the node's reader to the published map -> odom
-transform, median and 99th percentile (ms), and the scans dropped. The player runs in the same
-process (a thread, mostly asleep between messages)."""
+transform, median and 99th percentile (ms), and the scans dropped and extrapolated (the node's
+default ``odom_extrapolation``: a scan does not wait for the bag's late odometry). The player runs
+in the same process (a thread, mostly asleep between messages)."""
 
 from __future__ import annotations
 
@@ -14,8 +15,9 @@ __all__ = ["ROS_LATENCY_BENCH", "ros_latency"]
 ROS_LATENCY_BENCH = "ros_slam_latency_ms_turtlebot4"
 
 
-def ros_latency(*, quick: bool = False) -> dict[str, Any] | None:
-    """The figures, or None without cyclonedds or the TurtleBot 4 bag (CRLAM_DATA)."""
+def ros_latency(*, quick: bool = False, odom_extrapolation: float | None = None) -> dict[str, Any] | None:
+    """The figures, or None without cyclonedds or the TurtleBot 4 bag (CRLAM_DATA).
+    ``odom_extrapolation`` replaces the node's default (0.0: every scan waits for its odometry)."""
     try:
         import cyclonedds  # noqa: F401
     except ImportError:
@@ -31,7 +33,8 @@ def ros_latency(*, quick: bool = False) -> dict[str, Any] | None:
     from crlam.ros.slam_node import SlamNode
 
     domain = 150 + os.getpid() % 80
-    node = SlamNode(NodeParameters(), {}, domain=domain)
+    params = NodeParameters() if odom_extrapolation is None else NodeParameters(odom_extrapolation=odom_extrapolation)
+    node = SlamNode(params, {}, domain=domain)
     node.start()
     try:
         stats = play_bag(bag, rate=1.0, domain=domain, wait_for=["/scan", "/odom", "/tf_static"], duration=8.0 if quick else None)

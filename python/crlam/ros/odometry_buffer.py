@@ -6,6 +6,17 @@ around it (:mod:`crlam.io.rosbag`'s rule, so that a live run sees the same poses
 has arrived, or until ``resolve_all`` (the end, a save) or ``max_wait`` wall seconds, after
 which the newest reading is used when it is within ``tolerance`` s. Scans before the first
 odometry (by more than ``tolerance``) or after the last one are dropped and counted.
+
+A live robot's odometry often arrives later than the scan it should be matched with (the
+TurtleBot 4 bag's odometry messages arrive 50-316 ms after their stamps, so a scan waits 90 ms
+for its reading at the median and 275 ms at the 99th percentile, longer than the 130 ms between
+two scans). With ``max_extrapolation`` > 0 a scan stamped at most that long after the newest
+reading does not wait: its odometry is the newest reading moved on at the odometry's own
+velocity (the increment over the last ``VELOCITY_WINDOW`` s of readings, scaled to the scan's
+stamp: constant linear and angular velocity in the robot's frame). At a ground robot's
+accelerations (1 m/s^2, 3 rad/s^2) that errs by at most 2 cm and 3.4 deg over 0.2 s, inside
+the scan match's search; the filter's motion noise covers the increment it changes. 0 waits as
+``crlam slam`` reads a recorded bag (a replay that must equal the offline run).
 """
 
 from __future__ import annotations
@@ -23,6 +34,9 @@ from crlam.io.rosbag_tf import wrap
 __all__ = ["OdometryBuffer", "PendingScan"]
 
 _HISTORY = 4096
+#: Seconds of odometry readings the extrapolation's velocity is measured over: at least one
+#: period of a 20 Hz odometry, short enough to follow a turn's start.
+VELOCITY_WINDOW = 0.1
 
 
 @dataclass
@@ -38,9 +52,12 @@ class PendingScan:
 class OdometryBuffer:
     """Odometry history and the scans waiting for it (not thread safe: one caller)."""
 
-    def __init__(self, tolerance: float = 0.25, max_wait: float = 0.5) -> None:
+    def __init__(self, tolerance: float = 0.25, max_wait: float = 0.5, max_extrapolation: float = 0.0) -> None:
         self.tolerance = tolerance
         self.max_wait = max_wait
+        self.max_extrapolation = max_extrapolation
+        #: Scans whose odometry was extrapolated past the newest reading.
+        self.extrapolated = 0
         self.t: deque[float] = deque(maxlen=_HISTORY)
         self.p: deque[NDArray[np.float64]] = deque(maxlen=_HISTORY)
         self.pending: deque[PendingScan] = deque()
@@ -82,6 +99,23 @@ class OdometryBuffer:
         a = (t - t0) / (t1 - t0) if t1 > t0 else 0.0
         return np.array([p0[0] + a * (p1[0] - p0[0]), p0[1] + a * (p1[1] - p0[1]), wrap(p0[2] + a * wrap(p1[2] - p0[2]))])
 
+    def _extrapolated(self, t: float) -> NDArray[np.float64]:
+        """The newest reading moved on to ``t`` at the velocity of the last ``VELOCITY_WINDOW`` s."""
+        t1, p1 = self.t[-1], self.p[-1]
+        k = len(self.t) - 2
+        while k > 0 and t1 - self.t[k] < VELOCITY_WINDOW:
+            k -= 1
+        t0, p0 = self.t[k], self.p[k]
+        if t1 <= t0:
+            return np.array(p1, dtype=np.float64)
+        a = (t - t1) / (t1 - t0)
+        c, s = math.cos(p0[2]), math.sin(p0[2])
+        dx, dy = p1[0] - p0[0], p1[1] - p0[1]
+        # The increment p0 -> p1 in p0's frame, scaled, applied in p1's frame.
+        fx, fy, dth = a * (c * dx + s * dy), a * (-s * dx + c * dy), a * wrap(p1[2] - p0[2])
+        c1, s1 = math.cos(p1[2]), math.sin(p1[2])
+        return np.array([p1[0] + c1 * fx - s1 * fy, p1[1] + s1 * fx + c1 * fy, wrap(p1[2] + dth)], dtype=np.float64)
+
     def resolved(self, now: float = -math.inf, final: bool = False) -> list[PendingScan]:
         """The scans that can now be matched (in arrival order), with ``odom`` set; ``now`` is the
         wall time (s) for ``max_wait``; ``final`` resolves every scan that can be."""
@@ -96,6 +130,13 @@ class OdometryBuffer:
                 self.pending.popleft()
                 continue
             if scan.stamp > self.t[-1]:
+                ahead = scan.stamp - self.t[-1]
+                if not (final or waited) and ahead <= self.max_extrapolation and len(self.t) >= 2:
+                    self.pending.popleft()
+                    scan.odom = self._extrapolated(scan.stamp)
+                    self.extrapolated += 1
+                    out.append(scan)
+                    continue
                 if not (final or waited):
                     break
                 if scan.stamp - self.t[-1] > self.tolerance:

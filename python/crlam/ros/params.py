@@ -52,6 +52,11 @@ class NodeParameters:
     output_folder: str = _p("", "folder a save request without a folder, Ctrl-C and SIGTERM write (empty: no save on exit)")
     odom_tolerance: float = _p(0.25, "a scan stamped this long (s) outside the odometry still takes the nearest reading")
     max_scan_wait: float = _p(0.5, "wall seconds a scan waits for the odometry after its stamp (.inf: for ever)")
+    odom_extrapolation: float = _p(
+        0.2,
+        "a scan stamped at most this long (s) after the newest odometry reading does not wait for the next one: its odometry "
+        "is extrapolated at the odometry's velocity (0: wait, as crlam slam reads a bag; for a replay equal to the offline run)",
+    )
     process_every_scan: bool = _p(
         False,
         "queue every matched scan instead of keeping the newest (bag replay in lock-step; live, the filter may fall behind)",
