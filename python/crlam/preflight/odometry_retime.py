@@ -13,6 +13,24 @@ logged or minus ``d``, whichever contradicts less; or whose logged odometry pose
 odometry records only more than 0.25 s from its stamp; Intel's log has such stamps, and the
 poses of its records belong to their place in the file, not to their stamps) keeps its logged
 odometry moved by the series' motion from ``t`` to ``t + d``.
+
+Bursty stamps
+-------------
+Some loggers stamp records when they arrive, in bursts: a fifth of Intel's consecutive scans
+(and of its odometry records) are stamped within a millisecond of each other though the robot
+turns at a steady rate between them, so a stamp there is off by up to a scan period. The
+interpolation at ``t + d`` then lands on the wrong side of a burst whenever ``d`` is off by more
+than the burst's width (a few milliseconds): re-attached at an estimate 3 ms from the true
+shift, 455 of Intel's first 3,000 scans got odometry more than 2 cm from their own. A series is
+**bursty** when at least :data:`BURSTY_SHARE` of its consecutive stamp gaps are shorter than a
+tenth of its mean gap (a sensor sampled at a steady rate has none); the re-attachment then reads
+each record's stamp from a robust local fit of the stamps against the record's place in the
+series (:func:`regular_stamps`: Theil-Sen over the :data:`REGULAR_WINDOW` records on either
+side), which recovers a steady rate's clock (on those 3,000 scans: 5 scans off by more than
+2 cm, heading within 0.15 deg at the 99th percentile). With fitted scan stamps the tests of a
+scan's stamp against its neighbours and its attached record (above) are not made: the fit has
+put the stamps in order. The records keep their own stamps; only the re-attachment reads the
+fitted ones.
 """
 
 from __future__ import annotations
@@ -30,9 +48,83 @@ from crlam.errors import ConfigError
 from crlam.io.carmen_types import LaserScan, OdometryReading
 from crlam.pose import between, compose
 
-__all__ = ["RetimeStats", "interpolate_pose", "locally_ordered", "retime_odometry"]
+__all__ = [
+    "BURSTY_SHARE",
+    "REGULAR_WINDOW",
+    "RegularStamps",
+    "RetimeStats",
+    "interpolate_pose",
+    "is_bursty",
+    "locally_ordered",
+    "regular_stamps",
+    "retime_odometry",
+]
 
 Array = NDArray[np.float64]
+
+#: Share of consecutive gaps shorter than a tenth of the mean gap from which a stamp series is
+#: bursty (Intel: 0.22 of its scans' and its odometry's; ACES, the TurtleBot bags: 0).
+BURSTY_SHARE = 0.1
+#: Records on either side of each record in the fit of :func:`regular_stamps`.
+REGULAR_WINDOW = 4
+
+
+def is_bursty(t: Array) -> bool:
+    """Whether at least :data:`BURSTY_SHARE` of the series' consecutive stamp gaps are shorter
+    than a tenth of its mean gap (module documentation, "Bursty stamps")."""
+    t = np.asarray(t, dtype=np.float64)
+    if len(t) < 2 * REGULAR_WINDOW + 1:
+        return False
+    span = float(np.max(t) - np.min(t))
+    if not span > 0:
+        return False
+    gaps = np.abs(np.diff(t))
+    return bool(np.mean(gaps < 0.1 * span / (len(t) - 1)) >= BURSTY_SHARE)
+
+
+def regular_stamps(t: Array, window: int = REGULAR_WINDOW) -> Array:
+    """Each record's stamp from a Theil-Sen fit of the stamps against the records' places over
+    the ``window`` records on either side (fewer at the ends): the median of the pairwise
+    slopes, and the median of the stamps moved along it to the record's place. Robust to a few
+    records stamped out of order or in a burst among them; a steady series is returned as it
+    is (to rounding)."""
+    t = np.asarray(t, dtype=np.float64)
+    n = len(t)
+    w = 2 * window + 1
+    if n < w:
+        return t.copy()
+    out = np.empty(n)
+    lags = np.arange(w, dtype=np.float64)
+    i, j = np.triu_indices(w, k=1)
+    # Interior records: every window at once (n - w + 1 windows of w stamps).
+    win = np.lib.stride_tricks.sliding_window_view(t, w)
+    slope = np.median((win[:, j] - win[:, i]) / (j - i), axis=1)
+    centre = np.median(win - slope[:, None] * (lags - window), axis=1)
+    out[window : n - window] = centre
+    # The ends: the first and last window, moved along their fit to each end record's place.
+    for k in list(range(window)) + list(range(n - window, n)):
+        lo = min(max(k - window, 0), n - w)
+        seg = t[lo : lo + w]
+        s = float(np.median((seg[j] - seg[i]) / (j - i)))
+        out[k] = float(np.median(seg - s * (lo + lags - k)))
+    return out
+
+
+@dataclass
+class RegularStamps:
+    """The stamps :func:`retime_odometry` reads instead of the records' own, in file order: the
+    scans' and the odometry records' (None: a series' own stamps, not bursty)."""
+
+    scans: Array | None = None
+    odometry: Array | None = None
+
+    @classmethod
+    def of(cls, scan_stamps: Array, odometry_stamps: Array) -> RegularStamps:
+        """Fitted stamps for each series that is bursty (:func:`is_bursty`)."""
+        return cls(
+            regular_stamps(scan_stamps) if is_bursty(scan_stamps) else None,
+            regular_stamps(odometry_stamps) if is_bursty(odometry_stamps) else None,
+        )
 
 
 def locally_ordered(t: Array) -> NDArray[np.bool_]:
@@ -85,12 +177,17 @@ class RetimeStats:
         logged odometry moved by the series' motion over the offset instead.
     n_odometry_out_of_order : int
         Odometry records left out of the series (stamp out of order with both neighbours).
+    scan_stamps_fitted, odometry_stamps_fitted : bool
+        Whether the scans' / the odometry's stamps were bursty and read from the fit
+        (module documentation, "Bursty stamps").
     """
 
     n_scans: int = 0
     n_interpolated: int = 0
     n_suspect_stamps: int = 0
     n_odometry_out_of_order: int = 0
+    scan_stamps_fitted: bool = False
+    odometry_stamps_fitted: bool = False
 
     def to_dict(self) -> dict[str, int]:
         return asdict(self)
@@ -98,14 +195,16 @@ class RetimeStats:
 
 class _History:
     """Odometry poses sorted by stamp, the records whose stamp is out of order with both
-    neighbours left out (one record of look-ahead), bounded."""
+    neighbours left out (one record of look-ahead; ``keep_all``: none, for fitted stamps, whose
+    small local disorder is the fit's and not a wrong stamp), bounded."""
 
-    def __init__(self, maxlen: int = 2048) -> None:
+    def __init__(self, maxlen: int = 2048, keep_all: bool = False) -> None:
         self.t: deque[float] = deque(maxlen=maxlen)
         self.p: deque[Array] = deque(maxlen=maxlen)
         self._prev: float | None = None
         self._held: tuple[float, Array] | None = None
         self.dropped = 0
+        self.keep_all = keep_all
 
     def _insert(self, t: float, p: Array) -> None:
         if self.t and t <= self.t[-1]:
@@ -127,7 +226,7 @@ class _History:
         if self._held is not None:
             ht, hp = self._held
             prev = self._prev
-            if prev is not None and prev <= t and (ht > t or ht < prev):
+            if not self.keep_all and prev is not None and prev <= t and (ht > t or ht < prev):
                 self.dropped += 1
             else:
                 self._insert(ht, hp)
@@ -137,7 +236,7 @@ class _History:
     def finish(self) -> None:
         if self._held is not None:
             ht, hp = self._held
-            if self._prev is None or ht >= self._prev:
+            if self.keep_all or self._prev is None or ht >= self._prev:
                 self._insert(ht, hp)
             else:
                 self.dropped += 1
@@ -185,6 +284,8 @@ class _Pending:
     """A scan waiting for its odometry, with the (stamp, is a scan) of the records around it."""
 
     scan: LaserScan
+    #: The scan's stamp as the re-attachment reads it (its own, or the fitted one).
+    stamp: float
     before_records: list[tuple[float, bool]]
     after_records: list[tuple[float, bool]] = field(default_factory=list)
 
@@ -195,6 +296,7 @@ def retime_odometry(
     *,
     source: str = "odometry records",
     stats: RetimeStats | None = None,
+    stamps: RegularStamps | None = None,
 ) -> Iterator[object]:
     """The records with every scan's odometry re-attached at its stamp plus ``offset`` seconds
     (module documentation, "Application"); other records pass through as they come.
@@ -211,6 +313,9 @@ def retime_odometry(
         records).
     stats : RetimeStats, optional
         Filled while the records are read.
+    stamps : RegularStamps, optional
+        Stamps to read instead of the records' own, by their place among the scans and among the
+        odometry records (beyond the arrays' ends, the records' own).
 
     Notes
     -----
@@ -221,8 +326,21 @@ def retime_odometry(
     if source not in ("odometry records", "scan odometry fields"):
         raise ConfigError(f"retime_odometry: unknown odometry source {source!r}")
     st = stats if stats is not None else RetimeStats()
-    series = _History()
+    fitted = stamps if stamps is not None else RegularStamps()
+    st.scan_stamps_fitted = fitted.scans is not None
+    st.odometry_stamps_fitted = fitted.odometry is not None
+    counts = {"scans": 0, "odometry": 0}
+
+    def stamp_of(rec: LaserScan | OdometryReading) -> float:
+        """The record's stamp, or the fitted one at its place in its series."""
+        kind = "scans" if isinstance(rec, LaserScan) else "odometry"
+        k = counts[kind]
+        counts[kind] += 1
+        table = fitted.scans if kind == "scans" else fitted.odometry
+        return float(table[k]) if table is not None and k < len(table) else float(rec.timestamp)
+
     from_records = source == "odometry records"
+    series = _History(keep_all=(fitted.odometry if from_records else fitted.scans) is not None)
     pending: deque[_Pending] = deque()
     recent: deque[tuple[float, bool]] = deque(maxlen=_NEIGHBOURS)
 
@@ -238,19 +356,21 @@ def retime_odometry(
 
     def resolve(item: _Pending, final: bool) -> LaserScan | None:
         scan = item.scan
-        target = scan.timestamp + offset
-        if not final and (len(item.after_records) < _NEIGHBOURS or series.last < max(target, scan.timestamp)):
+        target = item.stamp + offset
+        if not final and (len(item.after_records) < _NEIGHBOURS or series.last < max(target, item.stamp)):
             return None
         if not series.t:
             return scan
-        t = scan.timestamp
+        t = item.stamp
         worst = max(
             [contradiction(u, k, t, True) for u, k in item.before_records]
             + [contradiction(u, k, t, False) for u, k in item.after_records],
             default=-math.inf,
         )
-        suspect = worst > _STAMP_TOLERANCE
-        if not suspect and from_records:
+        # Fitted scan stamps are in order and on the scans' steady clock: the tests of a stamp
+        # against its neighbours and its attached record are for a series' own stamps.
+        suspect = worst > _STAMP_TOLERANCE and fitted.scans is None
+        if not suspect and from_records and fitted.scans is None:
             # A logger attaches an odometry record to the scan: when that record is in the series
             # but only far from the scan's stamp, the stamp is not the scan's time.
             held = series.stamps_of(scan.odom, t, _ATTACHED_WINDOW)
@@ -275,21 +395,22 @@ def retime_odometry(
 
     for rec in records:
         if isinstance(rec, (LaserScan, OdometryReading)):
-            here = (float(rec.timestamp), isinstance(rec, LaserScan))
+            stamp = stamp_of(rec)
+            here = (stamp, isinstance(rec, LaserScan))
             for item in pending:
                 if len(item.after_records) < _NEIGHBOURS:
                     item.after_records.append(here)
         if isinstance(rec, OdometryReading):
             if from_records:
-                series.add(rec.timestamp, np.asarray(rec.pose, dtype=np.float64))
+                series.add(stamp, np.asarray(rec.pose, dtype=np.float64))
             recent.append(here)
             yield rec
             yield from flush(False)
             continue
         if isinstance(rec, LaserScan):
             if not from_records and np.all(np.isfinite(rec.odom)):
-                series.add(rec.timestamp, np.asarray(rec.odom, dtype=np.float64))
-            pending.append(_Pending(rec, list(recent)))
+                series.add(stamp, np.asarray(rec.odom, dtype=np.float64))
+            pending.append(_Pending(rec, stamp, list(recent)))
             recent.append(here)
             yield from flush(False)
             continue

@@ -63,7 +63,7 @@ import math
 import os
 import sys
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -71,7 +71,7 @@ from numpy.typing import NDArray
 
 from crlam.errors import ConfigError
 from crlam.io.carmen_types import LaserScan, OdometryReading
-from crlam.preflight.odometry_retime import RetimeStats, interpolate_pose, locally_ordered, retime_odometry
+from crlam.preflight.odometry_retime import RegularStamps, RetimeStats, interpolate_pose, locally_ordered, retime_odometry
 from crlam.slam.config import MAX_TIME_OFFSET, TIME_OFFSET_CHOICES, valid_time_offset
 
 __all__ = [
@@ -82,6 +82,7 @@ __all__ = [
     "apply_time_offset",
     "estimate_time_offset",
     "interpolate_pose",
+    "log_stamps",
     "parse_time_offset",
     "report",
     "resolve_time_offset",
@@ -201,6 +202,10 @@ class TimeOffsetEstimate:
         The :class:`TimeOffsetSettings` used.
     retime : RetimeStats or None
         What the re-attachment did (filled while the run reads the log).
+    stamps : RegularStamps or None
+        The stamps the re-attachment reads where the log's are bursty
+        (:mod:`crlam.preflight.odometry_retime`); set by :func:`resolve_time_offset` when the
+        odometry is re-attached; not in :meth:`to_dict` (``retime`` says which were fitted).
     """
 
     setting: str | float
@@ -221,9 +226,11 @@ class TimeOffsetEstimate:
     n_stamps_out_of_order: int = 0
     settings: dict[str, Any] = field(default_factory=dict)
     retime: RetimeStats | None = None
+    stamps: RegularStamps | None = field(default=None, repr=False)
 
     def to_dict(self) -> dict[str, Any]:
-        d = asdict(self)
+        d = asdict(replace(self, stamps=None))
+        del d["stamps"]
         d["retime"] = None if self.retime is None else self.retime.to_dict()
         d["ci95_s"] = None if self.ci95_s is None else [float(v) for v in self.ci95_s]
         return d
@@ -533,18 +540,33 @@ def resolve_time_offset(
     from crlam.io.logs import count_scans, open_log
 
     if not isinstance(setting, str):
-        return TimeOffsetEstimate(
+        est = TimeOffsetEstimate(
             setting=setting,
             applied_s=float(setting),
             retimed=True,
             reason="given",
             odometry_source=_odometry_source(open_log(log_path, **(bag_options or {}))),
         )
-
-    n = count_scans(log_path, max_scans, bag_options=bag_options)
-    est = estimate_time_offset(open_log(log_path, **(bag_options or {})), settings, n_scans=n)
-    est.setting = setting
+    else:
+        n = count_scans(log_path, max_scans, bag_options=bag_options)
+        est = estimate_time_offset(open_log(log_path, **(bag_options or {})), settings, n_scans=n)
+        est.setting = setting
+    if est.retimed:
+        est.stamps = log_stamps(open_log(log_path, **(bag_options or {})))
     return est
+
+
+def log_stamps(records: Iterable[object]) -> RegularStamps:
+    """The stamps the re-attachment reads for a log (its records in file order, as the run reads
+    them): fitted for each of the scans' and the odometry records' series that is bursty."""
+    scans: list[float] = []
+    odometry: list[float] = []
+    for rec in records:
+        if isinstance(rec, LaserScan):
+            scans.append(float(rec.timestamp))
+        elif isinstance(rec, OdometryReading):
+            odometry.append(float(rec.timestamp))
+    return RegularStamps.of(np.array(scans, dtype=np.float64), np.array(odometry, dtype=np.float64))
 
 
 def _odometry_source(records: Iterable[object], probe_scans: int = 200) -> str:
@@ -568,4 +590,6 @@ def apply_time_offset(records: Iterable[object], estimate: TimeOffsetEstimate) -
     if not estimate.retimed:
         return records
     estimate.retime = RetimeStats()
-    return retime_odometry(records, estimate.applied_s, source=estimate.odometry_source, stats=estimate.retime)
+    return retime_odometry(
+        records, estimate.applied_s, source=estimate.odometry_source, stats=estimate.retime, stamps=estimate.stamps
+    )
