@@ -111,3 +111,16 @@ def test_steady_logs_are_retimed_from_their_own_stamps() -> None:
     assert stamps.scans is not None and stamps.odometry is not None
     steady = [OdometryReading(pose=_pose(0.1 * k), timestamp=0.1 * k + 0.15) for k in range(600)]
     assert log_stamps(iter(steady)).odometry is None and log_stamps(iter(steady)).scans is None
+
+
+def test_a_pause_is_neither_a_burst_nor_fitted_across() -> None:
+    # A steady 20 Hz series with a three-hour pause: still steady, and the fit keeps it.
+    t = np.concatenate([0.05 * np.arange(200), 10_800.0 + 0.05 * np.arange(200)])
+    assert not is_bursty(t)
+    np.testing.assert_allclose(regular_stamps(t), t, atol=1e-9)
+    # Bursty on both sides of the pause: each side is fitted on its own clock.
+    b = np.concatenate([_bursty(SCAN_PERIOD * np.arange(300), 5), 5_000.0 + _bursty(SCAN_PERIOD * np.arange(300), 6)])
+    assert is_bursty(b)
+    fit = regular_stamps(b)
+    truth = np.concatenate([SCAN_PERIOD * np.arange(300), 5_000.0 + SCAN_PERIOD * np.arange(300)])
+    assert np.percentile(np.abs(fit - truth), 90) < 0.01 and np.max(np.abs(fit - truth)) < SCAN_PERIOD

@@ -23,7 +23,8 @@ interpolation at ``t + d`` then lands on the wrong side of a burst whenever ``d`
 than the burst's width (a few milliseconds): re-attached at an estimate 3 ms from the true
 shift, 455 of Intel's first 3,000 scans got odometry more than 2 cm from their own. A series is
 **bursty** when at least :data:`BURSTY_SHARE` of its consecutive stamp gaps are shorter than a
-tenth of its mean gap (a sensor sampled at a steady rate has none); the re-attachment then reads
+tenth of its mean gap (a sensor sampled at a steady rate has none; gaps over :data:`PAUSE_S`
+are pauses, left out here and never fitted across); the re-attachment then reads
 each record's stamp from a robust local fit of the stamps against the record's place in the
 series (:func:`regular_stamps`: Theil-Sen over the :data:`REGULAR_WINDOW` records on either
 side), which recovers a steady rate's clock (on those 3,000 scans: 5 scans off by more than
@@ -50,6 +51,7 @@ from crlam.pose import between, compose
 
 __all__ = [
     "BURSTY_SHARE",
+    "PAUSE_S",
     "REGULAR_WINDOW",
     "RegularStamps",
     "RetimeStats",
@@ -67,19 +69,25 @@ Array = NDArray[np.float64]
 BURSTY_SHARE = 0.1
 #: Records on either side of each record in the fit of :func:`regular_stamps`.
 REGULAR_WINDOW = 4
+#: A gap between two consecutive stamps longer than this (s) is a pause of the sensor or of the
+#: logger, not a burst (Intel's longest bursts and out-of-order jumps are within 1.5 s): the fit
+#: never reaches across one, and the mean gap of :func:`is_bursty` leaves it out.
+PAUSE_S = 2.0
 
 
 def is_bursty(t: Array) -> bool:
     """Whether at least :data:`BURSTY_SHARE` of the series' consecutive stamp gaps are shorter
-    than a tenth of its mean gap (module documentation, "Bursty stamps")."""
+    than a tenth of its mean gap, pauses (:data:`PAUSE_S`) left out (module documentation,
+    "Bursty stamps")."""
     t = np.asarray(t, dtype=np.float64)
     if len(t) < 2 * REGULAR_WINDOW + 1:
         return False
-    span = float(np.max(t) - np.min(t))
-    if not span > 0:
-        return False
     gaps = np.abs(np.diff(t))
-    return bool(np.mean(gaps < 0.1 * span / (len(t) - 1)) >= BURSTY_SHARE)
+    gaps = gaps[gaps <= PAUSE_S]
+    mean = float(np.mean(gaps)) if len(gaps) else 0.0
+    if not mean > 0:
+        return False
+    return bool(np.mean(gaps < 0.1 * mean) >= BURSTY_SHARE)
 
 
 def regular_stamps(t: Array, window: int = REGULAR_WINDOW) -> Array:
@@ -87,8 +95,17 @@ def regular_stamps(t: Array, window: int = REGULAR_WINDOW) -> Array:
     the ``window`` records on either side (fewer at the ends): the median of the pairwise
     slopes, and the median of the stamps moved along it to the record's place. Robust to a few
     records stamped out of order or in a burst among them; a steady series is returned as it
-    is (to rounding)."""
+    is (to rounding). The series is fitted piece by piece between pauses (:data:`PAUSE_S`); a
+    piece shorter than a window keeps its stamps."""
     t = np.asarray(t, dtype=np.float64)
+    cuts = np.flatnonzero(np.abs(np.diff(t)) > PAUSE_S) + 1
+    if len(cuts):
+        return np.concatenate([_regular_piece(piece, window) for piece in np.split(t, cuts)])
+    return _regular_piece(t, window)
+
+
+def _regular_piece(t: Array, window: int) -> Array:
+    """:func:`regular_stamps` of a series without pauses."""
     n = len(t)
     w = 2 * window + 1
     if n < w:
