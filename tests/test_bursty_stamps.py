@@ -70,6 +70,9 @@ def test_a_steady_series_is_not_bursty_and_a_logger_s_bursts_are() -> None:
     assert not is_bursty(t)
     assert not is_bursty(t + np.random.default_rng(0).normal(0, 0.005, len(t)))  # jitter is not a burst
     assert is_bursty(_bursty(t, 0))
+    broken = _bursty(t, 0)
+    broken[7] = np.nan
+    assert not is_bursty(broken)  # not fitted: the re-attachment reads the stamps as they are
 
 
 def test_the_fit_recovers_the_steady_clock_of_bursty_stamps() -> None:

@@ -80,8 +80,8 @@ def is_bursty(t: Array) -> bool:
     than a tenth of its mean gap, pauses (:data:`PAUSE_S`) left out (module documentation,
     "Bursty stamps")."""
     t = np.asarray(t, dtype=np.float64)
-    if len(t) < 2 * REGULAR_WINDOW + 1:
-        return False
+    if len(t) < 2 * REGULAR_WINDOW + 1 or not np.all(np.isfinite(t)):
+        return False  # (a series with a stamp that is not a number is left as it is)
     gaps = np.abs(np.diff(t))
     gaps = gaps[gaps <= PAUSE_S]
     mean = float(np.mean(gaps)) if len(gaps) else 0.0
