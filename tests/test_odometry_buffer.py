@@ -89,3 +89,12 @@ def test_straight_motion_is_extrapolated_exactly(x: float, y: float, heading: fl
     (scan,) = buffer.resolved(now=0.0)
     np.testing.assert_allclose(scan.odom[:2], [x + c * speed * t, y + s * speed * t], atol=1e-9)
     assert abs(math.remainder(scan.odom[2] - heading, 2 * math.pi)) < 1e-12
+
+
+def test_too_short_a_history_holds_the_newest_reading() -> None:
+    buffer = OdometryBuffer(max_extrapolation=0.2)
+    buffer.add_odometry(1.000, np.array([0.0, 0.0, 0.0]))
+    buffer.add_odometry(1.001, np.array([0.01, 0.0, 0.0]))  # a burst: no velocity to read
+    buffer.add_scan(PendingScan(1.1, arrival=0.0, payload=None))
+    (scan,) = buffer.resolved(now=0.0)
+    np.testing.assert_allclose(scan.odom, [0.01, 0.0, 0.0])

@@ -21,14 +21,14 @@ Some loggers stamp records when they arrive, in bursts: a fifth of Intel's conse
 turns at a steady rate between them, so a stamp there is off by up to a scan period. The
 interpolation at ``t + d`` then lands on the wrong side of a burst whenever ``d`` is off by more
 than the burst's width (a few milliseconds): re-attached at an estimate 3 ms from the true
-shift, 455 of Intel's first 3,000 scans got odometry more than 2 cm from their own. A series is
+shift, 476 of Intel's first 3,000 scans got odometry more than 2 cm from their own. A series is
 **bursty** when at least :data:`BURSTY_SHARE` of its consecutive stamp gaps are shorter than a
 tenth of its mean gap (a sensor sampled at a steady rate has none; gaps over :data:`PAUSE_S`
 are pauses, left out here and never fitted across); the re-attachment then reads
 each record's stamp from a robust local fit of the stamps against the record's place in the
 series (:func:`regular_stamps`: Theil-Sen over the :data:`REGULAR_WINDOW` records on either
 side), which recovers a steady rate's clock (on those 3,000 scans: 5 scans off by more than
-2 cm, heading within 0.15 deg at the 99th percentile). With fitted scan stamps the tests of a
+2 cm, heading within 0.12 deg at the 99th percentile). With fitted scan stamps the tests of a
 scan's stamp against its neighbours and its attached record (above) are not made: the fit has
 put the stamps in order. The records keep their own stamps; only the re-attachment reads the
 fitted ones.

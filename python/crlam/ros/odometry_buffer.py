@@ -106,7 +106,9 @@ class OdometryBuffer:
         while k > 0 and t1 - self.t[k] < VELOCITY_WINDOW:
             k -= 1
         t0, p0 = self.t[k], self.p[k]
-        if t1 <= t0:
+        if t1 - t0 < 0.5 * VELOCITY_WINDOW:
+            # Too short a history to tell a velocity (two readings a millisecond apart would
+            # scale their increment a hundredfold): the newest reading as it is.
             return np.array(p1, dtype=np.float64)
         a = (t - t1) / (t1 - t0)
         c, s = math.cos(p0[2]), math.sin(p0[2])
