@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crlam.io.rosbag_tf import wrap
+from crlam.pose import between, compose
 
 __all__ = ["OdometryBuffer", "PendingScan"]
 
@@ -110,13 +111,9 @@ class OdometryBuffer:
             # Too short a history to tell a velocity (two readings a millisecond apart would
             # scale their increment a hundredfold): the newest reading as it is.
             return np.array(p1, dtype=np.float64)
-        a = (t - t1) / (t1 - t0)
-        c, s = math.cos(p0[2]), math.sin(p0[2])
-        dx, dy = p1[0] - p0[0], p1[1] - p0[1]
-        # The increment p0 -> p1 in p0's frame, scaled, applied in p1's frame.
-        fx, fy, dth = a * (c * dx + s * dy), a * (-s * dx + c * dy), a * wrap(p1[2] - p0[2])
-        c1, s1 = math.cos(p1[2]), math.sin(p1[2])
-        return np.array([p1[0] + c1 * fx - s1 * fy, p1[1] + s1 * fx + c1 * fy, wrap(p1[2] + dth)], dtype=np.float64)
+        # The increment p0 -> p1 in p0's frame, scaled to the time ahead, applied in p1's frame.
+        step = between(p0, p1) * ((t - t1) / (t1 - t0))
+        return np.asarray(compose(p1, step), dtype=np.float64)
 
     def resolved(self, now: float = -math.inf, final: bool = False) -> list[PendingScan]:
         """The scans that can now be matched (in arrival order), with ``odom`` set; ``now`` is the
