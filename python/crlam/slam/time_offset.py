@@ -204,8 +204,9 @@ class TimeOffsetEstimate:
         What the re-attachment did (filled while the run reads the log).
     stamps : RegularStamps or None
         The stamps the re-attachment reads where the log's are bursty
-        (:mod:`crlam.preflight.odometry_retime`); set by :func:`resolve_time_offset` when the
-        odometry is re-attached; not in :meth:`to_dict` (``retime`` says which were fitted).
+        (:mod:`crlam.preflight.odometry_retime`); set when the odometry is re-attached (from
+        the estimate's own pass over the log, or for a given offset by :func:`log_stamps`); not
+        in :meth:`to_dict` (``retime`` says which were fitted).
     """
 
     setting: str | float
@@ -304,9 +305,10 @@ def _match_segment(scans: list[tuple[Array, Array, Array, float]]) -> _Run:
 
 def _collect(
     records: Iterable[object], n_total: int | None, settings: TimeOffsetSettings
-) -> tuple[list[_Run], Array, Array, Array, Array]:
+) -> tuple[list[_Run], Array, Array, Array, Array, Array]:
     """Match the scans of the runs; collect the odometry records' and the scans' odometry
-    (stamp, heading) series. The runs' scans are read in one pass over the records and matched
+    (stamp, heading) series, and every scan's stamp (for :class:`RegularStamps`). The runs' scans
+    are read in one pass over the records and matched
     afterwards, each run on its own thread (:func:`match_threads`; the matcher releases the GIL):
     the runs are independent, so the result does not depend on the thread count."""
     from concurrent.futures import ThreadPoolExecutor
@@ -317,6 +319,7 @@ def _collect(
     odo_h: list[float] = []
     att_t: list[float] = []
     att_h: list[float] = []
+    scan_t: list[float] = []
     current: list[tuple[Array, Array, Array, float]] | None = None
     k = -1
     seg = 0
@@ -330,6 +333,7 @@ def _collect(
         k += 1
         if n_total is not None and k >= n_total:
             break
+        scan_t.append(float(rec.timestamp))
         if np.all(np.isfinite(rec.odom)):
             att_t.append(rec.timestamp)
             att_h.append(float(rec.odom[2]))
@@ -356,6 +360,7 @@ def _collect(
         np.array(odo_h, dtype=np.float64),
         np.array(att_t, dtype=np.float64),
         np.array(att_h, dtype=np.float64),
+        np.array(scan_t, dtype=np.float64),
     )
 
 
@@ -438,7 +443,7 @@ def estimate_time_offset(
     """
     s = settings or TimeOffsetSettings()
     est = TimeOffsetEstimate(setting="auto", settings=asdict(s))
-    runs, odo_t, odo_h, att_t, att_h = _collect(records, n_scans, s)
+    runs, odo_t, odo_h, att_t, att_h, scan_t = _collect(records, n_scans, s)
     est.n_scans_matched = sum(len(r.stamps) for r in runs)
     if len(odo_t) >= 2:
         est.odometry_source = "odometry records"
@@ -508,6 +513,7 @@ def estimate_time_offset(
     est.retimed = True
     est.applied_s = d_hat
     est.reason = found
+    est.stamps = RegularStamps.of(scan_t, odo_t)
     return est
 
 
@@ -551,7 +557,7 @@ def resolve_time_offset(
         n = count_scans(log_path, max_scans, bag_options=bag_options)
         est = estimate_time_offset(open_log(log_path, **(bag_options or {})), settings, n_scans=n)
         est.setting = setting
-    if est.retimed:
+    if est.retimed and est.stamps is None:  # a number given: no estimate pass read the stamps
         est.stamps = log_stamps(open_log(log_path, **(bag_options or {})))
     return est
 
