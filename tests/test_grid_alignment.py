@@ -26,6 +26,7 @@ from crlam.slam.grid_alignment import (
     into_map_frame,
     map_frame,
     wall_direction,
+    walls_found,
 )
 
 
@@ -77,6 +78,32 @@ def test_no_straight_wall_gives_no_direction() -> None:
     far = wall_direction(angles, np.full(181, 50.0), max_range=8.0)
     assert circle.wall_length == 0.0 or circle.concentration < 0.5
     assert far == type(far)(0.0, 0.0, 0.0)
+    # Neither lays the grid on walls, so sub_cell = "unaligned" turns the sub-cell geometry on.
+    assert not walls_found(circle) and not walls_found(far)
+    assert walls_found(wall_direction(*_room_scan(0.3)))
+
+
+@pytest.mark.parametrize(
+    ("sub_cell", "method", "on_walls", "expected"),
+    [
+        ("unaligned", "clam", True, False),
+        ("unaligned", "clam", False, True),
+        ("on", "clam", True, True),
+        ("off", "clam", False, False),
+        ("on", "ogm", False, False),
+    ],
+)
+def test_the_sub_cell_geometry_is_chord_causes_and_hit_means_where_asked(
+    sub_cell: str, method: str, on_walls: bool, expected: bool
+) -> None:
+    config = SlamConfig.from_preset("robust", sub_cell=sub_cell, method=method)
+    assert (config.cause_kernel, config.hit_means) == ("midpoint", False)
+    used = config.filter_settings(on_walls)
+    if expected:
+        assert (used.cause_kernel, used.hit_means) == ("chord", True)
+        assert dataclasses.replace(used, cause_kernel="midpoint", hit_means=False) == config
+    else:
+        assert used is config
 
 
 def test_bad_shapes_are_errors() -> None:
@@ -107,8 +134,8 @@ def _rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((a[:, :2] - b[:, :2]) ** 2, axis=1))))
 
 
-def _run(log: SimulatedLog, alignment: str) -> SlamRun:
-    run = SlamRun(SlamConfig.from_preset("robust", particles=10, seed=2, grid_alignment=alignment))
+def _run(log: SimulatedLog, alignment: str, **settings: object) -> SlamRun:
+    run = SlamRun(SlamConfig.from_preset("robust", particles=10, seed=2, grid_alignment=alignment, **settings))
     ranges = np.where(log.ranges >= log.sensor.max_range, np.inf, log.ranges)
     for k in range(log.n_scans):
         run.step(log.odometry[k], log.sensor.angles, ranges[k], np.zeros(3), float(log.timestamps[k]))
@@ -131,6 +158,11 @@ def test_walls_turn_the_map_back_onto_the_grid_and_poses_turn_back(turned_office
     record = run.map_frame_record()
     np.testing.assert_allclose(frame_from_record(record), run.map_frame, atol=1e-12)
     assert record["grid_alignment"] == "walls"
+    # The grid runs along the walls: sub_cell = "unaligned" leaves the geometry off.
+    unaligned = _run(log, "walls", sub_cell="unaligned")
+    assert not run.sub_cell and record["sub_cell"] is False and run.filter_config is run.config
+    assert not unaligned.sub_cell and unaligned.filter_config is unaligned.config
+    np.testing.assert_array_equal(unaligned.trajectory()[1], poses)
 
 
 def test_no_alignment_keeps_the_odometry_frame(turned_office: tuple[Path, SimulatedLog]) -> None:
@@ -141,6 +173,20 @@ def test_no_alignment_keeps_the_odometry_frame(turned_office: tuple[Path, Simula
     np.testing.assert_array_equal(run.to_odometry_frame(poses), poses)
     np.testing.assert_allclose(poses[0], log.odometry[0], atol=1e-9)
     assert frame_from_record(run.map_frame_record()).tolist() == [0.0, 0.0, 0.0]
+
+
+def test_a_grid_off_the_walls_runs_the_sub_cell_geometry(turned_office: tuple[Path, SimulatedLog]) -> None:
+    _, log = turned_office
+    assert not _run(log, "none").sub_cell  # the preset's sub_cell is "off"
+    run = _run(log, "none", sub_cell="unaligned")
+    assert run.sub_cell and run.map_frame_record()["sub_cell"] is True
+    # The filter is exactly the one with the two settings given, and not the one without them.
+    explicit = _run(log, "none", sub_cell="off", cause_kernel="chord", hit_means=True)
+    plain = _run(log, "none", sub_cell="off")
+    assert explicit.sub_cell and not plain.sub_cell
+    _, poses = run.trajectory()
+    np.testing.assert_array_equal(poses, explicit.trajectory()[1])
+    assert np.abs(poses - plain.trajectory()[1]).max() > 1e-6
 
 
 def test_run_folder_records_the_turn_and_scores_the_reference_in_its_frame(

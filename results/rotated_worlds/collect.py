@@ -13,7 +13,10 @@ from pathlib import Path
 SETTINGS = {
     "default": "`robust` preset (the default: the grid turned onto the first scan's walls)",
     "no-alignment": "`--grid-alignment none` (the first pose's frame)",
+    "sub-cell-unaligned": "`--grid-alignment none --sub-cell unaligned` (there: chord causes and hit means)",
     "hit-means": "`--grid-alignment none --hit-means`",
+    "chord": "`--grid-alignment none --cause-kernel chord`",
+    "sub-cell-on": "`--sub-cell on` (the grid on the walls, chord causes and hit means)",
     "match": "`--grid-alignment none --proposal-pose match`",
     "gmapping-lattice": "`--grid-alignment none --lattice-step 0.01 0.005`",
     "range20": "`--grid-alignment none --max-range 20`",

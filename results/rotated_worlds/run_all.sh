@@ -29,7 +29,10 @@ run() {  # run NAME SEEDS flags...
 run default "0 1"
 # The variants below keep the first pose's frame: what the default is without its turn.
 run no-alignment "0 1" --grid-alignment none
+run sub-cell-unaligned "0 1" --grid-alignment none --sub-cell unaligned
 run hit-means "0 1" --grid-alignment none --hit-means
+run chord "0 1" --grid-alignment none --cause-kernel chord
+run sub-cell-on "0 1" --sub-cell on
 run match "0 1" --grid-alignment none --proposal-pose match
 run gmapping-lattice "0 1" --grid-alignment none --lattice-step 0.01 0.005
 run range20 "0" --grid-alignment none --max-range 20

@@ -36,6 +36,7 @@ __all__ = ["add_parser", "cmd_experiment"]
 _SWEEP_FLAGS = (
     "--resolution",
     "--grid-alignment",
+    "--sub-cell",
     "--weight-stride",
     "--tempering",
     "--tempering-beams",

@@ -279,6 +279,15 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"frame, metrics.json records the turn ({FROM_PRESET})",
         ),
     ),
+    "--sub-cell": (
+        "map and sensor",
+        dict(
+            choices=("off", "on", "unaligned"),  # crlam.slam.grid_alignment.SUB_CELL_CHOICES
+            help="RBPF-CLAM's sub-cell geometry (--cause-kernel chord --hit-means, about twice the filter's time): "
+            "off (paper, robust), on, or unaligned: only when the grid does not run along the first scan's walls "
+            f"(--grid-alignment none, a continued run, or a first scan with no rectilinear walls) ({FROM_PRESET})",
+        ),
+    ),
     "--map-stride": (
         "map and sensor",
         dict(type=positive_int, help=f"every n-th beam for the map update (paper: 1; {FROM_PRESET})"),

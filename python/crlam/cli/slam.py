@@ -100,6 +100,11 @@ def cmd_slam(args: argparse.Namespace) -> int:
     print(f"odometry: {m['input']['odometry']} ({m['input']['odometry_choice']})")
     deviations = [d.split(" = ", 1)[0] for d in m["deviations_from_paper"]]
     print(f"preset {config.preset or '(none)'}; differs from the paper in: {', '.join(deviations) or 'nothing'}")
+    frame = m.get("map_frame") or {}
+    if frame.get("turn_deg"):
+        print(f"map frame: the grid turned by {frame['turn_deg']:.1f} deg onto the first scan's walls")
+    if frame.get("sub_cell"):
+        print(f"sub-cell geometry: on (sub_cell = {config.sub_cell}; chord causes and hit means)")
     print(
         f"{m['n_scans']} scans ({m['n_processed']} processed) in {m['wall_time_s']:.1f} s, "
         f"{m['scans_per_s']:.2f} scans/s, peak RSS {m['filter_peak_rss_mb']:.0f} MB filtering, "

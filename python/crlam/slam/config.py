@@ -8,14 +8,14 @@ checks of its values.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any, Literal
 
 from crlam.errors import ConfigError
 from crlam.mapping import MappingConfig
 from crlam.preflight.map_range import MAP_RANGES
 from crlam.slam.fill import FILLS
-from crlam.slam.grid_alignment import GRID_ALIGNMENTS
+from crlam.slam.grid_alignment import GRID_ALIGNMENTS, SUB_CELL_CHOICES
 from crlam.slam.preset_files import DEFAULT_PRESET, NOT_DEVIATIONS, paper_settings_of, resolve_preset
 
 __all__ = [
@@ -231,6 +231,19 @@ class SlamConfig:
         heading is drawn on its own axes rather than as staircases of cells. The estimates are
         in the map's frame; :meth:`SlamRun.to_odometry_frame` turns them back. Not used when
         continuing a saved run (its map keeps its frame).
+    sub_cell : str
+        RBPF-CLAM's sub-cell geometry: every cause spread along the chord its beam cuts through
+        the cell (``cause_kernel="chord"``, for the map update and the weights) and the scan
+        matcher's walls at the mean of their hits (``hit_means=True``), so that walls at an angle
+        to the grid are not drawn and matched as staircases of cell centres. It costs about
+        1.7-2 times the filter's time. ``"on"``: always. ``"unaligned"``: only when the map's
+        grid does not run along the first scan's walls, i.e. with
+        ``grid_alignment="none"``, when continuing a saved run, or when the first scan shows no
+        rectilinear walls to turn the grid onto (:func:`crlam.slam.grid_alignment.walls_found`).
+        ``"off"`` (paper, ``robust``): ``cause_kernel`` and ``hit_means`` as given.
+        :attr:`SlamRun.sub_cell` and ``metrics.json`` (``map_frame``) say what a run used.
+        docs/method/presets.md (Walls at an angle to the grid) has what it does and why it is
+        not the default.
     no_return : str
         What a no-return (``inf``, NaN, 0, below ``range_min``, at or above ``range_max``)
         does (:mod:`crlam.io.readings`): ``"z_max"`` (paper: the z_max atom, the beam clears
@@ -297,6 +310,7 @@ class SlamConfig:
     smoothing_lag: int | None = None
     fill: str = "interpolate"
     grid_alignment: str = "none"
+    sub_cell: str = "off"
     ogm_map: str = "log_odds"
     ogm_motion_draws: str = "per_update"
     ogm_weight_smoothing: float = 3.0
@@ -397,6 +411,8 @@ class SlamConfig:
             raise bad("fill", f"must be one of {', '.join(FILLS)}")
         if self.grid_alignment not in GRID_ALIGNMENTS:
             raise bad("grid_alignment", f"must be one of {', '.join(GRID_ALIGNMENTS)}")
+        if self.sub_cell not in SUB_CELL_CHOICES:
+            raise bad("sub_cell", f"must be one of {', '.join(SUB_CELL_CHOICES)}")
         if self.tempering_beams is not None and not (
             isinstance(self.tempering_beams, (int, float)) and math.isfinite(self.tempering_beams) and self.tempering_beams >= 1
         ):
@@ -458,6 +474,20 @@ class SlamConfig:
             sigma_range=self.sigma_range,
             cause_kernel=self.cause_kernel,
         )
+
+    def filter_settings(self, grid_on_walls: bool) -> SlamConfig:
+        """The settings the filter runs with: these, with the sub-cell geometry
+        (``cause_kernel="chord"``, ``hit_means=True``) where ``sub_cell`` asks for it.
+
+        Parameters
+        ----------
+        grid_on_walls : bool
+            Whether the map's grid runs along the first scan's walls (turned onto them, or found
+            already on them); see ``sub_cell``.
+        """
+        if self.method != "clam" or self.sub_cell == "off" or (self.sub_cell == "unaligned" and grid_on_walls):
+            return self
+        return replace(self, cause_kernel="chord", hit_means=True)
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)

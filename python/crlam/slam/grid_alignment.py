@@ -33,6 +33,7 @@ __all__ = [
     "MIN_CONCENTRATION",
     "MIN_TURN",
     "MIN_WALL_LENGTH",
+    "SUB_CELL_CHOICES",
     "WallDirection",
     "frame_from_record",
     "from_map_frame",
@@ -40,10 +41,13 @@ __all__ = [
     "map_frame",
     "map_turn",
     "wall_direction",
+    "walls_found",
 ]
 
 #: Values of ``SlamConfig.grid_alignment``.
 GRID_ALIGNMENTS = ("none", "walls")
+#: Values of ``SlamConfig.sub_cell``: when the filter uses the sub-cell geometry.
+SUB_CELL_CHOICES = ("off", "on", "unaligned")
 #: The first scan must show at least this much straight wall (m) ...
 MIN_WALL_LENGTH = 2.0
 #: ... of which at least this share within ``agreement_deg`` of the dominant direction.
@@ -174,12 +178,19 @@ def map_turn(
         The scan's estimate it was taken from.
     """
     walls = wall_direction(angles, ranges, laser_offset, max_range=max_range)
-    if walls.wall_length < MIN_WALL_LENGTH or walls.concentration < MIN_CONCENTRATION:
+    if not walls_found(walls):
         return 0.0, walls
     off_grid = (walls.angle + heading + math.pi / 4) % (math.pi / 2) - math.pi / 4
     if abs(off_grid) < MIN_TURN:
         return 0.0, walls
     return -off_grid, walls
+
+
+def walls_found(walls: WallDirection) -> bool:
+    """Whether a scan shows rectilinear walls to lay the grid on: at least ``MIN_WALL_LENGTH`` of
+    straight wall, ``MIN_CONCENTRATION`` of it along one rectilinear direction. When it does,
+    :func:`map_turn` puts the grid on them (or finds it already there)."""
+    return walls.wall_length >= MIN_WALL_LENGTH and walls.concentration >= MIN_CONCENTRATION
 
 
 def map_frame(turn: float, pivot: ArrayLike) -> NDArray[np.float64]:

@@ -20,7 +20,7 @@ from crlam.mapping import ConfidenceRichMap, LogOddsConfig, LogOddsOccupancyMap
 from crlam.pose import number_pair
 from crlam.slam.config import SlamConfig
 from crlam.slam.fill import fill_skipped
-from crlam.slam.grid_alignment import WallDirection, from_map_frame, into_map_frame, map_frame, map_turn
+from crlam.slam.grid_alignment import WallDirection, from_map_frame, into_map_frame, map_frame, map_turn, walls_found
 from crlam.slam.loop_closing import LoopCloser
 from crlam.slam.prior import SlamPrior
 
@@ -264,11 +264,21 @@ class SlamRun:
     map_walls: WallDirection | None = None
     #: The pose graph and loop search (``config.loop_closing="graph"``; set at the first scan).
     loops: LoopCloser | None = None
+    #: The settings the filter runs with (set at the first scan): :attr:`config` with the
+    #: sub-cell geometry where ``config.sub_cell`` asks for it (:meth:`SlamConfig.filter_settings`).
+    filter_config: SlamConfig | None = None
 
     @property
     def map_turn(self) -> float:
         """The map frame's turn (rad) against the odometry frame, about the first pose (0: none)."""
         return 0.0 if self.map_frame is None else float(self.map_frame[2])
+
+    @property
+    def sub_cell(self) -> bool:
+        """Whether the filter runs with the sub-cell geometry (chord causes and hit means,
+        ``SlamConfig.sub_cell``); False before the first scan."""
+        fc = self.filter_config
+        return fc is not None and fc.method == "clam" and fc.cause_kernel == "chord" and fc.hit_means
 
     def to_odometry_frame(self, poses: ArrayLike) -> NDArray[np.float64]:
         """Poses (..., 3) of this run's map frame in the odometry's frame, e.g. to compare them
@@ -282,6 +292,7 @@ class SlamRun:
         return {
             "grid_alignment": self.config.grid_alignment,
             "turn_deg": math.degrees(self.map_turn),
+            "sub_cell": self.sub_cell,
             "pivot": None if self.map_pivot is None else [float(v) for v in self.map_pivot],
             "first_scan_walls": None
             if walls is None
@@ -307,9 +318,10 @@ class SlamRun:
                 turn, self.map_walls = map_turn(angles, ranges, laser_offset, float(odom[2]), max_range=self.config.max_range)
             self.map_pivot = odom[:2].copy()
             self.map_frame = map_frame(turn, self.map_pivot)
+            self.filter_config = self.config.filter_settings(self.map_walls is not None and walls_found(self.map_walls))
         odom = self._to_map_frame(odom)
         if self.filter is None:
-            self.filter = make_filter(self.config, odom, self.prior)
+            self.filter = make_filter(self.filter_config or self.config, odom, self.prior)
             if self.config.loop_closing == "graph":
                 base = None if self.prior is None else self.prior.map.native.copy()
                 self.loops = LoopCloser(resolution=self.config.resolution, base_map=base)
@@ -491,7 +503,7 @@ class SlamRun:
             lo = LogOddsOccupancyMap(LogOddsConfig(resolution=self.config.resolution, max_range=self.config.max_range))
             lo.native = self.filter.best_map()
             return lo
-        m = ConfidenceRichMap(self.config.mapping_config())
+        m = ConfidenceRichMap((self.filter_config or self.config).mapping_config())
         if self.loops is not None and self.loops.changed_since_rebuild:
             # The graph moved poses since the particles took their map: the map of its poses.
             m.native = self.loops.rebuild_map(self.filter)
