@@ -7,6 +7,11 @@ import json
 import math
 from pathlib import Path
 
+try:
+    import tomllib
+except ModuleNotFoundError:  # Python 3.10
+    import tomli as tomllib
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -214,3 +219,16 @@ def test_run_folder_records_the_turn_and_scores_the_reference_in_its_frame(
     report = json.loads((tmp_path / "e.json").read_text())
     assert report["map_frame_turn_deg"] == pytest.approx(metrics["map_frame"]["turn_deg"])
     assert report["summary"]["rmse_position_m"] == pytest.approx(metrics["reference"]["rmse_position_m"], rel=1e-6)
+
+
+def test_run_folder_records_the_sub_cell_geometry_it_ran(turned_office: tuple[Path, SimulatedLog], tmp_path: Path) -> None:
+    d, _ = turned_office
+    for name, sub_cell, used in (("plain", "off", False), ("sub", "unaligned", True)):
+        config = SlamConfig.from_preset("robust", particles=4, seed=2, grid_alignment="none", sub_cell=sub_cell)
+        run_slam_log(d / "log.clf", tmp_path / name, config, max_scans=40, progress=False, figures=False)
+        metrics = json.loads((tmp_path / name / "metrics.json").read_text())
+        assert metrics["map_frame"]["sub_cell"] is used
+        sigma = tomllib.loads((tmp_path / name / "config.toml").read_text())["slam"]["sigma_hit_resolved"]
+        # The chord kernel's σ_hit is σ_r; the midpoint kernel's adds the cell's quantisation.
+        expected = config.sigma_range if used else math.hypot(config.sigma_range, config.resolution / math.sqrt(12.0))
+        assert sigma == pytest.approx(expected)

@@ -346,7 +346,8 @@ def write_run_outputs(
             "input": input_info,
             "slam": config.to_dict()
             | _map_range_setting(map_range, config.max_range)
-            | {"sigma_hit_resolved": config.mapping_config().hit_sigma},
+            # The filter's own σ_hit: the chord kernel's where the sub-cell geometry was used.
+            | {"sigma_hit_resolved": (run.filter_config or config).mapping_config().hit_sigma},
         }
         | ({} if front_end is None else {"scan_odometry": front_end.config.to_dict()}),
     )
