@@ -231,6 +231,7 @@ class ClamFilter:
         hit_means: bool = ...,  # False
         front_end: tuple[float, float] | None = None,
         match_min_score: float = 0.0,
+        match_climb: str = "score",
         seed: int = 0,
         prior_map: CrmMap | None = None,
         initial_cov: NDArray[np.float64] | None = None,

@@ -5,13 +5,13 @@ use crlam_core::crm::{BatchKernel, CrmConfig, LevelPlacement, ScanUpdateMode};
 use crlam_core::grid::{CellRect, GridGeometry};
 use crlam_core::motion::MotionModel;
 use crlam_core::ogm::LogOddsParams;
-use crlam_core::rbpf::MatchRange;
 use crlam_core::rbpf::{
     mode_seeking_pose as core_mode_seeking_pose, ClamConfig, ClamPrior, ClamProposal,
     CorrelativeSettings, FilterStep, MatcherParams, ModeBandwidth, MotionDraws, OgmFilterConfig,
     ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings,
     ScanMatchWeight, UpdateTrigger,
 };
+use crlam_core::rbpf::{MatchClimb, MatchRange};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -358,7 +358,7 @@ filter_pymethods!(ClamFilter {
         batch_kernel="windowed", hits_first=false, weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
         proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm",
-        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, front_end=None, match_min_score=0.0, seed=0, prior_map=None, initial_cov=None))]
+        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, front_end=None, match_min_score=0.0, match_climb="score", seed=0, prior_map=None, initial_cov=None))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -394,6 +394,7 @@ filter_pymethods!(ClamFilter {
         hit_means: bool,
         front_end: Option<(f64, f64)>,
         match_min_score: f64,
+        match_climb: &str,
         seed: u64,
         prior_map: Option<PyRef<'_, CrmMap>>,
         initial_cov: Option<PyReadonlyArray2<'_, f64>>,
@@ -415,6 +416,7 @@ filter_pymethods!(ClamFilter {
         let pose_rule = ProposalPose::parse(proposal_pose).py_err()?;
         let scan_match_weight = ScanMatchWeight::parse(scan_match_weight).py_err()?;
         let match_range = match_range.parse()?;
+        let match_climb = MatchClimb::parse(match_climb).py_err()?;
         let proposal = match (proposal, pose_rule) {
             ("odometry", ProposalPose::Sample) => ClamProposal::Odometry,
             ("odometry", ProposalPose::Match) => {
@@ -456,6 +458,7 @@ filter_pymethods!(ClamFilter {
                     weight: scan_match_weight,
                     match_range,
                     hit_means,
+                    climb: match_climb,
                     front_end: front_end.map(|(linear, angular)| CorrelativeSettings {
                         linear_window: linear,
                         angular_window: angular,

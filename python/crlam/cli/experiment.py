@@ -43,6 +43,7 @@ _SWEEP_FLAGS = (
     "--scan-match-weight",
     "--match-range",
     "--hit-means",
+    "--match-climb",
     "--hits-first",
     "--match-min-score",
     "--map-range",

@@ -210,6 +210,15 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"centre, as GMapping does (paper: off; {FROM_PRESET})",
         ),
     ),
+    "--match-climb": (
+        "filter",
+        dict(
+            choices=("score", "posterior"),  # crlam.slam.MATCH_CLIMBS
+            help="RBPF-CLAM scan_match: the hill climb before the lattice maximises GMapping's endpoint score (score) "
+            "or the endpoint log-likelihood plus the log motion density, the lattice's own function (posterior), so "
+            f"that directions the scan leaves free (along a corridor) stay where the odometry puts them ({FROM_PRESET})",
+        ),
+    ),
     "--match-min-score": (
         "filter",
         dict(

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from crlam.slam.config import (
     FRONT_ENDS,
+    MATCH_CLIMBS,
     MAX_MATCH_RANGE,
     MAX_TIME_OFFSET,
     TIME_OFFSET_CHOICES,
@@ -41,6 +42,7 @@ from crlam.slam.run import (
 
 __all__ = [
     "FRONT_ENDS",
+    "MATCH_CLIMBS",
     "MAX_MATCH_RANGE",
     "MAX_TIME_OFFSET",
     "TIME_OFFSET_CHOICES",

@@ -24,6 +24,7 @@ __all__ = [
     "TIME_OFFSET_CHOICES",
     "MAX_TIME_OFFSET",
     "FRONT_ENDS",
+    "MATCH_CLIMBS",
     "MAX_MATCH_RANGE",
     "valid_time_offset",
 ]
@@ -48,6 +49,10 @@ def valid_time_offset(value: object) -> bool:
 #: Front ends in front of the scan-match proposal: ``none`` (the odometry increment as given) or
 #: ``correlative`` (a wide-window search on the best particle's map corrects it; docs/method/front-end.md).
 FRONT_ENDS = ("none", "correlative")
+
+#: What the scan-match proposal's hill climb maximises: ``score`` (GMapping's endpoint score) or
+#: ``posterior`` (the endpoint log-likelihood plus the log motion density, the lattice's function).
+MATCH_CLIMBS = ("score", "posterior")
 
 #: Largest ``match_range`` in metres (the native matcher's bound on a usable range).
 MAX_MATCH_RANGE = 1e5
@@ -165,6 +170,14 @@ class SlamConfig:
         with the other proposals). The matcher's score then changes with pose shifts smaller
         than a cell. Costs three floats per cell that was hit, shared between resampled copies.
         A continued run (``--continue``) starts without means: belief.npz does not store them.
+    match_climb : str
+        RBPF-CLAM's ``scan_match`` proposal: what the hill climb before the lattice maximises.
+        ``"score"`` (GMapping's, the default of a bare ``SlamConfig``): the endpoint score alone;
+        where the scan leaves a direction free (along a corridor) the climb follows the score's
+        small features as far as they lead, and every particle climbing from the same guess
+        slides with it. ``"posterior"``: the endpoint log-likelihood plus the log motion density,
+        the function the lattice evaluates, so the free directions stay where the odometry puts
+        them. Inert with the other proposals (``likelihood_mode`` climbs its own posterior).
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step), ``thrun``
         (``motion_params`` = alpha1..alpha4, variance coefficients) or ``gmapping`` (GMapping's own
@@ -294,6 +307,7 @@ class SlamConfig:
     scan_match_weight: str = "crm"
     match_range: str | float = "z_max"
     hit_means: bool = False
+    match_climb: str = "score"
     map_range: str = "fixed"
     front_end: str = "none"
     match_min_score: float = 0.0
@@ -376,6 +390,8 @@ class SlamConfig:
             raise bad("mode_bandwidth", "needs 2 bandwidths > 0 (m, rad; inf allowed)")
         if not isinstance(self.hit_means, bool):
             raise bad("hit_means", "must be True or False")
+        if self.match_climb not in MATCH_CLIMBS:
+            raise bad("match_climb", f"must be one of {', '.join(MATCH_CLIMBS)}")
         if not isinstance(self.hits_first, bool):
             raise bad("hits_first", "must be True or False")
         if not (

@@ -250,6 +250,36 @@ impl ScanMatchWeight {
     }
 }
 
+/// What the scan-match proposal's hill climb maximises before the lattice is laid around its end.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum MatchClimb {
+    /// GMapping's: the endpoint score alone (Σ exp(−d²/σ) over the beams). Where the scan does not
+    /// fix the pose (along a corridor, a hall's walls beyond the map's range) the climb follows
+    /// whatever the score's small features say, however far from the odometry's guess, and every
+    /// particle that climbs from the same guess slides with it.
+    #[default]
+    Score,
+    /// The function the lattice evaluates: GMapping's endpoint log-likelihood plus the log of the
+    /// motion density. Where the scan fixes the pose it is the scan's peak (the likelihood is
+    /// far sharper than the motion model); along the directions it leaves free the motion
+    /// density decides and the climb stays at the odometry's guess. The lattice and the Gaussian
+    /// drawn from are then centred on the mode of the proposal's own target.
+    Posterior,
+}
+
+impl MatchClimb {
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "score" => Ok(Self::Score),
+            "posterior" => Ok(Self::Posterior),
+            _ => Err(crate::error::config_err(
+                "match_climb",
+                format!("must be 'score' or 'posterior', got {s:?}"),
+            )),
+        }
+    }
+}
+
 /// A reading within this distance (m) of the largest reading of the log so far is a no-return
 /// (see [`MatchRange::Full`]). A laser that sees nothing reports one fixed reading, its maximum
 /// (Intel: 81.83 m, ACES: 50.00 m, both logged to the centimetre), the largest of the log; 5 cm
@@ -353,6 +383,8 @@ pub struct ScanMatchSettings {
     /// confident match replaces the odometry increment every particle starts from. `None`: the
     /// odometry increment as given (the paper's and GMapping's).
     pub front_end: Option<CorrelativeSettings>,
+    /// What the hill climb maximises (GMapping's score by default).
+    pub climb: MatchClimb,
 }
 
 impl Default for ScanMatchSettings {
@@ -365,6 +397,7 @@ impl Default for ScanMatchSettings {
             match_range: MatchRange::ZMax,
             hit_means: false,
             front_end: None,
+            climb: MatchClimb::Score,
         }
     }
 }

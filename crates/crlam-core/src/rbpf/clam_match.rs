@@ -7,7 +7,9 @@
 //! beam. Here the search reads only a window of cells around each beam's endpoint:
 //! 1. start from the odometry guess (`Sample`) or a motion-model sample (`Match`);
 //! 2. hill-climb GMapping's endpoint score on the map's expected occupancy (a cell is occupied
-//!    when m̂ > `occupied_above`, see [`super::MatchSurface::around_crm`]);
+//!    when m̂ > `occupied_above`, see [`super::MatchSurface::around_crm`]), or with
+//!    [`MatchClimb::Posterior`] the endpoint log-likelihood × the motion density, the function
+//!    the lattice of step 3 evaluates;
 //! 3. evaluate GMapping's endpoint likelihood × the motion density on the 3×3×3 lattice around
 //!    the match, fit a Gaussian, draw the new pose from it (or keep the match);
 //! 4. weight: the importance weight of the new pose x under the paper's target, with the CRM
@@ -32,7 +34,7 @@ use crate::error::Result;
 use crate::pose::{between, compose, wrap, Pose};
 use crate::rbpf::clam_config::ClamConfig;
 pub use crate::rbpf::clam_config::{
-    MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
+    MatchClimb, MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
 };
 use crate::rbpf::clam_particle::weigh_at_pose;
 use crate::rbpf::common::{ProposalPose, ScanInput};
@@ -188,7 +190,14 @@ pub(crate) fn propose_by_scan_match(
             settings.matcher.free_test,
             settings.occupied_above,
         );
-        let (matched, score) = matcher.optimize(&surface, prepared, start)?;
+        let (matched, score) = match settings.climb {
+            MatchClimb::Score => matcher.optimize(&surface, prepared, start)?,
+            MatchClimb::Posterior => {
+                let (matched, _) = matcher
+                    .optimize_posterior(&surface, prepared, start, |x| prior.log_density(x))?;
+                (matched, matcher.score(&surface, prepared, matched)?)
+            }
+        };
         let fit = if score > params.min_score {
             Some(matcher.fit_proposal(
                 &surface,
@@ -328,6 +337,7 @@ fn gaussian_log_density(x: Pose, mean: Pose, cov: &[[f64; 3]; 3]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rbpf::scanmatch::MatcherParams;
 
     /// The children of one parent search once and draw each with its own stream: the same
     /// proposals, bit for bit, as one search per child; a kept match takes one particle a call.
@@ -371,6 +381,175 @@ mod tests {
             propose(&settings, &mut [stream(0)], &mut sc).unwrap().len(),
             1
         );
+    }
+
+    /// A straight corridor along x (walls 0.1 m thick at y = ±1.25 m, longer than the laser's
+    /// 8 m reach) mapped from scans along its axis, and the scan at the origin: its walls fix y
+    /// and the heading, nothing fixes x.
+    fn corridor() -> (CrmMap, PreparedScan) {
+        use crate::crm::CrmConfig;
+        use crate::grid::GridGeometry;
+        use crate::rbpf::clam_config::scan_opts;
+        use crate::rbpf::prepared_scan::BeamSelection;
+        use crate::sim::WorldRaster;
+        let (nx, ny, res) = (800usize, 60usize, 0.05);
+        let world_geometry = GridGeometry::new([-20.0, -1.5], res).unwrap();
+        let mut occupied = vec![0u8; nx * ny];
+        for iy in 0..ny {
+            let y = -1.5 + (iy as f64 + 0.5) * res;
+            if (y.abs() - 1.275).abs() < 0.05 {
+                occupied[iy * nx..(iy + 1) * nx].fill(1);
+            }
+        }
+        let world = WorldRaster::new(world_geometry, nx, ny, &occupied).unwrap();
+        let angles: Vec<f64> = (0..181)
+            .map(|i| -std::f64::consts::FRAC_PI_2 + i as f64 * std::f64::consts::PI / 180.0)
+            .collect();
+        let cast = |pose: Pose| {
+            let mut ranges = vec![0.0; angles.len()];
+            world.cast(&[pose], &angles, 8.0, &mut ranges).unwrap();
+            ranges
+        };
+        let cfg = ClamConfig::paper(
+            CrmConfig::new(GridGeometry::new([0.0, 0.0], 0.1).unwrap()),
+            8.0,
+        );
+        let mut map = CrmMap::new(&cfg.crm).unwrap();
+        let mut sc = CrmScratch::default();
+        for k in -6..=6 {
+            let pose = [0.5 * k as f64, 0.0, 0.0];
+            let ranges = cast(pose);
+            map.update_scan(
+                pose,
+                &angles,
+                &ranges,
+                &cfg.mapping_model,
+                &scan_opts(&cfg, 1),
+                &mut sc,
+            )
+            .unwrap();
+        }
+        let ranges = cast([0.0; 3]);
+        let prepared =
+            PreparedScan::select(&angles, &ranges, [0.0; 3], BeamSelection::below(8.0), 1).unwrap();
+        (map, prepared)
+    }
+
+    /// The posterior climb corrects what the scan fixes (across the corridor, the heading) as
+    /// the likelihood alone does, and keeps what the scan leaves free (along the corridor) where
+    /// the motion density puts it; GMapping's score climb slides along the corridor.
+    #[test]
+    fn the_posterior_climb_keeps_the_odometry_where_the_scan_leaves_the_pose_free() {
+        let (map, prepared) = corridor();
+        let matcher = ScanMatcher {
+            params: MatcherParams::default(),
+        };
+        let settings = ScanMatchSettings::default();
+        // The odometry's guess: 0.4 m along the corridor, 0.15 m across and 0.04 rad off the
+        // pose the scan was taken from; the motion model's spread 2 cm along the corridor (the
+        // direction of travel), 0.2 m across, 0.1 rad.
+        let guess = [0.4, 0.15, 0.04];
+        let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
+            &map,
+            None,
+            &prepared,
+            guess,
+            settings.matcher.kernel_size,
+            settings.matcher.free_test,
+            settings.occupied_above,
+        );
+        let prior = MotionPrior::from_sigma(guess, 0.0, [0.02, 0.2, 0.1], [0.0; 3]);
+        let (climbed, value) = matcher
+            .optimize_posterior(&surface, &prepared, guess, |x| prior.log_density(x))
+            .unwrap();
+        let (alone, _) = matcher
+            .optimize_posterior(&surface, &prepared, guess, |_| 0.0)
+            .unwrap();
+        let (scored, _) = matcher.optimize(&surface, &prepared, guess).unwrap();
+        assert!(
+            (climbed[0] - guess[0]).abs() < 0.01,
+            "along the corridor: {climbed:?}"
+        );
+        assert!(
+            (scored[0] - guess[0]).abs() > 0.03,
+            "the score climb: {scored:?}"
+        );
+        // Across the corridor and in heading the scan decides: the wall cells' centres put the
+        // likelihood's peak a few centimetres off the scan's pose, the same with the motion density.
+        assert!(alone[1].abs() < 0.1 && alone[2].abs() < 0.02, "{alone:?}");
+        for i in 1..3 {
+            assert!(
+                (climbed[i] - alone[i]).abs() < 0.01,
+                "{climbed:?} against {alone:?}"
+            );
+        }
+        // The value is the objective at the climb's end, and no neighbour at the last step
+        // improves on it.
+        let objective = |x: Pose| {
+            matcher
+                .evaluate(&surface, &prepared, x)
+                .unwrap()
+                .log_likelihood
+                + prior.log_density(x)
+        };
+        assert_eq!(value.to_bits(), objective(climbed).to_bits());
+        let step = 0.05 / 32.0;
+        for d in [
+            [step, 0.0, 0.0],
+            [-step, 0.0, 0.0],
+            [0.0, step, 0.0],
+            [0.0, -step, 0.0],
+            [0.0, 0.0, step],
+            [0.0, 0.0, -step],
+        ] {
+            let x = [climbed[0] + d[0], climbed[1] + d[1], climbed[2] + d[2]];
+            assert!(objective(x) <= value, "{d:?} improves on {climbed:?}");
+        }
+    }
+
+    /// Where the scan matches nothing (an unmapped area: the likelihood is flat) the posterior
+    /// climb goes to the motion density's mean; GMapping's score climb does not move.
+    #[test]
+    fn with_a_flat_likelihood_the_posterior_climb_ends_at_the_motion_mean() {
+        let (_, prepared) = corridor();
+        let empty = CrmMap::new(&crate::crm::CrmConfig::new(
+            crate::grid::GridGeometry::new([0.0, 0.0], 0.1).unwrap(),
+        ))
+        .unwrap();
+        let matcher = ScanMatcher {
+            params: MatcherParams::default(),
+        };
+        let settings = ScanMatchSettings::default();
+        let (start, mean) = ([0.3, -0.2, 0.1], [0.0, 0.0, 0.0]);
+        let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
+            &empty,
+            None,
+            &prepared,
+            start,
+            settings.matcher.kernel_size,
+            settings.matcher.free_test,
+            settings.occupied_above,
+        );
+        let prior = MotionPrior::from_sigma(mean, 0.0, [0.1, 0.1, 0.05], [0.0; 3]);
+        let (climbed, _) = matcher
+            .optimize_posterior(&surface, &prepared, start, |x| prior.log_density(x))
+            .unwrap();
+        for i in 0..3 {
+            assert!((climbed[i] - mean[i]).abs() < 2e-3, "{climbed:?}");
+        }
+        let (scored, _) = matcher.optimize(&surface, &prepared, start).unwrap();
+        assert_eq!(scored, start);
+    }
+
+    #[test]
+    fn match_climbs_parse_by_name() {
+        assert_eq!(MatchClimb::parse("score").unwrap(), MatchClimb::Score);
+        assert_eq!(
+            MatchClimb::parse("posterior").unwrap(),
+            MatchClimb::Posterior
+        );
+        assert!(MatchClimb::parse("Posterior").is_err());
+        assert_eq!(ScanMatchSettings::default().climb, MatchClimb::Score);
     }
 
     #[test]

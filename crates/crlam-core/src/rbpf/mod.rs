@@ -40,7 +40,9 @@ pub mod scanmatch;
 mod scanmatch_params;
 
 pub use clam::{ClamConfig, ClamParticle, ClamPrior, ClamProposal, FrontEndCounts, RbpfClam};
-pub use clam_match::{MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE};
+pub use clam_match::{
+    MatchClimb, MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
+};
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,
     UpdateTrigger,

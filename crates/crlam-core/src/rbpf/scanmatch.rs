@@ -283,6 +283,11 @@ impl ScanMatcher {
         Ok(fit)
     }
 
+    /// The endpoint score of `scan` with the robot at `pose` (the log-likelihood not computed).
+    pub fn score(&self, surface: &MatchSurface, scan: &PreparedScan, pose: Pose) -> Result<f64> {
+        Ok(self.fit::<true, false>(surface, scan, pose)?.score)
+    }
+
     /// Hill climbing from `start` (GMapping's `optimize`): try ±lstep in world x and y and
     /// ±astep in heading, move to the best neighbour while the score strictly improves, else
     /// halve both steps; stop after `iterations` halvings. Returns the best pose and its score.
@@ -292,13 +297,32 @@ impl ScanMatcher {
         scan: &PreparedScan,
         start: Pose,
     ) -> Result<(Pose, f64)> {
+        self.climb(start, |p| self.score(surface, scan, p))
+    }
+
+    /// [`Self::optimize`]'s climb on the endpoint log-likelihood plus `log_prior` (the function
+    /// [`Self::fit_proposal`] evaluates on its lattice). Returns the best pose and its value.
+    pub fn optimize_posterior<F: Fn(Pose) -> f64>(
+        &self,
+        surface: &MatchSurface,
+        scan: &PreparedScan,
+        start: Pose,
+        log_prior: F,
+    ) -> Result<(Pose, f64)> {
+        self.climb(start, |p| {
+            Ok(self.fit::<false, true>(surface, scan, p)?.log_likelihood + log_prior(p))
+        })
+    }
+
+    /// GMapping's hill climb of `objective` from `start` (see [`Self::optimize`]).
+    fn climb<F: Fn(Pose) -> Result<f64>>(&self, start: Pose, objective: F) -> Result<(Pose, f64)> {
         let mut best = start;
-        let mut best_score = self.fit::<true, false>(surface, scan, start)?.score;
+        let mut best_value = objective(start)?;
         let (mut l, mut a) = (self.params.lstep, self.params.astep);
         let mut halvings = 0;
         let mut moves = 0;
         // Index of the move that led to `best`; its reverse (index ^ 1) leads back to the
-        // previous pose, whose score is known to be lower, so it is not evaluated again.
+        // previous pose, whose value is known to be lower, so it is not evaluated again.
         let mut last_move: Option<usize> = None;
         while halvings <= self.params.iterations && moves < MAX_MOVES {
             let steps = [
@@ -315,15 +339,15 @@ impl ScanMatcher {
                     continue;
                 }
                 let p = [best[0] + d[0], best[1] + d[1], wrap(best[2] + d[2])];
-                let s = self.fit::<true, false>(surface, scan, p)?.score;
-                if s > cand.map_or(best_score, |c| c.2) {
-                    cand = Some((i, p, s));
+                let v = objective(p)?;
+                if v > cand.map_or(best_value, |c| c.2) {
+                    cand = Some((i, p, v));
                 }
             }
             match cand {
-                Some((i, p, s)) => {
+                Some((i, p, v)) => {
                     best = p;
-                    best_score = s;
+                    best_value = v;
                     last_move = Some(i);
                     moves += 1;
                 }
@@ -335,7 +359,7 @@ impl ScanMatcher {
                 }
             }
         }
-        Ok((best, best_score))
+        Ok((best, best_value))
     }
 
     /// The improved proposal around the matched pose `center`: evaluate

@@ -1,0 +1,24 @@
+#!/bin/bash
+# The default filter and `--match-climb posterior` in a featureless simulated corridor.
+# usage: results/corridor/run_all.sh RUNS   (then: python results/corridor/collect.py RUNS results/corridor)
+set -euo pipefail
+RUNS=${1:?usage: run_all.sh RUNS}
+HERE=$(cd "$(dirname "$0")" && pwd)
+mkdir -p "$RUNS"
+python "$HERE/make_world.py" "$RUNS/world"
+for s in 0 1; do
+    [ -f "$RUNS/log-$s/COMPLETE" ] || crlam simulate --world "$RUNS/world/corridor.yaml" --sensor paper --scans 1500 \
+        --seed $s -o "$RUNS/log-$s" --force --quiet > /dev/null
+done
+run() {  # run NAME flags...
+    name=$1; shift
+    for log in 0 1; do
+        for seed in 0 1; do
+            out="$RUNS/$name-log$log-seed$seed"
+            [ -f "$out/COMPLETE" ] || RAYON_NUM_THREADS=1 crlam slam "$RUNS/log-$log/log.clf" --out "$out" \
+                --reference "$RUNS/log-$log/groundtruth.tum" --seed $seed --quiet --force "$@"
+        done
+    done
+}
+run default
+run posterior --match-climb posterior
