@@ -435,6 +435,24 @@ mod tests {
         (map, prepared)
     }
 
+    /// The surface the default scan-match settings read for `prepared` near `pose` on `map`.
+    fn default_surface<'a>(
+        map: &'a CrmMap,
+        prepared: &PreparedScan,
+        pose: Pose,
+    ) -> crate::rbpf::match_surface::MatchSurface<'a> {
+        let settings = ScanMatchSettings::default();
+        crate::rbpf::match_surface::MatchSurface::around_crm(
+            map,
+            None,
+            prepared,
+            pose,
+            settings.matcher.kernel_size,
+            settings.matcher.free_test,
+            settings.occupied_above,
+        )
+    }
+
     /// The posterior climb corrects what the scan fixes (across the corridor, the heading) as
     /// the likelihood alone does, and keeps what the scan leaves free (along the corridor) where
     /// the motion density puts it; GMapping's score climb slides along the corridor.
@@ -444,20 +462,11 @@ mod tests {
         let matcher = ScanMatcher {
             params: MatcherParams::default(),
         };
-        let settings = ScanMatchSettings::default();
         // The odometry's guess: 0.4 m along the corridor, 0.15 m across and 0.04 rad off the
         // pose the scan was taken from; the motion model's spread 2 cm along the corridor (the
         // direction of travel), 0.2 m across, 0.1 rad.
         let guess = [0.4, 0.15, 0.04];
-        let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
-            &map,
-            None,
-            &prepared,
-            guess,
-            settings.matcher.kernel_size,
-            settings.matcher.free_test,
-            settings.occupied_above,
-        );
+        let surface = default_surface(&map, &prepared, guess);
         let prior = MotionPrior::from_sigma(guess, 0.0, [0.02, 0.2, 0.1], [0.0; 3]);
         let (climbed, value) = matcher
             .optimize_posterior(&surface, &prepared, guess, |x| prior.log_density(x))
@@ -519,17 +528,8 @@ mod tests {
         let matcher = ScanMatcher {
             params: MatcherParams::default(),
         };
-        let settings = ScanMatchSettings::default();
         let (start, mean) = ([0.3, -0.2, 0.1], [0.0, 0.0, 0.0]);
-        let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
-            &empty,
-            None,
-            &prepared,
-            start,
-            settings.matcher.kernel_size,
-            settings.matcher.free_test,
-            settings.occupied_above,
-        );
+        let surface = default_surface(&empty, &prepared, start);
         let prior = MotionPrior::from_sigma(mean, 0.0, [0.1, 0.1, 0.05], [0.0; 3]);
         let (climbed, _) = matcher
             .optimize_posterior(&surface, &prepared, start, |x| prior.log_density(x))
