@@ -105,7 +105,7 @@ PACKAGE_LAYERS: dict[str, list[set[str]]] = {
         {"run"},
     ],
     "eval": [
-        {"align", "likelihood_bias", "maps"},
+        {"align", "likelihood_bias", "maps", "odometry_travel"},
         {"trajectory"},
     ],
     "viz": [

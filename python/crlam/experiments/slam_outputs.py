@@ -27,6 +27,7 @@ import csv
 import json
 import math
 import os
+import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
@@ -35,6 +36,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from crlam import __version__, _native
+from crlam.eval.odometry_travel import odometry_travel
 from crlam.eval.trajectory import ReferenceErrors, RelationsErrors, reference_errors, relations_error
 from crlam.io.logs import input_description
 from crlam.io.relations import read_relations
@@ -89,6 +91,19 @@ def correlative_front_end_record(run: SlamRun) -> dict[str, Any] | None:
         "searched": int(searched),
         "corrected": int(corrected),
     }
+
+
+def _odometry_travel_record(run: SlamRun, poses: NDArray[np.float64], input_info: dict[str, Any]) -> dict[str, Any] | None:
+    """The estimate's travel against the wheel odometry's (:mod:`crlam.eval.odometry_travel`), with a
+    warning on stderr when they disagree; None when the motion input is not a wheel odometry (a
+    scan-matching odometry has no scale of its own to check against)."""
+    if input_info.get("odometry") != "wheel" or len(run.odometry) != len(poses):
+        return None
+    travel = odometry_travel(poses, np.asarray(run.odometry))
+    warning = travel.warning()
+    if warning is not None:
+        print(warning, file=sys.stderr)
+    return travel.to_dict()
 
 
 def _toml_plain(v: Any) -> Any:
@@ -246,6 +261,7 @@ def write_run_outputs(
         "correlative_front_end": correlative_front_end_record(run),
         "map_range": None if map_range is None else map_range.to_dict(),
         "time_offset": time_offset,
+        "odometry_travel": _odometry_travel_record(run, poses, input_info),
     }
     ref_poses = None
     rel_figure: dict[str, RelationsErrors] | None = None
