@@ -34,3 +34,14 @@ def data_dir() -> Path:
     if root is None:
         pytest.skip("real datasets not found: set CRLAM_DATA to the shared data folder (../shared/data)")
     return root
+
+
+@pytest.fixture(scope="session")
+def office_sick(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A short simulated office log: 150 scans of the SICK laser, seed 5 (``log.clf``,
+    ``groundtruth.tum``, ``odometry.tum``); made once per test session. Read it, do not write into it."""
+    from crlam.sim import SimulationConfig, simulate, write_simulation
+
+    d = tmp_path_factory.mktemp("office_sick")
+    write_simulation(simulate(SimulationConfig(world="office", n_scans=150, seed=5, sensor="sick")), d)
+    return d

@@ -12,20 +12,12 @@ import pytest
 from crlam.cli import main
 from crlam.errors import ConfigError
 from crlam.io.tum import read_tum
-from crlam.sim import SimulationConfig, simulate, write_simulation
 from crlam.slam import SlamConfig, presets
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
-
-
-@pytest.fixture(scope="module")
-def office(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("office")
-    write_simulation(simulate(SimulationConfig(world="office", n_scans=150, seed=5, sensor="sick")), d)
-    return d
 
 
 def test_presets_and_values() -> None:
@@ -44,8 +36,8 @@ def test_a_config_file_needs_a_boolean(tmp_path: Path) -> None:
         presets.load_config_file(path)
 
 
-def test_the_setting_round_trips_and_changes_the_matches(office: Path, tmp_path: Path) -> None:
-    log = str(office / "log.clf")
+def test_the_setting_round_trips_and_changes_the_matches(office_sick: Path, tmp_path: Path) -> None:
+    log = str(office_sick / "log.clf")
     flags = ["--particles", "3", "--seed", "2", "--linear-update", "0.2", "--quiet"]
     runs = {}
     for flag, value in (("--no-hit-means", False), ("--hit-means", True)):
@@ -60,7 +52,7 @@ def test_the_setting_round_trips_and_changes_the_matches(office: Path, tmp_path:
         np.testing.assert_array_equal(read_tum(again / "trajectory.tum").poses, runs[value])
     # Sub-cell wall positions move the matches: the trajectories differ, and both track the truth.
     assert not np.array_equal(runs[False], runs[True])
-    truth = read_tum(office / "groundtruth.tum").poses
+    truth = read_tum(office_sick / "groundtruth.tum").poses
     for poses in runs.values():
         assert np.sqrt(np.mean(np.sum((poses[:, :2] - truth[: len(poses), :2]) ** 2, axis=1))) < 0.3
 

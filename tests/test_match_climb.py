@@ -12,20 +12,12 @@ import pytest
 from crlam.cli import main
 from crlam.errors import ConfigError
 from crlam.io.tum import read_tum
-from crlam.sim import SimulationConfig, simulate, write_simulation
 from crlam.slam import MATCH_CLIMBS, SlamConfig, presets
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
-
-
-@pytest.fixture(scope="module")
-def office(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("office")
-    write_simulation(simulate(SimulationConfig(world="office", n_scans=150, seed=5, sensor="sick")), d)
-    return d
 
 
 def test_values_and_presets() -> None:
@@ -46,8 +38,8 @@ def test_a_config_file_is_checked(tmp_path: Path) -> None:
         presets.load_config_file(path)
 
 
-def test_the_flag_round_trips_and_changes_the_matches(office: Path, tmp_path: Path) -> None:
-    log = str(office / "log.clf")
+def test_the_flag_round_trips_and_changes_the_matches(office_sick: Path, tmp_path: Path) -> None:
+    log = str(office_sick / "log.clf")
     flags = ["--particles", "3", "--seed", "2", "--linear-update", "0.2", "--quiet"]
     runs = {}
     for climb in MATCH_CLIMBS:
@@ -63,7 +55,7 @@ def test_the_flag_round_trips_and_changes_the_matches(office: Path, tmp_path: Pa
         np.testing.assert_array_equal(read_tum(again / "trajectory.tum").poses, runs[climb])
     # The climbs end elsewhere, so the trajectories differ; both track the truth.
     assert not np.array_equal(runs["score"], runs["posterior"])
-    truth = read_tum(office / "groundtruth.tum").poses
+    truth = read_tum(office_sick / "groundtruth.tum").poses
     for poses in runs.values():
         assert np.sqrt(np.mean(np.sum((poses[:, :2] - truth[: len(poses), :2]) ** 2, axis=1))) < 0.3
 

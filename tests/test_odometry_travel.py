@@ -12,7 +12,6 @@ import crlam.experiments.slam_outputs as slam_outputs
 from crlam.cli import main
 from crlam.eval.odometry_travel import MIN_TOTAL_M, TRAVEL_TOLERANCE, OdometryTravel, odometry_travel
 from crlam.pose import compose
-from crlam.sim import SimulationConfig, simulate, write_simulation
 
 
 def _drive(n: int, step: float, turn: float = 0.0, start: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
@@ -68,24 +67,17 @@ def test_the_poses_must_pair_up() -> None:
         odometry_travel(np.zeros((10, 3)), np.zeros((10, 3)), window=0)
 
 
-@pytest.fixture(scope="module")
-def office(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    d = tmp_path_factory.mktemp("office")
-    write_simulation(simulate(SimulationConfig(world="office", n_scans=300, seed=3, sensor="sick")), d)
-    return d
-
-
 def test_a_run_reports_the_check_and_warns_when_the_travel_disagrees(
-    office: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
+    office_sick: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch
 ) -> None:
     flags = ["--particles", "3", "--quiet"]
-    assert main(["slam", str(office / "log.clf"), "--out", str(tmp_path / "run"), *flags]) == 0
+    assert main(["slam", str(office_sick / "log.clf"), "--out", str(tmp_path / "run"), *flags]) == 0
     record = json.loads((tmp_path / "run" / "metrics.json").read_text())["odometry_travel"]
     assert record["ratio"] == pytest.approx(1.0, abs=TRAVEL_TOLERANCE)
     assert record["agrees"] in (True, None)
     assert "WARNING: the estimate travelled" not in capsys.readouterr().err
     compressed = OdometryTravel(ratio=0.6, odometry_m=80.0, n_windows=20, agrees=False)
     monkeypatch.setattr(slam_outputs, "odometry_travel", lambda estimate, odometry: compressed)
-    assert main(["slam", str(office / "log.clf"), "--out", str(tmp_path / "short"), *flags]) == 0
+    assert main(["slam", str(office_sick / "log.clf"), "--out", str(tmp_path / "short"), *flags]) == 0
     assert "WARNING: the estimate travelled 40% less than the wheel odometry" in capsys.readouterr().err
     assert json.loads((tmp_path / "short" / "metrics.json").read_text())["odometry_travel"]["agrees"] is False
