@@ -26,6 +26,8 @@ SETTINGS = {
     "odometry": "the simulated odometry",
     "default": "`robust` preset (the default)",
     "posterior": "`--match-climb posterior`",
+    "endpoint-weight": "`--scan-match-weight endpoint` (GMapping's weight instead of the CRM likelihood)",
+    "ogm-gmapping": "RBPF-OGM in GMapping's setting",
 }
 WINDOW = 100
 
@@ -45,7 +47,7 @@ def rmse_and_scale(estimate: Path, truth: Path) -> tuple[float, float]:
 def main(runs: Path, out: Path) -> None:
     lines = [
         "Position RMSE (m, after the best rigid fit) and scale error along the corridor (%) against the ground",
-        "truth, weighted-mean trajectory; logs 0 and 1, filter seeds 0 / 1.",
+        "truth, weighted-mean trajectory; logs 0 and 1, filter seeds 0 / 1 (seed 0 only where one value is given).",
         "",
         "| setting | log 0 RMSE | log 1 RMSE | mean RMSE | scale error, log 0 | scale error, log 1 | wall time per run [s] |",
         "|---|---|---|---|---|---|---|",
