@@ -27,6 +27,7 @@ SETTINGS = {
     "default": "`robust` preset (the default)",
     "posterior": "`--match-climb posterior`",
     "endpoint-weight": "`--scan-match-weight endpoint` (GMapping's weight instead of the CRM likelihood)",
+    "posterior-endpoint-weight": "`--match-climb posterior --scan-match-weight endpoint`",
     "ogm-gmapping": "RBPF-OGM in GMapping's setting",
 }
 WINDOW = 100

@@ -23,5 +23,6 @@ run() {  # run NAME SEEDS flags...
 run default "0 1"
 run posterior "0 1" --match-climb posterior
 run endpoint-weight "0" --scan-match-weight endpoint
+run posterior-endpoint-weight "0" --match-climb posterior --scan-match-weight endpoint
 run ogm-gmapping "0" --preset paper --method ogm --ogm-map gmapping --motion gmapping --ogm-motion-draws per_scan \
     --particles 30 --resolution 0.05 --max-range 80 --linear-update 1.0 --angular-update 0.5 --max-map-cells 1e8
