@@ -24,10 +24,11 @@ from crlam.pose import between
 
 SETTINGS = {
     "odometry": "the simulated odometry",
-    "default": "`robust` preset (the default)",
-    "posterior": "`--match-climb posterior`",
-    "endpoint-weight": "`--scan-match-weight endpoint` (GMapping's weight instead of the CRM likelihood)",
-    "posterior-endpoint-weight": "`--match-climb posterior --scan-match-weight endpoint`",
+    "default": "`robust` preset (the default: `--degeneracy remap`)",
+    "off": "`--degeneracy off` (the scan read in every direction)",
+    "posterior": "`--degeneracy off --match-climb posterior`",
+    "endpoint-weight": "`--degeneracy off --scan-match-weight endpoint` (GMapping's weight instead of the CRM likelihood)",
+    "posterior-endpoint-weight": "`--degeneracy off --match-climb posterior --scan-match-weight endpoint`",
     "ogm-gmapping": "RBPF-OGM in GMapping's setting",
 }
 WINDOW = 100

@@ -2,7 +2,8 @@
 
     python results/corridor/probe_likelihood.py LOG SCAN [SCAN ...]
 
-Runs the default filter (its odometry noise fitted to the log first, as `crlam slam` does) up to
+Runs the filter with the scan read in every direction (the `robust` preset with
+`degeneracy = "off"`; its odometry noise fitted to the log first, as `crlam slam` does) up to
 each SCAN, then evaluates the CRM predictive log-likelihood of that scan, on the best particle's
 map, at poses moved along the robot's heading from the odometry's guess (the best particle's pose
 composed with the odometry increment). In a featureless corridor the walls do not change along
@@ -31,7 +32,9 @@ def main(log: str, stops: list[int]) -> None:
     noise = estimate_gmapping_noise(
         open_log(log), linear_update=config.linear_update, angular_update=config.angular_update, max_range=config.max_range
     )
-    config = replace(config, motion_noise="model", motion_params=noise.params, map_range="fixed", time_offset="off")
+    config = replace(
+        config, motion_noise="model", motion_params=noise.params, map_range="fixed", time_offset="off", degeneracy="off"
+    )
     run = SlamRun(config)
     weight_model = config.mapping_config().sensor_model(config.weight_model)
     print("scan | " + " | ".join(f"{d + 0.0:+.2f} m" for d in OFFSETS))

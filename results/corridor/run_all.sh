@@ -1,5 +1,6 @@
 #!/bin/bash
-# The default filter and `--match-climb posterior` in a featureless simulated corridor.
+# The default filter (solution remapping on degenerate scans) and the alternatives in a featureless
+# simulated corridor.
 # usage: results/corridor/run_all.sh RUNS   (then: python results/corridor/collect.py RUNS results/corridor)
 set -euo pipefail
 RUNS=${1:?usage: run_all.sh RUNS}
@@ -21,8 +22,9 @@ run() {  # run NAME SEEDS flags...
     done
 }
 run default "0 1"
-run posterior "0 1" --match-climb posterior
-run endpoint-weight "0" --scan-match-weight endpoint
-run posterior-endpoint-weight "0" --match-climb posterior --scan-match-weight endpoint
+run off "0 1" --degeneracy off
+run posterior "0 1" --degeneracy off --match-climb posterior
+run endpoint-weight "0" --degeneracy off --scan-match-weight endpoint
+run posterior-endpoint-weight "0" --degeneracy off --match-climb posterior --scan-match-weight endpoint
 run ogm-gmapping "0" --preset paper --method ogm --ogm-map gmapping --motion gmapping --ogm-motion-draws per_scan \
     --particles 30 --resolution 0.05 --max-range 80 --linear-update 1.0 --angular-update 0.5 --max-map-cells 1e8

@@ -11,7 +11,7 @@ use crlam_core::rbpf::{
     ParticleFilter, ProposalParams, ProposalPose, RbpfClam, RbpfOgm, ScanInput, ScanMatchSettings,
     ScanMatchWeight, UpdateTrigger,
 };
-use crlam_core::rbpf::{MatchClimb, MatchRange};
+use crlam_core::rbpf::{Degeneracy, MatchClimb, MatchRange};
 use numpy::ndarray::{Array1, Array2};
 use numpy::{
     IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
@@ -358,7 +358,7 @@ filter_pymethods!(ClamFilter {
         batch_kernel="windowed", hits_first=false, weight_stride=1, map_stride=1, tempering=1.0, tempering_beams=None, resample_threshold=0.5, init_sigma=(0.0, 0.0, 0.0),
         motion="gaussian", motion_params=None, linear_update=0.0, angular_update=0.0, proposal="odometry",
         proposal_pose="sample", match_stride=3, lattice_step=(0.05, 0.025), motion_outlier=0.0, scan_match_weight="crm",
-        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, front_end=None, match_min_score=0.0, match_climb="score", seed=0, prior_map=None, initial_cov=None))]
+        match_range=MatchRangeArg::Name("z_max".to_owned()), hit_means=false, front_end=None, match_min_score=0.0, match_climb="score", degeneracy="off", seed=0, prior_map=None, initial_cov=None))]
     fn new(
         initial_pose: PyReadonlyArray1<'_, f64>,
         mapping_model: &SensorModel,
@@ -395,6 +395,7 @@ filter_pymethods!(ClamFilter {
         front_end: Option<(f64, f64)>,
         match_min_score: f64,
         match_climb: &str,
+        degeneracy: &str,
         seed: u64,
         prior_map: Option<PyRef<'_, CrmMap>>,
         initial_cov: Option<PyReadonlyArray2<'_, f64>>,
@@ -417,6 +418,7 @@ filter_pymethods!(ClamFilter {
         let scan_match_weight = ScanMatchWeight::parse(scan_match_weight).py_err()?;
         let match_range = match_range.parse()?;
         let match_climb = MatchClimb::parse(match_climb).py_err()?;
+        let degeneracy = Degeneracy::parse(degeneracy).py_err()?;
         let proposal = match (proposal, pose_rule) {
             ("odometry", ProposalPose::Sample) => ClamProposal::Odometry,
             ("odometry", ProposalPose::Match) => {
@@ -459,6 +461,7 @@ filter_pymethods!(ClamFilter {
                     match_range,
                     hit_means,
                     climb: match_climb,
+                    degeneracy,
                     front_end: front_end.map(|(linear, angular)| CorrelativeSettings {
                         linear_window: linear,
                         angular_window: angular,
@@ -539,6 +542,12 @@ filter_pymethods!(ClamFilter {
     fn front_end_counts(&self) -> (usize, usize) {
         let c = self.inner.front_end_counts();
         (c.searched, c.corrected)
+    }
+
+    /// Processed scans the scan-match proposal found degenerate (0 unless `degeneracy` is
+    /// "remap").
+    fn degenerate_scans(&self) -> usize {
+        self.inner.degenerate_scans()
     }
 
     /// A map with the filter's grid and levels and nothing mapped yet (loop closing rebuilds

@@ -44,6 +44,7 @@ _SWEEP_FLAGS = (
     "--match-range",
     "--hit-means",
     "--match-climb",
+    "--degeneracy",
     "--hits-first",
     "--match-min-score",
     "--map-range",

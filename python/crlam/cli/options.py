@@ -219,6 +219,15 @@ SLAM_FLAGS: dict[str, tuple[str, dict[str, Any]]] = {
             f"that directions the scan leaves free (along a corridor) stay where the odometry puts them ({FROM_PRESET})",
         ),
     ),
+    "--degeneracy": (
+        "filter",
+        dict(
+            choices=("off", "remap"),  # crlam.slam.DEGENERACIES
+            help="RBPF-CLAM scan_match: along a direction the scan leaves free (a featureless corridor's axis), "
+            "keep the odometry's prediction in the match and read the CRM weight there (remap: solution remapping) "
+            f"or not (off: the paper's) ({FROM_PRESET})",
+        ),
+    ),
     "--match-min-score": (
         "filter",
         dict(

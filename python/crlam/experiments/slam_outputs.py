@@ -54,6 +54,7 @@ __all__ = [
     "STEPS_COLUMNS",
     "SlamResult",
     "correlative_front_end_record",
+    "degeneracy_record",
     "particle_set_summary",
     "peak_rss_mb",
     "write_particle_sets",
@@ -91,6 +92,14 @@ def correlative_front_end_record(run: SlamRun) -> dict[str, Any] | None:
         "searched": int(searched),
         "corrected": int(corrected),
     }
+
+
+def degeneracy_record(run: SlamRun) -> dict[str, Any] | None:
+    """What ``metrics.json`` records of the degenerate scans: the setting and the processed scans
+    whose geometry left a direction free (``None`` without the scan-match proposal)."""
+    if run.config.proposal != "scan_match" or not isinstance(run.filter, _native.ClamFilter):
+        return None
+    return {"mode": run.config.degeneracy, "degenerate_scans": int(run.filter.degenerate_scans())}
 
 
 def _odometry_travel_record(run: SlamRun, poses: NDArray[np.float64], input_info: dict[str, Any]) -> dict[str, Any] | None:
@@ -259,6 +268,7 @@ def write_run_outputs(
         "continued_from": None if prior is None else prior.describe(),
         "map_frame": run.map_frame_record(),
         "correlative_front_end": correlative_front_end_record(run),
+        "degeneracy": degeneracy_record(run),
         "map_range": None if map_range is None else map_range.to_dict(),
         "time_offset": time_offset,
         "odometry_travel": _odometry_travel_record(run, poses, input_info),

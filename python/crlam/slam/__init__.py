@@ -22,6 +22,7 @@ The checks of a log made before the filter runs (body beams, laser mount, map re
 from __future__ import annotations
 
 from crlam.slam.config import (
+    DEGENERACIES,
     FRONT_ENDS,
     MATCH_CLIMBS,
     MAX_MATCH_RANGE,
@@ -43,6 +44,7 @@ from crlam.slam.run import (
 __all__ = [
     "FRONT_ENDS",
     "MATCH_CLIMBS",
+    "DEGENERACIES",
     "MAX_MATCH_RANGE",
     "MAX_TIME_OFFSET",
     "TIME_OFFSET_CHOICES",

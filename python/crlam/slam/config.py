@@ -25,6 +25,7 @@ __all__ = [
     "MAX_TIME_OFFSET",
     "FRONT_ENDS",
     "MATCH_CLIMBS",
+    "DEGENERACIES",
     "MAX_MATCH_RANGE",
     "valid_time_offset",
 ]
@@ -53,6 +54,7 @@ FRONT_ENDS = ("none", "correlative")
 #: What the scan-match proposal's hill climb maximises: ``score`` (GMapping's endpoint score) or
 #: ``posterior`` (the endpoint log-likelihood plus the log motion density, the lattice's function).
 MATCH_CLIMBS = ("score", "posterior")
+DEGENERACIES = ("off", "remap")
 
 #: Largest ``match_range`` in metres (the native matcher's bound on a usable range).
 MAX_MATCH_RANGE = 1e5
@@ -178,6 +180,16 @@ class SlamConfig:
         slides with it. ``"posterior"``: the endpoint log-likelihood plus the log motion density,
         the function the lattice evaluates, so the free directions stay where the odometry puts
         them. Inert with the other proposals (``likelihood_mode`` climbs its own posterior).
+    degeneracy : str
+        RBPF-CLAM's ``scan_match`` proposal: what it does along a direction the scan leaves free
+        (a featureless corridor's axis: the scan's endpoint normals constrain it less than 1/20
+        as much as the best direction). ``"off"`` (the paper's and GMapping's, the default of a
+        bare ``SlamConfig``): nothing. ``"remap"``: solution remapping (Zhang, Kaess and Singh
+        2016): along that direction the climb's match and the front end's correction keep the
+        odometry's prediction, and the CRM weight reads the scan at the drawn pose moved back
+        along it to the prediction, so that the map's unevenness along the corridor ranks no
+        particle. Scans that constrain every direction are not touched. Inert with the other
+        proposals.
     motion : str
         ``gaussian`` (spec 4.4; ``motion_params`` = 3 sigmas per odometry step), ``thrun``
         (``motion_params`` = alpha1..alpha4, variance coefficients) or ``gmapping`` (GMapping's own
@@ -308,6 +320,7 @@ class SlamConfig:
     match_range: str | float = "z_max"
     hit_means: bool = False
     match_climb: str = "score"
+    degeneracy: str = "off"
     map_range: str = "fixed"
     front_end: str = "none"
     match_min_score: float = 0.0
@@ -392,6 +405,8 @@ class SlamConfig:
             raise bad("hit_means", "must be True or False")
         if self.match_climb not in MATCH_CLIMBS:
             raise bad("match_climb", f"must be one of {', '.join(MATCH_CLIMBS)}")
+        if self.degeneracy not in DEGENERACIES:
+            raise bad("degeneracy", f"must be one of {', '.join(DEGENERACIES)}")
         if not isinstance(self.hits_first, bool):
             raise bad("hits_first", "must be True or False")
         if not (

@@ -112,6 +112,7 @@ def make_filter(config: SlamConfig, initial_pose: ArrayLike, prior: SlamPrior | 
             hit_means=bool(config.hit_means),
             match_min_score=float(config.match_min_score),
             match_climb=config.match_climb,
+            degeneracy=config.degeneracy,
             front_end=None
             if config.front_end == "none"
             else (float(config.front_end_window[0]), float(config.front_end_window[1])),

@@ -94,6 +94,9 @@ pub struct RbpfClam {
     parents: Vec<usize>,
     /// What the correlative front end did (see [`FrontEndCounts`]).
     front_end: FrontEndCounts,
+    /// Processed scans the scan-match proposal found degenerate (see
+    /// [`crate::rbpf::degeneracy`]; only looked for with [`crate::rbpf::Degeneracy::Remap`]).
+    degenerate_scans: usize,
     /// [`Self::release_maps`] was called: the particles hold empty maps and take no more scans.
     maps_released: bool,
 }
@@ -213,6 +216,7 @@ impl RbpfClam {
             largest_reading: f64::NEG_INFINITY,
             parents: (0..n).collect(),
             front_end: FrontEndCounts::default(),
+            degenerate_scans: 0,
             maps_released: false,
         })
     }
@@ -260,6 +264,11 @@ impl RbpfClam {
     /// What the correlative front end did so far.
     pub fn front_end_counts(&self) -> FrontEndCounts {
         self.front_end
+    }
+
+    /// Processed scans the scan-match proposal found degenerate (0 unless it looks for them).
+    pub fn degenerate_scans(&self) -> usize {
+        self.degenerate_scans
     }
 
     pub fn n_resamples(&self) -> usize {
@@ -424,6 +433,12 @@ impl RbpfClam {
             }
             _ => None,
         };
+        if prepared
+            .as_ref()
+            .is_some_and(|p| p.free_direction.is_some())
+        {
+            self.degenerate_scans += 1;
+        }
         // The correlative front end: one wide search on the best particle's map; a confident
         // match corrects the increment every particle starts from.
         let u = match (&cfg.proposal, &prepared) {

@@ -280,6 +280,35 @@ impl MatchClimb {
     }
 }
 
+/// What the scan-match proposal does where the scan leaves a direction free
+/// ([`crate::rbpf::degeneracy`]: a featureless corridor's axis).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Degeneracy {
+    /// Nothing: the climb and the weight read the scan in every direction (the paper's and
+    /// GMapping's).
+    #[default]
+    Off,
+    /// Solution remapping (Zhang, Kaess and Singh 2016): along the free direction the match (and
+    /// the correlative front end's correction) keeps the odometry's prediction, and the
+    /// importance weight reads the scan at the drawn pose moved back along it to the
+    /// prediction, so that the map's unevenness along the direction ranks no particle. Scans
+    /// that constrain every direction are matched and weighed as with `Off`.
+    Remap,
+}
+
+impl Degeneracy {
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "off" => Ok(Self::Off),
+            "remap" => Ok(Self::Remap),
+            _ => Err(crate::error::config_err(
+                "degeneracy",
+                format!("must be 'off' or 'remap', got {s:?}"),
+            )),
+        }
+    }
+}
+
 /// A reading within this distance (m) of the largest reading of the log so far is a no-return
 /// (see [`MatchRange::Full`]). A laser that sees nothing reports one fixed reading, its maximum
 /// (Intel: 81.83 m, ACES: 50.00 m, both logged to the centimetre), the largest of the log; 5 cm
@@ -385,6 +414,8 @@ pub struct ScanMatchSettings {
     pub front_end: Option<CorrelativeSettings>,
     /// What the hill climb maximises (GMapping's score by default).
     pub climb: MatchClimb,
+    /// What the proposal and the weight do along a direction the scan leaves free.
+    pub degeneracy: Degeneracy,
 }
 
 impl Default for ScanMatchSettings {
@@ -398,6 +429,7 @@ impl Default for ScanMatchSettings {
             hit_means: false,
             front_end: None,
             climb: MatchClimb::Score,
+            degeneracy: Degeneracy::Off,
         }
     }
 }

@@ -34,13 +34,14 @@ use crate::error::Result;
 use crate::pose::{between, compose, wrap, Pose};
 use crate::rbpf::clam_config::ClamConfig;
 pub use crate::rbpf::clam_config::{
-    MatchClimb, MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
+    Degeneracy, MatchClimb, MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
 };
 use crate::rbpf::clam_particle::weigh_at_pose;
 use crate::rbpf::common::{ProposalPose, ScanInput};
 use crate::rbpf::correlative::{
     self, depth_for_window, field_rect, CorrelativeMatch, CorrelativeSettings, LikelihoodField,
 };
+use crate::rbpf::degeneracy;
 use crate::rbpf::hit_means::HitMeans;
 use crate::rbpf::motion_prior::MotionPrior;
 use crate::rbpf::proposal::Proposed;
@@ -62,13 +63,18 @@ pub(crate) fn prepare_scan(
     largest: f64,
 ) -> Result<PreparedScan> {
     let z_max = cfg.weight_model.z_max.min(cfg.mapping_model.z_max);
-    PreparedScan::select(
+    let mut prepared = PreparedScan::select(
         scan.angles,
         scan.ranges,
         scan.laser_offset,
         settings.match_range.selection(z_max, largest),
         settings.matcher.beam_stride,
-    )
+    )?;
+    if settings.degeneracy == Degeneracy::Remap {
+        let points: Vec<[f64; 2]> = prepared.near_endpoints().collect();
+        prepared.free_direction = degeneracy::free_direction(&points);
+    }
+    Ok(prepared)
 }
 
 /// Relative gain in the endpoint score that the climb from the correlative match must show over
@@ -129,6 +135,11 @@ pub(crate) fn corrected_increment(
     let (_, from_guess) = matcher.optimize(&surface, prepared, guess)?;
     let (climbed, from_match) = matcher.optimize(&surface, prepared, found.pose)?;
     let increment = if from_match > from_guess * (1.0 + CLIMB_GAIN) {
+        // Along a direction the scan leaves free the search says nothing: the guess stays.
+        let climbed = match prepared.free_direction {
+            Some(d) => degeneracy::along_to(climbed, guess, degeneracy::to_world(d, climbed[2])),
+            None => climbed,
+        };
         between(prev, climbed)
     } else {
         u
@@ -179,6 +190,15 @@ pub(crate) fn propose_by_scan_match(
         }
     };
     let prior = MotionPrior::new(&cfg.motion, prev, u, n_steps, MOTION_FLOOR);
+    // The direction the scan leaves free, in the world at a pose's heading (where the scan
+    // lies along the map's walls), and the prediction the weight reads the scan at along it.
+    let predicted = compose(prev, u);
+    let free = prepared.free_direction;
+    let along_prediction = |pose: Pose, anchor: Pose| match free {
+        Some(d) => degeneracy::along_to(pose, anchor, degeneracy::to_world(d, pose[2])),
+        None => pose,
+    };
+    let weigh_pose = |pose: Pose| along_prediction(pose, predicted);
     // What the endpoint model says, read while the surface borrows the map.
     let outcomes = {
         let surface = crate::rbpf::match_surface::MatchSurface::around_crm(
@@ -197,6 +217,15 @@ pub(crate) fn propose_by_scan_match(
                     .optimize_posterior(&surface, prepared, start, |x| prior.log_density(x))?;
                 (matched, matcher.score(&surface, prepared, matched)?)
             }
+        };
+        // Solution remapping: along a direction the scan leaves free, the match keeps its
+        // start's coordinate.
+        let (matched, score) = match free {
+            Some(_) => {
+                let remapped = along_prediction(matched, start);
+                (remapped, matcher.score(&surface, prepared, remapped)?)
+            }
+            None => (matched, score),
         };
         let fit = if score > params.min_score {
             Some(matcher.fit_proposal(
@@ -248,7 +277,7 @@ pub(crate) fn propose_by_scan_match(
                 (
                     ScanMatchWeight::Crm,
                     Outcome::Matched { pose, .. } | Outcome::Unmatched { pose, .. },
-                ) => matcher.far_log_likelihood(&surface, prepared, *pose)?,
+                ) => matcher.far_log_likelihood(&surface, prepared, weigh_pose(*pose))?,
                 (ScanMatchWeight::Endpoint, _) => 0.0,
             };
             outcomes.push((outcome, far_ll));
@@ -263,7 +292,7 @@ pub(crate) fn propose_by_scan_match(
                 (Outcome::Unmatched { pose, .. }, ScanMatchWeight::Crm) => Proposed {
                     pose,
                     mean: pose,
-                    dlogw: (weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll) / tau,
+                    dlogw: (weigh_at_pose(cfg, map, weigh_pose(pose), scan, sc)? + far_ll) / tau,
                 },
                 (Outcome::Unmatched { pose, endpoint_ll }, ScanMatchWeight::Endpoint) => Proposed {
                     pose,
@@ -276,7 +305,7 @@ pub(crate) fn propose_by_scan_match(
                     },
                     ScanMatchWeight::Crm,
                 ) => {
-                    let ll = weigh_at_pose(cfg, map, pose, scan, sc)? + far_ll;
+                    let ll = weigh_at_pose(cfg, map, weigh_pose(pose), scan, sc)? + far_ll;
                     Proposed {
                         pose,
                         mean,
@@ -387,10 +416,23 @@ mod tests {
     /// 8 m reach) mapped from scans along its axis, and the scan at the origin: its walls fix y
     /// and the heading, nothing fixes x.
     fn corridor() -> (CrmMap, PreparedScan) {
+        let (_, map, angles, ranges) = corridor_scan();
+        let prepared = PreparedScan::select(
+            &angles,
+            &ranges,
+            [0.0; 3],
+            crate::rbpf::prepared_scan::BeamSelection::below(8.0),
+            1,
+        )
+        .unwrap();
+        (map, prepared)
+    }
+
+    /// [`corridor`]'s filter settings, map and scan (its beam angles and readings).
+    fn corridor_scan() -> (ClamConfig, CrmMap, Vec<f64>, Vec<f64>) {
         use crate::crm::CrmConfig;
         use crate::grid::GridGeometry;
         use crate::rbpf::clam_config::scan_opts;
-        use crate::rbpf::prepared_scan::BeamSelection;
         use crate::sim::WorldRaster;
         let (nx, ny, res) = (800usize, 60usize, 0.05);
         let world_geometry = GridGeometry::new([-20.0, -1.5], res).unwrap();
@@ -430,9 +472,60 @@ mod tests {
             .unwrap();
         }
         let ranges = cast([0.0; 3]);
-        let prepared =
-            PreparedScan::select(&angles, &ranges, [0.0; 3], BeamSelection::below(8.0), 1).unwrap();
-        (map, prepared)
+        (cfg, map, angles, ranges)
+    }
+
+    /// Along the corridor's axis, which the scan leaves free, the remapped proposal keeps the
+    /// odometry's prediction (GMapping's climb slides along it); across it the scan still
+    /// decides.
+    #[test]
+    fn remapping_keeps_the_prediction_along_the_corridor() {
+        let (cfg, map, angles, ranges) = corridor_scan();
+        let scan = ScanInput {
+            odom: [0.0; 3],
+            angles: &angles,
+            ranges: &ranges,
+            laser_offset: [0.0; 3],
+        };
+        let (prev, u) = ([0.0; 3], [0.4, 0.15, 0.04]);
+        let run = |degeneracy: Degeneracy| {
+            let settings = ScanMatchSettings {
+                degeneracy,
+                ..ScanMatchSettings::default()
+            };
+            let prepared = prepare_scan(&cfg, &settings, &scan, 8.0).unwrap();
+            let mut rngs: Vec<Rng> = (0..6).map(|k| Rng::stream(5, 1, k)).collect();
+            let mut m = map.clone();
+            let mut sc = CrmScratch::default();
+            let out = propose_by_scan_match(
+                &cfg, &settings, &prepared, prev, &mut m, None, u, 1, &scan, &mut rngs, &mut sc,
+            )
+            .unwrap();
+            (prepared.free_direction, out)
+        };
+        let (free, remapped) = run(Degeneracy::Remap);
+        let d = free.expect("the corridor's scan is degenerate");
+        assert!(d[0].abs() > 0.99, "{d:?}");
+        let (none, plain) = run(Degeneracy::Off);
+        assert!(none.is_none());
+        // The children share one search: one proposal mean each way.
+        let (mr, mp) = (remapped[0].mean, plain[0].mean);
+        assert!(remapped.iter().all(|r| r.mean == mr) && plain.iter().all(|r| r.mean == mp));
+        // Along the axis: the remapped match stays at the prediction (the lattice's Gaussian
+        // fit may move its mean by millimetres), GMapping's climb slides.
+        let along = |m: Pose| (m[0] - u[0]).abs();
+        assert!(along(mr) < 0.005, "{mr:?}");
+        assert!(along(mp) > 2.0 * along(mr), "{mp:?} against {mr:?}");
+        // Across it and in heading the scan decides either way: both pull y from the guess's
+        // 0.15 m towards the scan's pose, to within millimetres of each other.
+        assert!(
+            mr[1] < 0.1 && (mr[1] - mp[1]).abs() < 0.005,
+            "{mr:?} {mp:?}"
+        );
+        assert!((mr[2] - mp[2]).abs() < 1e-3, "{mr:?} {mp:?}");
+        // The draws keep their own spread, and every weight is finite.
+        assert!(remapped.windows(2).all(|w| w[0].pose != w[1].pose));
+        assert!(remapped.iter().all(|r| r.dlogw.is_finite()));
     }
 
     /// The surface the default scan-match settings read for `prepared` near `pose` on `map`.

@@ -25,6 +25,7 @@ pub mod clam_match;
 mod clam_particle;
 pub mod common;
 pub mod correlative;
+pub mod degeneracy;
 pub mod estimate;
 pub mod hit_means;
 pub mod lineage;
@@ -41,7 +42,7 @@ mod scanmatch_params;
 
 pub use clam::{ClamConfig, ClamParticle, ClamPrior, ClamProposal, FrontEndCounts, RbpfClam};
 pub use clam_match::{
-    MatchClimb, MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
+    Degeneracy, MatchClimb, MatchRange, ScanMatchSettings, ScanMatchWeight, NO_RETURN_TOLERANCE,
 };
 pub use common::{
     weighted_mean_pose, FilterStep, OdometryTracker, ParticleFilter, ProposalPose, ScanInput,

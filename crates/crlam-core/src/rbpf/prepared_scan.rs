@@ -79,6 +79,9 @@ pub struct PreparedScan {
     pub(super) beams: Vec<PreparedBeam>,
     /// Number of leading beams with a reading below `near`.
     n_near: usize,
+    /// The robot-frame direction the scan leaves free, when the filter looks for one and the
+    /// scan is degenerate ([`super::degeneracy`]).
+    pub(crate) free_direction: Option<[f64; 2]>,
 }
 
 impl PreparedScan {
@@ -144,7 +147,11 @@ impl PreparedScan {
                 .filter(|(_, z)| **z >= selection.near)
                 .map(|(&a, &z)| beam(a, z)),
         );
-        Ok(Self { beams, n_near })
+        Ok(Self {
+            beams,
+            n_near,
+            free_direction: None,
+        })
     }
 
     /// Number of beams used for matching.
