@@ -11,7 +11,7 @@ import sys
 from pathlib import Path
 
 SETTINGS = {
-    "default": "`robust` preset (the default: the grid turned onto the first scan's walls)",
+    "default": "`robust` preset with `--degeneracy off` (the grid turned onto the first scan's walls)",
     "no-alignment": "`--grid-alignment none` (the first pose's frame)",
     "sub-cell-unaligned": "`--grid-alignment none --sub-cell unaligned` (there: chord causes and hit means)",
     "hit-means": "`--grid-alignment none --hit-means`",
@@ -22,6 +22,7 @@ SETTINGS = {
     "range20": "`--grid-alignment none --max-range 20`",
     "cell005": "`--grid-alignment none --resolution 0.05`",
     "ogm-gmapping": "RBPF-OGM in GMapping's setting",
+    "remap-no-alignment": "`--grid-alignment none` with the default's `--degeneracy remap`",
 }
 LOGS = ("museum-0", "museum-1", "office-0", "office-1")
 

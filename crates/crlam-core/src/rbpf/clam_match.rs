@@ -25,6 +25,11 @@
 //! A scan with no matching beam (score ≤ `min_score`, e.g. the first scans in a new room) falls
 //! back to the paper's proposal: a motion-model sample weighed by the CRM likelihood there.
 //!
+//! With [`Degeneracy::Remap`], on a scan that leaves a direction free ([`super::degeneracy`]:
+//! a featureless corridor's axis) the match of step 2 keeps its start's coordinate along that
+//! direction, and the CRM likelihood of step 4 is read at the drawn pose moved back along it to
+//! the odometry's prediction (the motion and proposal densities stay at the drawn pose).
+//!
 //! With [`ScanMatchWeight::Endpoint`] the weight is instead GMapping's: the log of the lattice
 //! normaliser of the endpoint likelihood × motion density (the endpoint log-likelihood at the
 //! motion-model pose when nothing matched), divided by τ; no CRM likelihood is evaluated.
