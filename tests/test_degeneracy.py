@@ -7,51 +7,17 @@ import sys
 from pathlib import Path
 
 import numpy as np
-import pytest
 from PIL import Image
 
 from crlam.cli import main
-from crlam.errors import ConfigError
 from crlam.io.tum import read_tum
 from crlam.pose import between
-from crlam.slam import DEGENERACIES, SlamConfig, presets
+from crlam.slam import DEGENERACIES
 
 if sys.version_info >= (3, 11):
     import tomllib
 else:  # pragma: no cover - Python 3.10
     import tomli as tomllib
-
-
-def test_values_and_presets() -> None:
-    assert DEGENERACIES == ("off", "remap")
-    assert SlamConfig().degeneracy == "off"
-    assert SlamConfig.from_preset("paper").degeneracy == "off"
-    assert SlamConfig.from_preset("robust").degeneracy == "remap"
-    assert SlamConfig(degeneracy="remap").degeneracy == "remap"
-    for bad in ("Remap", "", None, 1):
-        with pytest.raises(ConfigError, match="degeneracy"):
-            SlamConfig(degeneracy=bad)  # type: ignore[arg-type]
-
-
-def test_a_config_file_is_checked(tmp_path: Path) -> None:
-    path = tmp_path / "config.toml"
-    path.write_text('[slam]\ndegeneracy = "ignore"\n')
-    with pytest.raises(ConfigError, match="degeneracy"):
-        presets.load_config_file(path)
-
-
-def test_the_flag_is_checked(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    with pytest.raises(SystemExit):
-        main(["slam", "intel", "--out", str(tmp_path / "x"), "--degeneracy", "project"])
-    assert "--degeneracy" in capsys.readouterr().err
-
-
-def test_the_sweeps_take_the_flag(tmp_path: Path) -> None:
-    argv = ["experiment", "table1", "--out", str(tmp_path), "--runs", "1", "--scans", "20", "--particles", "2"]
-    argv += ["--methods", "clam", "--preset", "robust", "--degeneracy", "off", "--workers", "1", "--quiet"]
-    assert main(argv) == 0
-    config = tomllib.loads((tmp_path / "runs" / "clam_run00" / "config.toml").read_text())
-    assert config["slam"]["degeneracy"] == "off"
 
 
 def _corridor_world(out: Path, length: float = 40.0, width: float = 2.5, resolution: float = 0.05) -> Path:
